@@ -1,0 +1,1 @@
+"""Relay-wall estimators and motion trackers."""

@@ -1,0 +1,1 @@
+"""Hardware backends: sources of measured frames."""

@@ -1,0 +1,1 @@
+"""Learned and classical detectors and mirror reconstructors (plugin implementations)."""

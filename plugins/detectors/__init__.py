@@ -1,0 +1,1 @@
+"""Detector plugins: peaks in RA maps classified LOS / mNLOS."""

@@ -1,0 +1,1 @@
+"""Reconstructor plugins: hidden points from mNLOS detections and relay walls (Eq. 7)."""

@@ -1,0 +1,1 @@
+"""Forward models: scenes rendered into RA maps with ground truth."""

@@ -1,0 +1,215 @@
+"""TOML configuration: loading, validation with located errors, and `[sweep]` grid expansion.
+
+A pipeline file names one plugin per kind::
+
+    seed = 0
+    [radar]                     # RadarConfig fields, or preset = "path/to/radar.toml"
+    [scene]                     # builtin = "corner" | file = "scene.toml" | inline walls/objects
+    [forward_model]             # exactly one of forward_model / backend
+    name = "image"
+    [detector]
+    name = "nlos_cfar"
+    params = { pfa = 1e-5 }
+    [wall_estimator]
+    name = "lsq"
+    [reconstructor]
+    name = "mirror"
+    [tracker]                   # optional
+    name = "nearest"
+    [run]
+    frames = 1
+    [sweep]                     # optional grid: dotted key → list of values
+    "detector.name" = ["cfar", "nlos_cfar"]
+"""
+from __future__ import annotations
+
+import copy
+import difflib
+import hashlib
+import itertools
+import json
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from .errors import ConfigError
+
+STAGE_KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker")
+
+
+def load_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; a syntax error names the file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such configuration file")
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+
+
+def _format_errors(model: type[BaseModel], exc: ValidationError, source: str, prefix: str) -> str:
+    lines = []
+    for err in exc.errors():
+        loc = ".".join(str(x) for x in err["loc"])
+        key = f"{prefix}.{loc}" if prefix and loc else (prefix or loc)
+        msg = err["msg"]
+        if err["type"] == "extra_forbidden":
+            allowed = list(model.model_fields)
+            if len(err["loc"]) == 1:
+                close = difflib.get_close_matches(str(err["loc"][0]), allowed, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                msg = f"unknown key{hint} Allowed keys: {', '.join(allowed)}"
+            else:
+                msg = "unknown key"
+        elif "input" in err and err["type"] != "missing":
+            msg = f"{msg} (got {err['input']!r})"
+        lines.append(f"{source}: [{key}] {msg}")
+    return "\n".join(lines)
+
+
+def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: str = ""):
+    """Validate ``data`` into ``model``; errors become one ConfigError naming source and keys."""
+    if isinstance(data, model):
+        return data
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(_format_errors(model, exc, source, prefix)) from None
+
+
+class StageConfig(BaseModel):
+    """One pipeline stage: the plugin ``name`` and its ``params`` table."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str
+    params: dict[str, Any] = Field(default_factory=dict)
+
+
+class RunConfig(BaseModel):
+    """How many frames to process and how to score them."""
+
+    model_config = ConfigDict(extra="forbid")
+    frames: int = Field(1, ge=1, le=1_000_000, description="frames to simulate or read")
+    frame_interval: float = Field(0.1, gt=0, le=3600, description="time between simulated frames [s]")
+    match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m]")
+    figure: bool = Field(True, description="write the per-run PNG")
+
+
+class PluginsConfig(BaseModel):
+    """Plugin loading (mirrors XNLOS_DISABLE_PLUGIN_AUTOLOAD / XNLOS_PLUGINS)."""
+
+    model_config = ConfigDict(extra="forbid")
+    autoload: bool = True
+    allow: list[str] | None = None
+    load: list[str] = Field(default_factory=list, description="extra plugin modules to import")
+
+
+class PipelineConfig(BaseModel):
+    """A validated pipeline file (see module docstring)."""
+
+    model_config = ConfigDict(extra="forbid")
+    seed: int = Field(0, ge=0, lt=2**63)
+    name: str = "pipeline"
+    radar: dict[str, Any] = Field(default_factory=dict)
+    scene: dict[str, Any] = Field(default_factory=dict)
+    forward_model: StageConfig | None = None
+    backend: StageConfig | None = None
+    detector: StageConfig
+    wall_estimator: StageConfig
+    reconstructor: StageConfig
+    tracker: StageConfig | None = None
+    run: RunConfig = Field(default_factory=RunConfig)
+    plugins: PluginsConfig = Field(default_factory=PluginsConfig)
+    sweep: dict[str, list[Any]] | None = None
+    base_dir: str = Field(".", description="directory relative paths resolve against (set by load)")
+
+    @field_validator("sweep")
+    @classmethod
+    def _sweep_nonempty(cls, v):
+        if v is not None:
+            for k, vals in v.items():
+                if not vals:
+                    raise ValueError(f"sweep key {k!r} has an empty list of values")
+        return v
+
+    def model_post_init(self, _ctx) -> None:
+        if (self.forward_model is None) == (self.backend is None):
+            raise ValueError("exactly one of [forward_model] or [backend] must be given as the frame source")
+
+    def stages(self) -> dict[str, StageConfig]:
+        """The configured stages by kind (absent optional stages omitted)."""
+        return {k: getattr(self, k) for k in STAGE_KINDS if getattr(self, k) is not None}
+
+    def digest(self) -> str:
+        """sha256 of the canonical JSON of this config (provenance)."""
+        blob = json.dumps(self.model_dump(exclude={"base_dir"}), sort_keys=True, default=str)
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def parse_pipeline(table: dict[str, Any], source: str, base_dir: str | Path = ".") -> PipelineConfig:
+    """Validate a pipeline table; errors name ``source`` and the key."""
+    table = dict(table)
+    table.setdefault("base_dir", str(base_dir))
+    try:
+        return PipelineConfig.model_validate(table)
+    except ValidationError as exc:
+        raise ConfigError(_format_errors(PipelineConfig, exc, source, "")) from None
+    except ValueError as exc:  # from model_post_init
+        raise ConfigError(f"{source}: {exc}") from None
+
+
+def load_pipeline(path: str | Path) -> PipelineConfig:
+    """Load and validate a pipeline TOML file."""
+    path = Path(path)
+    return parse_pipeline(load_toml(path), str(path), base_dir=path.resolve().parent)
+
+
+def _set_dotted(table: dict[str, Any], key: str, value: Any, source: str) -> None:
+    parts = key.split(".")
+    node = table
+    for i, part in enumerate(parts[:-1]):
+        nxt = node.get(part)
+        if nxt is None:
+            nxt = node[part] = {}
+        if not isinstance(nxt, dict):
+            raise ConfigError(f"{source}: [sweep] key {key!r}: {'.'.join(parts[:i + 1])} is not a table")
+        node = nxt
+    node[parts[-1]] = value
+
+
+def expand_sweep(table: dict[str, Any], source: str = "<config>") -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    """Expand the ``[sweep]`` grid: returns [(assignment {dotted key: value}, full table)].
+
+    Keys are dotted paths into the pipeline table ("detector.name", "detector.params.pfa",
+    "seed"); the grid is the Cartesian product in the file's key order. Without a sweep the
+    single table is returned with an empty assignment.
+    """
+    sweep = table.get("sweep") or {}
+    if not isinstance(sweep, dict):
+        raise ConfigError(f"{source}: [sweep] must be a table of dotted keys → lists")
+    keys = list(sweep)
+    for k in keys:
+        if not isinstance(sweep[k], list) or not sweep[k]:
+            raise ConfigError(f"{source}: [sweep] {k!r} must be a non-empty list of values, got {sweep[k]!r}")
+        root = k.split(".")[0]
+        if root not in PipelineConfig.model_fields or root == "sweep":
+            raise ConfigError(f"{source}: [sweep] {k!r}: {root!r} is not a pipeline key; "
+                              f"allowed roots: {', '.join(f for f in PipelineConfig.model_fields if f not in ('sweep', 'base_dir'))}")
+    out = []
+    for values in itertools.product(*(sweep[k] for k in keys)):
+        t = copy.deepcopy({k: v for k, v in table.items() if k != "sweep"})
+        assignment = dict(zip(keys, values))
+        for k, v in assignment.items():
+            stage = k.rsplit(".", 1)[0]
+            base_name = (table.get(stage) or {}).get("name") if "." not in stage else None
+            if k.endswith(".name") and v != base_name and not any(a.startswith(stage + ".params") for a in assignment):
+                # Another plugin takes other parameters: the base file's params do not carry over.
+                _set_dotted(t, stage + ".params", {}, source)
+            _set_dotted(t, k, v, source)
+        out.append((assignment, t))
+    return out
+

@@ -1,0 +1,21 @@
+"""Exceptions raised by xnlos; each message names the input, its value and what is allowed."""
+
+
+class XnlosError(Exception):
+    """Base class of every error xnlos raises on purpose."""
+
+
+class InputError(XnlosError, ValueError):
+    """An array or value handed to xnlos is malformed (shape, dtype, NaN, range)."""
+
+
+class ConfigError(XnlosError, ValueError):
+    """A configuration file or table is invalid; the message names file, key and allowed values."""
+
+
+class PluginError(XnlosError, LookupError):
+    """A plugin is unknown, registered twice or does not honour its interface."""
+
+
+class InsufficientDataError(XnlosError, ValueError):
+    """A stage was given too little data to produce a result (e.g. a wall from < 2 LOS points)."""

@@ -1,0 +1,192 @@
+"""Registry of components keyed by (kind, name), filled through the pluggy registration hook.
+
+Loading follows pytest's conventions: every entry point of the ``xnlos.plugins`` group is
+loaded unless ``XNLOS_DISABLE_PLUGIN_AUTOLOAD`` is set; ``XNLOS_PLUGINS`` (comma-separated
+entry-point or distribution names) is an allow-list, and with autoload disabled it names the
+plugins to load explicitly.
+"""
+from __future__ import annotations
+
+import importlib
+import inspect
+import os
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import Any, Callable
+
+import pluggy
+
+from . import hookspecs
+from .errors import PluginError
+from .interfaces import BASES, KINDS
+
+ENTRY_POINT_GROUP = "xnlos.plugins"
+ENV_DISABLE = "XNLOS_DISABLE_PLUGIN_AUTOLOAD"
+ENV_ALLOW = "XNLOS_PLUGINS"
+
+
+@dataclass(frozen=True)
+class Component:
+    """One registered component: kind, name, factory, and the distribution that provided it."""
+
+    kind: str
+    name: str
+    factory: Callable
+    provider: str
+
+    @property
+    def params_model(self):
+        return getattr(self.factory, "Params", None)
+
+    @property
+    def description(self) -> str:
+        doc = inspect.getdoc(self.factory) or ""
+        return doc.splitlines()[0] if doc else ""
+
+    def parameters(self) -> dict[str, dict[str, Any]]:
+        """{name: {type, default, description, constraints}} from the Params model."""
+        model = self.params_model
+        if model is None:
+            return {}
+        out = {}
+        for pname, f in model.model_fields.items():
+            info: dict[str, Any] = {
+                "type": getattr(f.annotation, "__name__", str(f.annotation)),
+                "default": None if f.is_required() else _jsonable(f.get_default(call_default_factory=True)),
+                "required": f.is_required(),
+            }
+            if f.description:
+                info["description"] = f.description
+            for m in f.metadata:
+                for attr in ("gt", "ge", "lt", "le", "min_length", "max_length"):
+                    if getattr(m, attr, None) is not None:
+                        info[attr] = getattr(m, attr)
+            out[pname] = info
+        return out
+
+
+def _jsonable(v):
+    if isinstance(v, (int, float, str, bool)) or v is None:
+        return v
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    return repr(v)
+
+
+class Registry:
+    """Components keyed by (kind, name). Filled by plugins through ``xnlos_register_components``."""
+
+    def __init__(self):
+        self._components: dict[tuple[str, str], Component] = {}
+        self._provider = "<unknown>"
+
+    def add(self, kind: str, name: str, factory: Callable) -> None:
+        """Register ``factory`` (a subclass of the kind's interface) as ``name`` of ``kind``."""
+        if kind not in KINDS:
+            raise PluginError(f"registry.add: unknown kind {kind!r}; known kinds: {', '.join(KINDS)}")
+        if not isinstance(name, str) or not name.isidentifier():
+            raise PluginError(f"registry.add: name must be an identifier (letters, digits, _), got {name!r}")
+        if (kind, name) in self._components:
+            prev = self._components[(kind, name)]
+            raise PluginError(
+                f"{kind} {name!r} is already registered by {prev.provider}; {self._provider} tried again. "
+                f"Registered {kind}s: {', '.join(self.names(kind))}"
+            )
+        base = BASES[kind]
+        if not (inspect.isclass(factory) and issubclass(factory, base)):
+            raise PluginError(f"{kind} {name!r} from {self._provider}: factory must subclass "
+                              f"{base.__module__}.{base.__name__}, got {factory!r}")
+        self._components[(kind, name)] = Component(kind, name, factory, self._provider)
+
+    def get(self, kind: str, name: str) -> Component:
+        """The component, or a PluginError listing the registered names of that kind."""
+        if kind not in KINDS:
+            raise PluginError(f"unknown plugin kind {kind!r}; known kinds: {', '.join(KINDS)}")
+        try:
+            return self._components[(kind, name)]
+        except KeyError:
+            known = ", ".join(self.names(kind)) or "(none)"
+            raise PluginError(f"unknown {kind} {name!r}; registered {kind}s: {known}") from None
+
+    def create(self, kind: str, name: str, params: dict[str, Any] | None = None, *, source: str = "<config>"):
+        """Instantiate ``name`` with validated ``params`` (errors name ``source`` and the key)."""
+        from .config import validate_model
+
+        comp = self.get(kind, name)
+        model = comp.params_model
+        validated = validate_model(model, params or {}, source=source, prefix=f"{kind}.params") if model else None
+        return comp.factory(validated) if model else comp.factory()
+
+    def names(self, kind: str) -> list[str]:
+        return sorted(n for k, n in self._components if k == kind)
+
+    def components(self) -> list[Component]:
+        return sorted(self._components.values(), key=lambda c: (KINDS.index(c.kind), c.name))
+
+    def __contains__(self, key) -> bool:
+        return key in self._components
+
+
+class PluginManager:
+    """pluggy manager plus the registry it fills. Use :func:`get_registry` for the shared one."""
+
+    def __init__(self, autoload: bool | None = None, allow: list[str] | None = None):
+        self.pm = pluggy.PluginManager("xnlos")
+        self.pm.add_hookspecs(hookspecs)
+        self.registry = Registry()
+        # Historic call first: every plugin registered afterwards is called on registration.
+        self.pm.hook.xnlos_register_components.call_historic(kwargs={"registry": self.registry})
+        if autoload is None:
+            autoload = not os.environ.get(ENV_DISABLE)
+        if allow is None and os.environ.get(ENV_ALLOW):
+            allow = [s.strip() for s in os.environ[ENV_ALLOW].split(",") if s.strip()]
+        self.load_entry_points(autoload=autoload, allow=allow)
+        self.pm.check_pending()
+
+    def register(self, plugin, name: str | None = None, provider: str | None = None) -> None:
+        """Register a plugin object/module; its hook runs at once (historic)."""
+        self.registry._provider = provider or name or getattr(plugin, "__name__", repr(plugin))
+        try:
+            self.pm.register(plugin, name=name)
+            self.pm.check_pending()
+        finally:
+            self.registry._provider = "<unknown>"
+
+    def load_entry_points(self, autoload: bool = True, allow: list[str] | None = None) -> None:
+        """Load ``xnlos.plugins`` entry points (all, or those named in ``allow``)."""
+        if not autoload and not allow:
+            return
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            dist = ep.dist.name if ep.dist is not None else "<unknown>"
+            if allow is not None and ep.name not in allow and dist not in allow:
+                continue
+            if self.pm.get_plugin(ep.name) is not None:
+                continue
+            try:
+                plugin = ep.load()
+            except Exception as exc:
+                raise PluginError(f"entry point {ep.name!r} ({ep.value}) of {dist} failed to import: {exc}") from exc
+            version = ep.dist.version if ep.dist is not None else ""
+            self.register(plugin, name=ep.name, provider=f"{dist} {version}".strip())
+
+    def load_module(self, dotted: str) -> None:
+        """Register a plugin module by import path (like ``pytest -p``)."""
+        self.register(importlib.import_module(dotted), name=dotted, provider=dotted)
+
+
+_MANAGER: PluginManager | None = None
+
+
+def get_manager(reload: bool = False) -> PluginManager:
+    """The process-wide plugin manager, created (and entry points loaded) on first use."""
+    global _MANAGER
+    if _MANAGER is None or reload:
+        _MANAGER = PluginManager()
+    return _MANAGER
+
+
+def get_registry() -> Registry:
+    """The process-wide registry of components."""
+    return get_manager().registry

@@ -1,0 +1,354 @@
+"""Core data types passed between pipeline stages; every one validates itself on construction.
+
+Conventions (DESIGN.md): SI units, ego frame x forward / y left, azimuth θ = atan2(y, x).
+Points are (N, 2) float64 arrays of bird's-eye (x, y) positions in metres.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .geometry import canonical_line, line_from_points, polar_to_cartesian
+from .radar import RadarConfig
+from .validation import as_array, check_ascending, check_length
+
+LOS, MNLOS, UNCLASSIFIED = 0, 1, 2
+CLASS_NAMES = ("LOS", "mNLOS", "unclassified")
+
+
+def _set(obj, name, value):
+    object.__setattr__(obj, name, value)
+
+
+def _points(name: str, value) -> np.ndarray:
+    arr = as_array(name, np.empty((0, 2)) if value is None else value, shape=(None, 2))
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class RAMap:
+    """Complex range–azimuth map κ ∈ ℂ^{H×W} (Sec. 3.2).
+
+    data: complex64 (n_range, n_azimuth); range_axis: float64 (n_range,) [m], ascending;
+    azimuth_axis: float64 (n_azimuth,) [rad], ascending; radar: the configuration that made it.
+    """
+
+    data: np.ndarray
+    range_axis: np.ndarray
+    azimuth_axis: np.ndarray
+    radar: RadarConfig
+
+    def __post_init__(self):
+        data = as_array("RAMap.data", self.data, dtype=np.complex64, ndim=2)
+        if min(data.shape) < 2:
+            raise InputError(f"RAMap.data: expected at least 2×2 cells, got shape {data.shape}")
+        r = as_array("RAMap.range_axis", self.range_axis, ndim=1)
+        a = as_array("RAMap.azimuth_axis", self.azimuth_axis, ndim=1)
+        check_length("RAMap.range_axis", r, data.shape[0], "RAMap.data axis 0")
+        check_length("RAMap.azimuth_axis", a, data.shape[1], "RAMap.data axis 1")
+        check_ascending("RAMap.range_axis", r)
+        check_ascending("RAMap.azimuth_axis", a)
+        if r[0] < 0:
+            raise InputError(f"RAMap.range_axis: ranges must be ≥ 0 m, got {r[0]}")
+        if np.any(np.abs(a) > np.pi):
+            raise InputError("RAMap.azimuth_axis: azimuths must lie in [−π, π] rad")
+        if not isinstance(self.radar, RadarConfig):
+            raise InputError(f"RAMap.radar: expected a RadarConfig, got {type(self.radar).__name__}")
+        _set(self, "data", data)
+        _set(self, "range_axis", r)
+        _set(self, "azimuth_axis", a)
+
+    @classmethod
+    def from_radar(cls, data, radar: RadarConfig) -> "RAMap":
+        """Wrap ``data`` with the axes of ``radar`` (shape must be radar.n_range_bins × n_azimuth_bins)."""
+        return cls(data, radar.range_axis, radar.azimuth_axis, radar)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.data.shape
+
+    @property
+    def power(self) -> np.ndarray:
+        """|κ|² (linear power, float64), shape (n_range, n_azimuth)."""
+        return np.abs(self.data.astype(np.complex128)) ** 2
+
+    def power_db(self, floor_db: float = -300.0) -> np.ndarray:
+        """10·log10|κ|² [dB], floored at ``floor_db`` so zeros stay finite."""
+        with np.errstate(divide="ignore"):
+            return np.maximum(10 * np.log10(self.power), floor_db)
+
+
+@dataclass(frozen=True, eq=False)
+class WallSegment:
+    """A vertical planar relay wall seen from above: the segment start→end [m], each (2,)."""
+
+    start: np.ndarray
+    end: np.ndarray
+    name: str = "wall"
+
+    def __post_init__(self):
+        _set(self, "start", as_array(f"{self.name}.start", self.start, shape=(2,)))
+        _set(self, "end", as_array(f"{self.name}.end", self.end, shape=(2,)))
+        n, b = line_from_points(self.start, self.end)
+        _set(self, "_line", (n, b))
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal n (2,) pointing to the radar side."""
+        return self._line[0]
+
+    @property
+    def offset(self) -> float:
+        """b [m] ≥ 0 in nᵀx + b = 0."""
+        return self._line[1]
+
+    @property
+    def length(self) -> float:
+        return float(np.hypot(*(self.end - self.start)))
+
+
+@dataclass(frozen=True, eq=False)
+class GroundTruth:
+    """What a simulator knows about a frame; only returns a radar could see are included.
+
+    los_points (N, 2): visible scatterers of LOS surfaces (walls, LOS objects) [m];
+    mnlos_points (M, 2): virtual scatterers o' = R_Π(o) whose mirror path is open [m];
+    hidden_points (M, 2): the true positions o behind the corner, row-aligned with mnlos_points;
+    mnlos_object (M,) int: index into ``object_names`` of the object each hidden point belongs to;
+    walls: the relay walls of the scene.
+    """
+
+    los_points: np.ndarray = None
+    mnlos_points: np.ndarray = None
+    hidden_points: np.ndarray = None
+    mnlos_object: np.ndarray = None
+    object_names: tuple[str, ...] = ()
+    walls: tuple[WallSegment, ...] = ()
+
+    def __post_init__(self):
+        _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
+        m = _points("GroundTruth.mnlos_points", self.mnlos_points)
+        h = _points("GroundTruth.hidden_points", self.hidden_points)
+        check_length("GroundTruth.hidden_points", h, len(m), "GroundTruth.mnlos_points")
+        obj = np.zeros(len(m), dtype=np.int64) if self.mnlos_object is None else self.mnlos_object
+        obj = as_array("GroundTruth.mnlos_object", obj, dtype=np.int64, shape=(len(m),))
+        if len(obj) and (obj.min() < 0 or obj.max() >= max(len(self.object_names), 1)):
+            raise InputError("GroundTruth.mnlos_object: indices must address GroundTruth.object_names")
+        _set(self, "mnlos_points", m)
+        _set(self, "hidden_points", h)
+        _set(self, "mnlos_object", obj)
+        _set(self, "object_names", tuple(self.object_names))
+        _set(self, "walls", tuple(self.walls))
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One radar measurement: an RA map, its timestamp [s], and ground truth when simulated."""
+
+    ra_map: RAMap
+    timestamp: float = 0.0
+    ground_truth: GroundTruth | None = None
+    index: int = 0
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.ra_map, RAMap):
+            raise InputError(f"Frame.ra_map: expected an RAMap, got {type(self.ra_map).__name__}")
+        if not np.isfinite(self.timestamp):
+            raise InputError(f"Frame.timestamp: expected a finite time in seconds, got {self.timestamp}")
+        if self.ground_truth is not None and not isinstance(self.ground_truth, GroundTruth):
+            raise InputError(f"Frame.ground_truth: expected GroundTruth or None, got {type(self.ground_truth).__name__}")
+
+
+@dataclass(frozen=True, eq=False)
+class Detections:
+    """Peaks found in an RA map.
+
+    range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
+    confidence (K,) in [0, 1]; range_std / azimuth_std (K,) 1-σ measurement errors [m], [rad].
+    ``position`` (K, 2) [m] is derived: (r cos θ, r sin θ). For mNLOS it is the virtual point o'.
+    """
+
+    range: np.ndarray
+    azimuth: np.ndarray
+    label: np.ndarray
+    confidence: np.ndarray
+    range_std: np.ndarray | None = None
+    azimuth_std: np.ndarray | None = None
+
+    def __post_init__(self):
+        r = as_array("Detections.range", self.range, ndim=1)
+        k = len(r)
+        a = as_array("Detections.azimuth", self.azimuth, shape=(k,))
+        lab = as_array("Detections.label", self.label, dtype=np.int8, shape=(k,))
+        c = as_array("Detections.confidence", self.confidence, shape=(k,))
+        if k and r.min() < 0:
+            raise InputError(f"Detections.range: ranges must be ≥ 0 m, got min {r.min()}")
+        if k and np.any(np.abs(a) > np.pi):
+            raise InputError("Detections.azimuth: azimuths must lie in [−π, π] rad")
+        if k and not np.all(np.isin(lab, (LOS, MNLOS, UNCLASSIFIED))):
+            raise InputError(f"Detections.label: values must be LOS=0, MNLOS=1 or UNCLASSIFIED=2, got {np.unique(lab)}")
+        if k and (c.min() < 0 or c.max() > 1):
+            raise InputError(f"Detections.confidence: must lie in [0, 1], got [{c.min()}, {c.max()}]")
+        rs = np.zeros(k) if self.range_std is None else self.range_std
+        az = np.zeros(k) if self.azimuth_std is None else self.azimuth_std
+        rs = as_array("Detections.range_std", rs, shape=(k,))
+        az = as_array("Detections.azimuth_std", az, shape=(k,))
+        if k and (rs.min() < 0 or az.min() < 0):
+            raise InputError("Detections.range_std/azimuth_std: standard deviations must be ≥ 0")
+        for name, v in (("range", r), ("azimuth", a), ("label", lab), ("confidence", c),
+                        ("range_std", rs), ("azimuth_std", az)):
+            _set(self, name, v)
+        _set(self, "position", polar_to_cartesian(r, a))
+
+    @classmethod
+    def empty(cls) -> "Detections":
+        z = np.empty(0)
+        return cls(z, z, np.empty(0, np.int8), z)
+
+    def __len__(self) -> int:
+        return len(self.range)
+
+    def select(self, mask) -> "Detections":
+        """Subset by boolean mask or index array (the rows keep their order)."""
+        idx = np.asarray(mask)
+        return Detections(self.range[idx], self.azimuth[idx], self.label[idx], self.confidence[idx],
+                          self.range_std[idx], self.azimuth_std[idx])
+
+    def of_class(self, label: int) -> np.ndarray:
+        """Indices of detections with this label."""
+        return np.flatnonzero(self.label == label)
+
+    def position_cov(self) -> np.ndarray:
+        """Cartesian covariance of each position (K, 2, 2) [m²] from (range_std, azimuth_std)."""
+        c, s = np.cos(self.azimuth), np.sin(self.azimuth)
+        j = np.stack([np.stack([c, -self.range * s], -1), np.stack([s, self.range * c], -1)], -2)
+        d = np.zeros((len(self), 2, 2))
+        d[:, 0, 0] = self.range_std**2
+        d[:, 1, 1] = self.azimuth_std**2
+        return j @ d @ np.swapaxes(j, -1, -2)
+
+
+@dataclass(frozen=True, eq=False)
+class WallPosterior:
+    """Estimate of one relay wall with its uncertainty.
+
+    model: name of the wall model ("line": parameters (φ, b) with n = (cos φ, sin φ), nᵀx + b = 0);
+    mean (P,): parameter estimate; cov (P, P): its covariance (symmetric PSD);
+    param_names: names of the P parameters; n_points: LOS detections used;
+    extent (2, 2): end points of the supported segment [m] (projections of the used points);
+    samples (S, P) or None: posterior draws when the estimator has them; info: diagnostics.
+    """
+
+    model: str
+    mean: np.ndarray
+    cov: np.ndarray
+    param_names: tuple[str, ...] = ("phi", "b")
+    n_points: int = 0
+    extent: np.ndarray | None = None
+    samples: np.ndarray | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        m = as_array("WallPosterior.mean", self.mean, ndim=1)
+        p = len(m)
+        if len(self.param_names) != p:
+            raise InputError(f"WallPosterior.param_names: {len(self.param_names)} names for {p} parameters")
+        c = as_array("WallPosterior.cov", self.cov, shape=(p, p))
+        if not np.allclose(c, c.T, rtol=1e-8, atol=1e-12 * max(1.0, np.abs(c).max())):
+            raise InputError("WallPosterior.cov: covariance must be symmetric")
+        if p and np.linalg.eigvalsh(c).min() < -1e-9 * max(1.0, np.abs(c).max()):
+            raise InputError("WallPosterior.cov: covariance must be positive semi-definite")
+        if self.extent is not None:
+            _set(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2)))
+        if self.samples is not None:
+            _set(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p)))
+        if self.model == "line":
+            if p != 2:
+                raise InputError(f"WallPosterior: a 'line' has 2 parameters (phi, b), got {p}")
+            n, b = canonical_line([np.cos(m[0]), np.sin(m[0])], m[1])
+            if b != m[1] or not np.allclose(n, [np.cos(m[0]), np.sin(m[0])]):
+                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b, same cov.
+                m = np.array([np.arctan2(n[1], n[0]), b])
+        _set(self, "mean", m)
+        _set(self, "cov", c)
+
+    @classmethod
+    def line(cls, normal, offset: float, cov=None, **kw) -> "WallPosterior":
+        """A 'line' posterior from a normal (2,) and offset [m]; cov over (φ, b) defaults to 0."""
+        n, b = canonical_line(normal, offset)
+        cov = np.zeros((2, 2)) if cov is None else cov
+        return cls("line", np.array([np.arctan2(n[1], n[0]), b]), cov, **kw)
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal n (2,) of the (local) wall line."""
+        self._need_line()
+        return np.array([np.cos(self.mean[0]), np.sin(self.mean[0])])
+
+    @property
+    def offset(self) -> float:
+        """Offset b [m] of the wall line."""
+        self._need_line()
+        return float(self.mean[1])
+
+    def _need_line(self):
+        if self.model != "line":
+            raise InputError(f"WallPosterior: normal/offset are defined for model 'line', this is {self.model!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class HiddenPoints:
+    """Reconstructed hidden points o with uncertainty.
+
+    mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
+    wall_index (M,): the wall (index into the estimator's list) used for the mirror.
+    """
+
+    mean: np.ndarray
+    cov: np.ndarray
+    source_index: np.ndarray
+    wall_index: np.ndarray
+
+    def __post_init__(self):
+        m = _points("HiddenPoints.mean", self.mean)
+        k = len(m)
+        c = as_array("HiddenPoints.cov", self.cov, shape=(k, 2, 2))
+        s = as_array("HiddenPoints.source_index", self.source_index, dtype=np.int64, shape=(k,))
+        w = as_array("HiddenPoints.wall_index", self.wall_index, dtype=np.int64, shape=(k,))
+        if k and (s.min() < 0 or w.min() < 0):
+            raise InputError("HiddenPoints.source_index/wall_index: indices must be ≥ 0")
+        for name, v in (("mean", m), ("cov", c), ("source_index", s), ("wall_index", w)):
+            _set(self, name, v)
+
+    @classmethod
+    def empty(cls) -> "HiddenPoints":
+        return cls(np.empty((0, 2)), np.empty((0, 2, 2)), np.empty(0, np.int64), np.empty(0, np.int64))
+
+    def __len__(self) -> int:
+        return len(self.mean)
+
+
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """Tracked objects after a frame: id (T,), position (T, 2) [m], velocity (T, 2) [m/s],
+    predicted (T, 2) [m] position at the next expected timestamp, timestamp [s]."""
+
+    track_id: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    predicted: np.ndarray
+    timestamp: float = 0.0
+
+    def __post_init__(self):
+        i = as_array("Tracks.track_id", self.track_id, dtype=np.int64, ndim=1)
+        k = len(i)
+        _set(self, "track_id", i)
+        for name in ("position", "velocity", "predicted"):
+            _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2)))
+
+    def __len__(self) -> int:
+        return len(self.track_id)

@@ -1,0 +1,57 @@
+"""Array checks used on construction of every core type; errors name the input and the rule."""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+
+def as_array(
+    name: str,
+    value,
+    *,
+    dtype=np.float64,
+    ndim: int | None = None,
+    shape: tuple[int | None, ...] | None = None,
+    finite: bool = True,
+    copy: bool = False,
+) -> np.ndarray:
+    """Return ``value`` as an array of ``dtype`` after checking dimensions, shape and finiteness.
+
+    ``shape`` entries of ``None`` match any length. Raises :class:`InputError` naming ``name``.
+    """
+    try:
+        arr = np.array(value, copy=copy) if copy else np.asarray(value)
+    except Exception as exc:
+        raise InputError(f"{name}: cannot convert {type(value).__name__} to an array ({exc})") from None
+    if dtype is not None:
+        kind = np.dtype(dtype).kind
+        if kind in "fi" and arr.dtype.kind == "c":
+            raise InputError(f"{name}: expected real values, got complex dtype {arr.dtype}")
+        if kind == "c" and arr.dtype.kind not in "fciub":
+            raise InputError(f"{name}: expected numeric (complex) values, got dtype {arr.dtype}")
+        if kind in "fi" and arr.dtype.kind not in "fiub":
+            raise InputError(f"{name}: expected numeric values, got dtype {arr.dtype}")
+        arr = arr.astype(dtype, copy=False)
+    if ndim is not None and arr.ndim != ndim:
+        raise InputError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
+    if shape is not None:
+        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            raise InputError(f"{name}: expected shape {want}, got {arr.shape}")
+    if finite and arr.dtype.kind in "fc" and arr.size and not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise InputError(f"{name}: {bad} of {arr.size} values are NaN or infinite; all must be finite")
+    return arr
+
+
+def check_ascending(name: str, axis: np.ndarray) -> None:
+    """Require a strictly ascending 1-D axis."""
+    if axis.size > 1 and not np.all(np.diff(axis) > 0):
+        raise InputError(f"{name}: must be strictly ascending, got {axis[:4]}…")
+
+
+def check_length(name: str, arr: np.ndarray, n: int, like: str) -> None:
+    """Require ``len(arr) == n`` (the length of ``like``)."""
+    if len(arr) != n:
+        raise InputError(f"{name}: has {len(arr)} entries but {like} has {n}; they must match")
