@@ -1,0 +1,51 @@
+"""2-D cell-averaging CFAR detector (plain: peaks are not classified, label UNCLASSIFIED).
+
+Threshold on linear power |κ|²: P > a(N)·mean_train with a(N) = N·(Pfa^(−1/N) − 1), N the
+number of valid training cells of each cell (see :mod:`plugins.detectors.peaks` for the edge
+handling, sub-bin refinement, confidence and standard deviations).
+"""
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from xnlos_core.errors import InputError
+from xnlos_core.interfaces import Detector
+from xnlos_core.types import Detections, Frame
+
+from .peaks import cfar_peaks
+
+Cells = Annotated[int, Field(ge=0, le=256)]
+
+
+class CFARParams(BaseModel):
+    """Parameters of CA-CFAR (shared by the CFAR family)."""
+
+    model_config = ConfigDict(extra="forbid")
+    pfa: float = Field(1e-5, gt=0, lt=1, description="false-alarm probability per cell (0 < pfa < 1)")
+    guard_cells: tuple[Cells, Cells] = Field(
+        (2, 1), description="guard cells on each side of the cell under test (range, azimuth) [bins]")
+    train_cells: tuple[Cells, Cells] = Field(
+        (8, 4), description="training cells beyond the guard cells on each side (range, azimuth) [bins]")
+    min_range: float = Field(1.0, ge=0, le=1e4, description="cells nearer than this [m] (TX→RX leakage "
+                                                           "around 0 m) are neither tested nor used for training")
+
+    @model_validator(mode="after")
+    def _some_training(self):
+        if sum(self.train_cells) == 0:
+            raise ValueError("train_cells: at least one axis needs ≥ 1 training cell, got (0, 0)")
+        return self
+
+
+class CFARDetector(Detector):
+    """2-D cell-averaging CFAR on |κ|²; 3×3 local maxima over threshold, sub-bin refined, UNCLASSIFIED."""
+
+    Params = CFARParams
+
+    def detect(self, frame: Frame) -> Detections:
+        """Detections of ``frame.ra_map`` ordered by descending power (empty map → empty)."""
+        if not isinstance(frame, Frame):
+            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
+        p = self.params
+        return cfar_peaks(frame.ra_map, p.pfa, tuple(p.guard_cells), tuple(p.train_cells), p.min_range)

@@ -1,0 +1,138 @@
+"""Command line: ``xnlos run | sweep | demo | plugins | check`` (also ``python -m xnlos_core``)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import XnlosError
+
+DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
+
+
+def _cmd_run(args) -> int:
+    from .config import load_pipeline
+    from .runner import run_to_dir
+
+    cfg = load_pipeline(args.config)
+    if args.frames is not None:
+        cfg = cfg.model_copy(update={"run": cfg.run.model_copy(update={"frames": args.frames})})
+    summary = run_to_dir(cfg, args.out, source=str(args.config), progress=not args.quiet, overwrite=args.overwrite)
+    _report(summary, Path(args.out))
+    return 0
+
+
+def _report(summary: dict, out: Path) -> None:
+    errs = {k.rsplit(".", 1)[-1]: v for k, v in summary["metrics"].items() if ".object_error_m." in k}
+    for name, v in errs.items():
+        print(f"hidden {name}: reconstruction error " + ("n/a (not reconstructed)" if v is None else f"{v:.2f} m"))
+    proc = sum(v for k, v in summary["time_ms"].items() if k != "source")
+    print(f"{summary['frames']} frame(s), {proc:.1f} ms/frame processing; wrote {out / 'summary.md'}"
+          + (f" and {out / summary['figure']}" if summary.get("figure") else ""))
+
+
+def _cmd_demo(args) -> int:
+    args.config, args.frames = DEMO_CONFIG, None
+    return _cmd_run(args)
+
+
+def _cmd_sweep(args) -> int:
+    from .sweep import run_sweep
+
+    records = run_sweep(args.config, args.out, scheduler=args.scheduler, workers=args.workers, progress=not args.quiet)
+    print((Path(args.out) / "sweep.md").read_text())
+    print(f"{len(records)} point(s); wrote {Path(args.out) / 'sweep.md'}")
+    return 0
+
+
+def _cmd_check(args) -> int:
+    from .config import expand_sweep, load_toml, parse_pipeline
+    from .pipeline import Pipeline
+
+    path = Path(args.config)
+    table = load_toml(path)
+    points = expand_sweep(table, str(path))
+    for assignment, t in points:
+        Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
+    print(f"{path}: valid ({len(points)} pipeline(s))")
+    return 0
+
+
+def _cmd_plugins(args) -> int:
+    from .registry import get_registry
+
+    comps = get_registry().components()
+    rows = [{"kind": c.kind, "name": c.name, "provider": c.provider, "description": c.description,
+             "parameters": c.parameters()} for c in comps]
+    if args.json:
+        print(json.dumps(rows, indent=2, default=str))
+        return 0
+    for r in rows:
+        print(f"{r['kind']:<15} {r['name']:<18} {r['provider']:<24} {r['description']}")
+        for pname, info in r["parameters"].items():
+            extra = ", ".join(f"{k} {v}" for k, v in info.items() if k in ("gt", "ge", "lt", "le"))
+            print(f"{'':<17}- {pname} = {info['default']!r}" + (f"  ({extra})" if extra else ""))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="xnlos", description="X-band radar NLOS imaging: simulate, detect, "
+                                "estimate relay walls and reconstruct hidden objects.")
+    p.add_argument("--version", action="version", version=f"xnlos {__version__}")
+    p.add_argument("-p", "--plugin", action="append", default=[], metavar="MODULE",
+                   help="import and register an extra plugin module (repeatable)")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run a pipeline config, writing results.jsonl, summary.md and a PNG")
+    r.add_argument("config", type=Path)
+    r.add_argument("--out", required=True, type=Path)
+    r.add_argument("--frames", type=int, help="override run.frames")
+    r.add_argument("--overwrite", action="store_true", help="discard results of another config in --out")
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(func=_cmd_run)
+
+    d = sub.add_parser("demo", help="run the built-in corner scene (a wall and a hidden car)")
+    d.add_argument("--out", default=Path("demo-out"), type=Path)
+    d.add_argument("--overwrite", action="store_true")
+    d.add_argument("-q", "--quiet", action="store_true")
+    d.set_defaults(func=_cmd_demo)
+
+    s = sub.add_parser("sweep", help="run every point of a config's [sweep] grid and tabulate the results")
+    s.add_argument("config", type=Path)
+    s.add_argument("--out", required=True, type=Path)
+    s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); default: local")
+    s.add_argument("--workers", type=int, default=None, help="local worker processes (1 = in process)")
+    s.add_argument("-q", "--quiet", action="store_true")
+    s.set_defaults(func=_cmd_sweep)
+
+    c = sub.add_parser("check", help="validate a config (and every sweep point) without running it")
+    c.add_argument("config", type=Path)
+    c.set_defaults(func=_cmd_check)
+
+    pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
+    pl.add_argument("--json", action="store_true")
+    pl.set_defaults(func=_cmd_plugins)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.plugin:
+            from .registry import get_manager
+
+            for mod in args.plugin:
+                get_manager().load_module(mod)
+        return args.func(args)
+    except XnlosError as exc:
+        print(f"xnlos: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("xnlos: interrupted; completed frames are saved, rerun the same command to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,188 @@
+"""A pipeline: frame source → detector → wall estimator → reconstructor (→ tracker), timed per stage.
+
+Every random draw derives from ``config.seed``: frame k is simulated with a generator seeded by
+``SeedSequence(seed).spawn`` child k, so a frame does not depend on how many frames are run.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import metrics
+from .config import PipelineConfig, load_toml, validate_model
+from .errors import ConfigError, InsufficientDataError
+from .provenance import provenance
+from .radar import RadarConfig
+from .registry import PluginManager, Registry, get_registry
+from .scene import load_scene
+from .types import MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
+
+
+@dataclass
+class FrameResult:
+    """Everything one frame produced, with per-stage wall time [s] and notes on skipped stages."""
+
+    frame: Frame
+    detections: Detections
+    walls: list[WallPosterior]
+    hidden: HiddenPoints
+    tracks: Tracks | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    def record(self) -> dict[str, Any]:
+        """JSON-ready summary of this frame (one line of results.jsonl)."""
+        d = self.detections
+        return {
+            "frame": self.frame.index,
+            "timestamp": self.frame.timestamp,
+            "detections": {"LOS": int((d.label == 0).sum()), "mNLOS": int((d.label == 1).sum()),
+                           "unclassified": int((d.label == 2).sum())},
+            "walls": [{"model": w.model, "mean": w.mean.tolist(), "cov": w.cov.tolist(),
+                       "n_points": w.n_points} for w in self.walls],
+            "hidden_points": self.hidden.mean.tolist(),
+            "tracks": None if self.tracks is None else {
+                "id": self.tracks.track_id.tolist(), "position": self.tracks.position.tolist(),
+                "velocity": self.tracks.velocity.tolist()},
+            "metrics": self.metrics,
+            "timings_s": self.timings,
+            "notes": self.notes,
+        }
+
+
+def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
+    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides."""
+    table = dict(table or {})
+    preset = table.pop("preset", None)
+    if preset is not None:
+        path = Path(base_dir) / preset
+        if not path.is_file():
+            raise ConfigError(f"{source}: [radar.preset] file {str(path)!r} does not exist")
+        base = load_toml(path)
+        table = {**base.get("radar", base), **table}
+        source = f"{source} (preset {path})"
+    try:
+        return validate_model(RadarConfig, table, source=source, prefix="radar")
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{source}: [radar] {exc}") from None
+
+
+class Pipeline:
+    """Builds the configured plugins from a registry and runs frames through them."""
+
+    def __init__(self, config: PipelineConfig, registry: Registry | None = None, source: str = "<config>"):
+        self.config = config
+        self.source = source
+        if registry is None:
+            p = config.plugins
+            if p.autoload and p.allow is None and not p.load:
+                registry = get_registry()
+            else:
+                mgr = PluginManager(autoload=p.autoload, allow=p.allow)
+                for mod in p.load:
+                    mgr.load_module(mod)
+                registry = mgr.registry
+        self.registry = registry
+        self.radar = load_radar(config.radar, source, config.base_dir)
+        self.stages = {}
+        for kind, stage in config.stages().items():
+            self.stages[kind] = registry.create(kind, stage.name, stage.params, source=source)
+        self.scene = None
+        if "forward_model" in self.stages:
+            self.scene = load_scene(config.scene, source, config.base_dir)
+
+    def plugin_info(self) -> dict[str, dict]:
+        """kind → {name, provider, params} for provenance."""
+        out = {}
+        for kind, stage in self.config.stages().items():
+            comp = self.registry.get(kind, stage.name)
+            out[kind] = {"name": stage.name, "provider": comp.provider,
+                         "params": self.stages[kind].get_params()}
+        return out
+
+    def provenance(self) -> dict:
+        return provenance(self.config, self.plugin_info())
+
+    def frames(self, start: int = 0) -> Iterator[Frame]:
+        """Frames ``start`` … ``run.frames``−1 from the forward model or the backend."""
+        n = self.config.run.frames
+        if "forward_model" in self.stages:
+            fm = self.stages["forward_model"]
+            seeds = np.random.SeedSequence(self.config.seed).spawn(n)
+            for k in range(start, n):
+                t = k * self.config.run.frame_interval
+                yield fm.simulate(self.scene, self.radar, np.random.default_rng(seeds[k]), timestamp=t, index=k)
+        else:
+            backend = self.stages["backend"]
+            backend.open(self.radar)
+            try:
+                for k, frame in enumerate(backend.frames(n)):
+                    if k >= start:
+                        yield frame
+            finally:
+                backend.close()
+
+    def process(self, frame: Frame) -> FrameResult:
+        """Run detection, wall estimation, reconstruction and tracking on one frame."""
+        timings: dict[str, float] = {}
+        notes: list[str] = []
+
+        def timed(name, fn, *args):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args)
+            finally:
+                timings[name] = timings.get(name, 0.0) + time.perf_counter() - t0
+
+        det = timed("detector", self.stages["detector"].detect, frame)
+        walls: list[WallPosterior] = []
+        try:
+            walls = timed("wall_estimator", self.stages["wall_estimator"].estimate, det)
+        except InsufficientDataError as exc:
+            notes.append(f"wall_estimator: {exc}")
+        hidden = HiddenPoints.empty()
+        n_mnlos = int((det.label == MNLOS).sum())
+        if walls and n_mnlos:
+            hidden = timed("reconstructor", self.stages["reconstructor"].reconstruct, det, walls)
+        elif n_mnlos:
+            notes.append(f"reconstructor: {n_mnlos} mNLOS detections but no wall estimate; nothing reconstructed")
+        tracks = None
+        if "tracker" in self.stages:
+            tracks = timed("tracker", self.stages["tracker"].update, hidden, frame.timestamp)
+        res = FrameResult(frame, det, walls, hidden, tracks, timings, notes=notes)
+        if frame.ground_truth is not None:
+            r = self.config.run.match_radius
+            res.metrics = {"dense": metrics.dense_metrics(det, frame.ground_truth, r),
+                           "reconstruction": metrics.reconstruction_metrics(hidden, frame.ground_truth, r)}
+        return res
+
+    def run(self, start: int = 0) -> Iterator[FrameResult]:
+        """Yield results of frames ``start`` … in order; the source's time is stage 'source'.
+
+        A tracker carries state, so with one configured a resumed run replays frames < start
+        through all stages without yielding them.
+        """
+        skip = 0
+        if "tracker" in self.stages:
+            self.stages["tracker"].reset()
+            start, skip = 0, start
+        it = self.frames(start)
+        while True:
+            t0 = time.perf_counter()
+            try:
+                frame = next(it)
+            except StopIteration:
+                return
+            src = time.perf_counter() - t0
+            res = self.process(frame)
+            res.timings = {"source": src, **res.timings}
+            if frame.index >= skip:
+                yield res

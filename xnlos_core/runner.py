@@ -1,0 +1,132 @@
+"""``xnlos run``: a pipeline over its frames into an output directory, resumable after a crash.
+
+Writes ``provenance.json`` (once), ``results.jsonl`` (one fsync'd line per frame, so a killed
+run resumes after the last complete frame), ``summary.md`` and ``frame_XXXX.png`` figures.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import PipelineConfig
+from .errors import ConfigError
+from .io import append_jsonl, atomic_write_text, read_jsonl
+from .pipeline import Pipeline
+
+
+def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<config>", progress: bool = True,
+               overwrite: bool = False, registry=None) -> dict[str, Any]:
+    """Run ``config`` writing into ``out``; returns the summary dict (also in summary.md)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    pipe = Pipeline(config, registry=registry, source=source)
+    prov = pipe.provenance()
+    prov_path, res_path = out / "provenance.json", out / "results.jsonl"
+    done = []
+    if prov_path.exists() and not overwrite:
+        old = json.loads(prov_path.read_text())
+        if old.get("config_sha256") != prov["config_sha256"]:
+            raise ConfigError(f"{out}: holds results of another configuration (config hash "
+                              f"{old.get('config_sha256', '?')[:12]} ≠ {prov['config_sha256'][:12]}); "
+                              "choose another --out or pass --overwrite")
+        done = read_jsonl(res_path)
+        prov = {**old, "resumed": old.get("resumed", 0) + 1}
+    else:
+        res_path.unlink(missing_ok=True)
+    atomic_write_text(prov_path, json.dumps(prov, indent=2, sort_keys=True))
+
+    n = config.run.frames
+    start = len(done)
+    records = list(done)
+    bar = _progress(total=n, initial=start, enabled=progress, desc=f"run {config.name}")
+    last = None
+    for res in pipe.run(start=start):
+        rec = res.record()
+        append_jsonl(res_path, rec)
+        records.append(json.loads(json.dumps(rec, default=float)))
+        last = res
+        bar.update(1)
+    bar.close()
+    if last is None and config.run.figure and n:
+        # Resumed after every frame was done: re-make the last frame for the figure.
+        last = next(pipe.run(start=n - 1), None)
+    fig_path = None
+    if config.run.figure and last is not None:
+        from .figures import plot_frame
+
+        fig_path = out / f"frame_{last.frame.index:04d}.png"
+        plot_frame(last, fig_path, title=config.name)
+    summary = summarise(records)
+    summary["figure"] = fig_path.name if fig_path else None
+    atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
+    return summary
+
+
+def _progress(total, initial, enabled, desc):
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, disable=not enabled, desc=desc, unit="frame")
+
+
+def _mean(values):
+    vals = [v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
+    return float(np.mean(vals)) if vals else None
+
+
+def summarise(records: list[dict]) -> dict[str, Any]:
+    """Means over frames of every numeric metric and per-stage time."""
+    out: dict[str, Any] = {"frames": len(records)}
+    stages = sorted({k for r in records for k in r.get("timings_s", {})})
+    out["time_ms"] = {s: 1e3 * _mean([r["timings_s"].get(s) for r in records]) for s in stages}
+    flat: dict[str, list] = {}
+    for r in records:
+        for key, v in _flatten(r.get("metrics") or {}).items():
+            flat.setdefault(key, []).append(v)
+    out["metrics"] = {k: _mean(v) for k, v in sorted(flat.items())}
+    out["notes"] = sorted({n for r in records for n in r.get("notes", [])})
+    return out
+
+
+def _flatten(d: dict, prefix: str = "") -> dict[str, float]:
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flatten(v, key + "."))
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out[key] = float(v)
+    return out
+
+
+def render_summary(summary: dict, prov: dict, config: PipelineConfig) -> str:
+    """Markdown summary: plugins, the hidden-object error, metrics and per-stage timing."""
+    lines = [f"# xnlos run: {config.name}", "",
+             f"- frames: {summary['frames']}", f"- seed: {prov['seed']}",
+             f"- config sha256: `{prov['config_sha256'][:16]}`",
+             "- plugins: " + ", ".join(f"{k} = `{v['name']}` ({v['provider']})" for k, v in prov["plugins"].items()),
+             "- versions: " + ", ".join(f"{k} {v}" for k, v in prov["versions"].items() if v), ""]
+    m = summary["metrics"]
+    errs = {k.split(".")[-1]: v for k, v in m.items() if k.startswith("reconstruction.object_error_m.")}
+    if errs:
+        lines += ["## Hidden objects", "", "| object | reconstruction error [m] |", "|---|---|"]
+        lines += [f"| {k} | {'n/a (not reconstructed)' if v is None else f'{v:.2f}'} |" for k, v in errs.items()]
+        lines.append("")
+    if m:
+        lines += ["## Metrics (mean over frames)", "", "| metric | value |", "|---|---|"]
+        lines += [f"| {k} | {'n/a' if v is None else f'{v:.4g}'} |" for k, v in m.items()
+                  if not k.startswith("reconstruction.object_error_m.")]
+        lines.append("")
+    lines += ["## Time per stage (mean per frame)", "", "| stage | ms |", "|---|---|"]
+    lines += [f"| {k} | {v:.1f} |" for k, v in summary["time_ms"].items()]
+    total = sum(v for k, v in summary["time_ms"].items() if k != "source")
+    lines += [f"| processing total (without source) | {total:.1f} |", ""]
+    if summary.get("notes"):
+        lines += ["## Notes", ""] + [f"- {n}" for n in summary["notes"]] + [""]
+    if summary.get("figure"):
+        lines += [f"![last frame]({summary['figure']})", ""]
+    return "\n".join(lines)

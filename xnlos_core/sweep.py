@@ -1,0 +1,81 @@
+"""``xnlos sweep``: a `[sweep]` grid of pipelines (config-driven ablations), one run per point.
+
+Each grid point runs in ``OUT/point-XXX/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
+per finished point, so a killed sweep resumes with the points still missing. ``sweep.md``
+tabulates the assignment of every point beside its metrics and per-stage time.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from .config import expand_sweep, load_toml, parse_pipeline
+from .errors import ConfigError
+from .executor import map_unordered
+from .io import append_jsonl, atomic_write_text, read_jsonl
+
+COLUMNS = (
+    ("dense.macro.f1", "macro F1"), ("dense.LOS.f1", "LOS F1"), ("dense.mNLOS.f1", "mNLOS F1"),
+    ("dense.macro.chamfer_m2", "macro CD [m²]"), ("reconstruction.f1", "recon F1"),
+    ("reconstruction.chamfer_m2", "recon CD [m²]"),
+)
+
+
+def _run_point(job: dict[str, Any]) -> dict[str, Any]:
+    """Worker: run one grid point (module-level so processes and Dask can import it)."""
+    from .runner import run_to_dir
+
+    cfg = parse_pipeline(job["table"], job["source"], job["base_dir"])
+    summary = run_to_dir(cfg, job["out"], source=job["source"], progress=False)
+    return {"point": job["point"], "assignment": job["assignment"], "config_sha256": cfg.digest(),
+            "summary": summary}
+
+
+def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
+              progress: bool = True) -> list[dict[str, Any]]:
+    """Run every grid point of the sweep file ``path`` into ``out``; returns records by point."""
+    from tqdm import tqdm
+
+    path, out = Path(path), Path(out)
+    table = load_toml(path)
+    source, base_dir = str(path), str(path.resolve().parent)
+    points = expand_sweep(table, source)
+    jobs = []
+    for i, (assignment, t) in enumerate(points):
+        label = f"{source} (sweep point {i}: {assignment})" if assignment else source
+        cfg = parse_pipeline(t, label, base_dir)  # every point is validated before anything runs
+        jobs.append({"point": i, "assignment": assignment, "table": t, "source": label,
+                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfg.digest()})
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "sweep.jsonl"
+    done = {r["point"]: r for r in read_jsonl(log)
+            if r["point"] < len(jobs) and r.get("config_sha256") == jobs[r["point"]]["digest"]}
+    todo = [j for j in jobs if j["point"] not in done]
+    bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, desc="sweep", unit="point")
+    for _, rec in map_unordered(_run_point, todo, scheduler=scheduler, workers=workers):
+        append_jsonl(log, rec)
+        done[rec["point"]] = json.loads(json.dumps(rec, default=str))
+        bar.update(1)
+    bar.close()
+    records = [done[i] for i in sorted(done)]
+    atomic_write_text(out / "sweep.md", render_table(records, table.get("name", path.stem)))
+    return records
+
+
+def render_table(records: list[dict[str, Any]], name: str) -> str:
+    """Markdown table: one row per grid point, assignment columns then metrics and time."""
+    if not records:
+        raise ConfigError(f"sweep {name}: no points were run")
+    keys = list(records[0]["assignment"])
+    head = ["point"] + keys + [c for _, c in COLUMNS] + ["ms/frame"]
+    lines = [f"# Sweep: {name}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in records:
+        m = r["summary"]["metrics"]
+        t = r["summary"]["time_ms"]
+        proc = sum(v for k, v in t.items() if k != "source")
+        vals = [str(r["point"])] + [str(r["assignment"][k]) for k in keys]
+        vals += ["n/a" if m.get(k) is None else f"{m[k]:.3g}" for k, _ in COLUMNS]
+        vals.append(f"{proc:.1f}")
+        lines.append("| " + " | ".join(vals) + " |")
+    return "\n".join(lines) + "\n"

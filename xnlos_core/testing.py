@@ -1,0 +1,233 @@
+"""Conformance kit: checks a plugin author runs against a new component (cf. sklearn's
+``check_estimator``). Each ``check_*`` raises AssertionError naming the broken contract.
+
+    from xnlos_core.testing import check_component
+    check_component("detector", "my_detector")            # via the registry
+    check_detector(MyDetector())                           # or on an instance
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError, InsufficientDataError
+from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
+from .interfaces import BASES, Backend, Detector, ForwardModel, Reconstructor, Tracker, WallEstimator
+from .radar import RadarConfig
+from .types import (LOS, MNLOS, Detections, Frame, GroundTruth, HiddenPoints, RAMap, Tracks,
+                    WallPosterior, WallSegment)
+
+KIT_WALL = WallSegment(np.array([15.0, 10.0]), np.array([35.0, -10.0]), "kit_wall")
+KIT_HIDDEN = np.array([[22.0, -14.0]])
+
+
+def small_radar(**overrides) -> RadarConfig:
+    """A small, fast radar (60 m, 61 azimuth bins) for conformance checks."""
+    kw = dict(n_samples=256, max_range=60.0, n_azimuth_bins=61)
+    kw.update(overrides)
+    return RadarConfig(**kw)
+
+
+def synthetic_frame(radar: RadarConfig | None = None, seed: int = 0, snr_db: float = 35.0) -> Frame:
+    """A frame with unit-power complex noise, LOS peaks along ``KIT_WALL`` and one mNLOS peak.
+
+    Peaks are separable Gaussians one resolution cell wide (range ΔR, azimuth 2/N_virtual rad);
+    the mNLOS peak is the mirror image of ``KIT_HIDDEN`` across the wall. Ground truth included.
+    """
+    radar = radar or small_radar()
+    rng = np.random.default_rng(seed)
+    r_ax, a_ax = radar.range_axis, radar.azimuth_axis
+    los = KIT_WALL.start + np.linspace(0.15, 0.7, 6)[:, None] * (KIT_WALL.end - KIT_WALL.start)
+    virt = mirror_reflect(KIT_HIDDEN, KIT_WALL.normal, KIT_WALL.offset)
+    pts = np.concatenate([los, virt])
+    rr, aa = cartesian_to_polar(pts)
+    amp = 10 ** (snr_db / 20)
+    sig_r, sig_a = radar.range_resolution, 2.0 / (radar.n_tx * radar.n_rx)
+    data = (rng.standard_normal((len(r_ax), len(a_ax))) + 1j * rng.standard_normal((len(r_ax), len(a_ax)))) / math.sqrt(2)
+    for r, a in zip(rr, aa):
+        if r <= r_ax[-1] and abs(a) <= a_ax[-1]:
+            blob = np.exp(-0.5 * ((r_ax[:, None] - r) / sig_r) ** 2 - 0.5 * ((a_ax[None, :] - a) / sig_a) ** 2)
+            data += amp * blob * np.exp(2j * np.pi * rng.random())
+    gt = GroundTruth(los, virt, KIT_HIDDEN, np.zeros(1, int), ("kit_object",), (KIT_WALL,))
+    return Frame(RAMap.from_radar(data.astype(np.complex64), radar), 0.0, gt, 0)
+
+
+def _assert(cond: bool, who: Any, msg: str) -> None:
+    if not cond:
+        raise AssertionError(f"{type(who).__name__}: {msg}")
+
+
+def check_params(plugin) -> None:
+    """Params is a strict pydantic model and get_params() round-trips into an equal clone."""
+    cls = type(plugin)
+    _assert(hasattr(cls, "Params"), plugin, "has no Params model")
+    _assert(cls.Params.model_config.get("extra") == "forbid", plugin,
+            "Params must set model_config = ConfigDict(extra='forbid') so misspelt keys fail")
+    clone = cls(cls.Params(**plugin.get_params()))
+    _assert(clone.get_params() == plugin.get_params(), plugin, "get_params() does not round-trip")
+    try:
+        cls({**plugin.get_params(), "__no_such_key__": 1})
+    except ConfigError:
+        pass
+    else:
+        raise AssertionError(f"{cls.__name__}: an unknown parameter key was accepted")
+
+
+def _same(a: Detections, b: Detections) -> bool:
+    return len(a) == len(b) and all(np.array_equal(getattr(a, f), getattr(b, f))
+                                    for f in ("range", "azimuth", "label", "confidence"))
+
+
+def check_detector(detector: Detector, radar: RadarConfig | None = None) -> None:
+    """Returns valid Detections inside the map, deterministically, without mutating the frame;
+    finds a 35 dB point target; copes with a non-square map and an all-zero map."""
+    _assert(isinstance(detector, Detector), detector, "is not a xnlos_core.Detector")
+    frame = synthetic_frame(radar)
+    before = frame.ra_map.data.copy()
+    det = detector.detect(frame)
+    _assert(isinstance(det, Detections), detector, f"detect() returned {type(det).__name__}, not Detections")
+    _assert(np.array_equal(before, frame.ra_map.data), detector, "detect() modified the RA map in place")
+    ra = frame.ra_map
+    if len(det):
+        _assert(det.range.min() >= ra.range_axis[0] - 1e-9 and det.range.max() <= ra.range_axis[-1] + 1e-9,
+                detector, "detections outside the map's range axis")
+        _assert(np.abs(det.azimuth).max() <= np.abs(ra.azimuth_axis).max() + 1e-9, detector,
+                "detections outside the map's azimuth axis")
+    _assert(_same(det, detector.detect(frame)), detector, "two calls on the same frame differ")
+    gt = frame.ground_truth
+    truth = np.concatenate([gt.los_points, gt.mnlos_points])
+    if len(det):
+        d = np.min(np.linalg.norm(det.position[:, None] - truth[None], axis=-1), axis=1)
+        hit = (d < 2.0).sum()
+    else:
+        hit = 0
+    _assert(hit > 0, detector, "no detection within 2 m of any 35 dB synthetic target")
+    odd = small_radar(n_samples=128, max_range=30.0, n_azimuth_bins=33)
+    det2 = detector.detect(synthetic_frame(odd, seed=1))
+    _assert(isinstance(det2, Detections), detector, "failed on a 121×33 map")
+    zero = Frame(RAMap.from_radar(np.zeros((odd.n_range_bins, odd.n_azimuth_bins), np.complex64), odd))
+    det3 = detector.detect(zero)
+    _assert(isinstance(det3, Detections), detector, "failed on an all-zero map")
+
+
+def _line_detections(points: np.ndarray, label: int) -> Detections:
+    r, a = cartesian_to_polar(points)
+    k = len(points)
+    return Detections(r, a, np.full(k, label, np.int8), np.full(k, 0.9), np.full(k, 0.05), np.full(k, 0.005))
+
+
+def check_wall_estimator(estimator: WallEstimator) -> None:
+    """Recovers a wall from noisy LOS points (2°, 0.3 m), ignores mNLOS points, and raises
+    InsufficientDataError for fewer than two LOS points."""
+    _assert(isinstance(estimator, WallEstimator), estimator, "is not a xnlos_core.WallEstimator")
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.1, 0.8, 25)[:, None]
+    pts = KIT_WALL.start + t * (KIT_WALL.end - KIT_WALL.start) + rng.normal(0, 0.05, (25, 2))
+    far = np.array([[39.0, 3.0], [41.0, 5.0]])
+    det = _line_detections(pts, LOS)
+    mn = _line_detections(far, MNLOS)
+    both = Detections(np.r_[det.range, mn.range], np.r_[det.azimuth, mn.azimuth], np.r_[det.label, mn.label],
+                      np.r_[det.confidence, mn.confidence], np.r_[det.range_std, mn.range_std],
+                      np.r_[det.azimuth_std, mn.azimuth_std])
+    walls = estimator.estimate(both)
+    _assert(isinstance(walls, list) and walls and all(isinstance(w, WallPosterior) for w in walls), estimator,
+            "estimate() must return a non-empty list of WallPosterior")
+    w = walls[0]
+    n_true, b_true = KIT_WALL.normal, KIT_WALL.offset
+    if w.model == "line":
+        ang = math.degrees(math.acos(min(1.0, abs(float(w.normal @ n_true)))))
+        _assert(ang < 2.0 and abs(w.offset - b_true) < 0.3, estimator,
+                f"wall off by {ang:.2f}° / {abs(w.offset - b_true):.2f} m (allowed 2°, 0.3 m)")
+    for few in (Detections.empty(), _line_detections(pts[:1], LOS), mn):
+        try:
+            estimator.estimate(few)
+        except InsufficientDataError:
+            continue
+        raise AssertionError(f"{type(estimator).__name__}: {len(few)} detections with < 2 LOS did not raise "
+                             "InsufficientDataError")
+
+
+def check_reconstructor(reconstructor: Reconstructor, atol: float = 0.5) -> None:
+    """Mirrors mNLOS detections across a known wall to within ``atol`` m, indexes its sources,
+    returns PSD covariances, ignores LOS rows and returns empty output for no mNLOS."""
+    _assert(isinstance(reconstructor, Reconstructor), reconstructor, "is not a xnlos_core.Reconstructor")
+    hidden = np.array([[22.0, -14.0], [24.0, -12.0], [20.0, -16.0]])
+    virt = mirror_reflect(hidden, KIT_WALL.normal, KIT_WALL.offset)
+    los = KIT_WALL.start + np.linspace(0.2, 0.7, 4)[:, None] * (KIT_WALL.end - KIT_WALL.start)
+    a, b = _line_detections(los, LOS), _line_detections(virt, MNLOS)
+    det = Detections(np.r_[a.range, b.range], np.r_[a.azimuth, b.azimuth], np.r_[a.label, b.label],
+                     np.r_[a.confidence, b.confidence], np.r_[a.range_std, b.range_std],
+                     np.r_[a.azimuth_std, b.azimuth_std])
+    n, off = line_from_points(KIT_WALL.start, KIT_WALL.end)
+    wall = WallPosterior.line(n, off, np.diag([1e-4, 1e-2]), n_points=4, extent=np.stack([KIT_WALL.start, KIT_WALL.end]))
+    out = reconstructor.reconstruct(det, [wall])
+    _assert(isinstance(out, HiddenPoints), reconstructor, "reconstruct() must return HiddenPoints")
+    _assert(len(out) == 3 and set(out.source_index.tolist()) == {4, 5, 6}, reconstructor,
+            f"expected 3 points from detections 4, 5, 6; got sources {out.source_index.tolist()}")
+    err = np.linalg.norm(out.mean - hidden[out.source_index - 4], axis=1).max()
+    _assert(err < atol, reconstructor, f"hidden points off by up to {err:.3f} m (allowed {atol})")
+    _assert(np.all(np.linalg.eigvalsh(out.cov) > -1e-9), reconstructor, "covariances are not PSD")
+    none = reconstructor.reconstruct(a, [wall])
+    _assert(len(none) == 0, reconstructor, "LOS-only detections must give no hidden points")
+
+
+def check_forward_model(model: ForwardModel, scene=None, radar: RadarConfig | None = None) -> None:
+    """Returns a Frame of the radar's shape with ground truth; same seed → same map."""
+    from .scene import load_scene
+
+    _assert(isinstance(model, ForwardModel), model, "is not a xnlos_core.ForwardModel")
+    scene = scene or load_scene({"builtin": "corner"}, "conformance")
+    radar = radar or small_radar()
+    f1 = model.simulate(scene, radar, np.random.default_rng(3), timestamp=0.5, index=2)
+    _assert(isinstance(f1, Frame), model, "simulate() must return a Frame")
+    _assert(f1.ra_map.shape == (radar.n_range_bins, radar.n_azimuth_bins), model,
+            f"RA map shape {f1.ra_map.shape} ≠ radar grid {(radar.n_range_bins, radar.n_azimuth_bins)}")
+    _assert(f1.ground_truth is not None, model, "simulated frames must carry ground truth")
+    _assert(f1.timestamp == 0.5 and f1.index == 2, model, "timestamp/index not passed through")
+    f2 = model.simulate(scene, radar, np.random.default_rng(3), timestamp=0.5, index=2)
+    _assert(np.array_equal(f1.ra_map.data, f2.ra_map.data), model, "same seed gave different RA maps")
+
+
+def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
+    """Yields at most max_frames Frames in time order; close() is idempotent."""
+    _assert(isinstance(backend, Backend), backend, "is not a xnlos_core.Backend")
+    with backend:
+        backend.open(radar or RadarConfig())
+        frames = list(backend.frames(2))
+    backend.close()
+    _assert(len(frames) <= 2 and all(isinstance(f, Frame) for f in frames), backend,
+            "frames(2) must yield at most 2 Frame objects")
+    ts = [f.timestamp for f in frames]
+    _assert(ts == sorted(ts), backend, "frames out of time order")
+
+
+def check_tracker(tracker: Tracker) -> None:
+    """Keeps one track id for one point moving at constant velocity."""
+    _assert(isinstance(tracker, Tracker), tracker, "is not a xnlos_core.Tracker")
+    tracker.reset()
+    ids = set()
+    for k in range(6):
+        p = np.array([[20.0, -10.0 + 1.0 * k]])
+        out = tracker.update(HiddenPoints(p, np.tile(np.eye(2) * 0.01, (1, 1, 1)), [0], [0]), 0.5 * k)
+        _assert(isinstance(out, Tracks), tracker, "update() must return Tracks")
+        ids.update(out.track_id.tolist())
+    _assert(len(ids) == 1, tracker, f"one moving point produced track ids {sorted(ids)}")
+    tracker.reset()
+
+
+CHECKS = {"detector": check_detector, "wall_estimator": check_wall_estimator,
+          "reconstructor": check_reconstructor, "forward_model": check_forward_model,
+          "backend": check_backend, "tracker": check_tracker}
+
+
+def check_component(kind: str, name: str, params: dict | None = None, registry=None) -> None:
+    """Create ``name`` of ``kind`` from the registry and run its kind's checks and check_params."""
+    from .registry import get_registry
+
+    registry = registry or get_registry()
+    plugin = registry.create(kind, name, params or {}, source=f"check_component({kind!r}, {name!r})")
+    _assert(isinstance(plugin, BASES[kind]), plugin, f"is not a {BASES[kind].__name__}")
+    check_params(plugin)
+    CHECKS[kind](plugin)
