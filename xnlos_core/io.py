@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -116,7 +118,7 @@ def load_frame(path: str | Path) -> Frame:
                 gt = GroundTruth(z["gt_los"], z["gt_mnlos"], z["gt_hidden"], z["gt_object"],
                                  tuple(str(n) for n in z["gt_names"]), walls)
             return Frame(ra, float(z["timestamp"]), gt, int(z["index"]), json.loads(str(z["meta_json"])))
-    except (OSError, KeyError, ValueError) as exc:
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{path}: not a readable xnlos frame file ({type(exc).__name__}: {exc})") from None

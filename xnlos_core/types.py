@@ -271,7 +271,10 @@ class WallPosterior:
                 raise InputError(f"WallPosterior: a 'line' has 2 parameters (phi, b), got {p}")
             n, b = canonical_line([np.cos(m[0]), np.sin(m[0])], m[1])
             if b != m[1] or not np.allclose(n, [np.cos(m[0]), np.sin(m[0])]):
-                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b, same cov.
+                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b: the
+                # variances stay, Cov(φ, b) changes sign.
+                if m[1] < 0:
+                    c = c * np.array([[1.0, -1.0], [-1.0, 1.0]])
                 m = np.array([np.arctan2(n[1], n[0]), b])
         _set(self, "mean", m)
         _set(self, "cov", c)

@@ -1,0 +1,28 @@
+# `make demo` and `make test` each set up .venv on a fresh machine (CPU torch + the project).
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.xnlos-installed
+
+.PHONY: demo test test-slow bench clean
+
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet torch==2.13.0
+	$(PY) -m pip install --quiet -e ".[test,dask]"
+	@touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/xnlos demo --out demo-out --overwrite
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -q -m slow
+
+bench: $(STAMP)
+	$(PY) benchmarks/pipeline_speed.py
+
+clean:
+	rm -rf demo-out .pytest_cache .hypothesis

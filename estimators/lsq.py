@@ -1,0 +1,123 @@
+"""Least-squares relay walls: total-least-squares (orthogonal) line fits to clusters of LOS points.
+
+1. LOS detections' Cartesian positions x_i [m] are split into clusters by single linkage
+   (scipy.cluster.hierarchy, cut at ``cluster_distance``): one cluster per wall.
+2. Per cluster (n points, centroid c): the line normal n = (cos φ, sin φ) is the eigenvector of
+   the smallest eigenvalue of the scatter matrix Σ (x_i − c)(x_i − c)ᵀ, b = −nᵀc, made canonical
+   (b ≥ 0, the radar side positive). Residuals d_i = nᵀx_i + b.
+3. Covariance of (φ, b), first order (Gauss–Newton on d_i(φ, b), noise σ² along the normal):
+   with u = ∂n/∂φ = (−sin φ, cos φ) the along-line direction, s_i = uᵀx_i, s̄ = uᵀc and
+   t_i = s_i − s̄ (coordinate along the line relative to the centroid), J_i = [s_i, 1] and
+   Cov = σ²(JᵀJ)⁻¹, i.e.
+
+       Var φ = σ²/Σt_i²,   Cov(φ, b) = −σ² s̄/Σt_i²,   Var b = σ²(1/n + s̄²/Σt_i²),
+
+   (b is correlated with φ through the centroid: rotating the line about c moves b by −s̄ dφ).
+   σ² = Σ d_i²/(n − 2) (TLS residual variance); with n = 2 the residuals are 0 by construction
+   and σ² is the mean variance of the two detections' positions along n (Detections.position_cov).
+"""
+from __future__ import annotations
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.cluster.hierarchy import fcluster, linkage
+
+from xnlos_core.errors import InputError, InsufficientDataError
+from xnlos_core.geometry import canonical_line
+from xnlos_core.interfaces import WallEstimator
+from xnlos_core.types import LOS, Detections, WallPosterior
+
+
+class LSQParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    cluster_distance: float = Field(2.0, gt=0, le=1e3, description="single-linkage cut: LOS points closer "
+                                                                   "than this [m] chain into one wall")
+    min_points: int = Field(3, ge=2, le=100_000, description="LOS points a cluster needs to become a wall")
+
+
+def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
+    """Cluster labels (N,) 0…C−1 of single-linkage clustering cut at ``distance`` [m]."""
+    pts = np.asarray(points, dtype=np.float64)
+    if len(pts) < 2:
+        return np.zeros(len(pts), dtype=np.int64)
+    return fcluster(linkage(pts, method="single"), t=distance, criterion="distance").astype(np.int64) - 1
+
+
+def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPosterior:
+    """TLS line through ``points`` (n ≥ 2, (n, 2) [m]) with its (φ, b) covariance (module doc).
+
+    point_cov (n, 2, 2) [m²]: position covariances, used for σ² when n = 2.
+    Raises InsufficientDataError when the points coincide (no direction).
+    """
+    x = np.asarray(points, dtype=np.float64)
+    n_pts = len(x)
+    if n_pts < 2:
+        raise InsufficientDataError(f"fit_line: {n_pts} point(s) given; a line needs at least 2")
+    c = x.mean(axis=0)
+    dx = x - c
+    evals, evecs = np.linalg.eigh(dx.T @ dx)
+    if evals[1] <= 1e-18 * max(1.0, float(np.abs(x).max()) ** 2):
+        raise InsufficientDataError(f"fit_line: the {n_pts} points coincide at {c.tolist()}; no line direction")
+    nrm, b = canonical_line(evecs[:, 0], -float(evecs[:, 0] @ c))
+    phi = float(np.arctan2(nrm[1], nrm[0]))
+    u = np.array([-np.sin(phi), np.cos(phi)])
+    d = x @ nrm + b
+    t = dx @ u
+    stt = float(t @ t)
+    sbar = float(u @ c)
+    if n_pts > 2:
+        sigma2 = float(d @ d) / (n_pts - 2)
+    elif point_cov is not None:
+        sigma2 = float(np.mean(np.einsum("i,kij,j->k", nrm, np.asarray(point_cov, float), nrm)))
+    else:
+        sigma2 = 0.0
+    cov = sigma2 * np.array([[1.0 / stt, -sbar / stt], [-sbar / stt, 1.0 / n_pts + sbar**2 / stt]])
+    extent = c + np.array([t.min(), t.max()])[:, None] * u
+    info = {"residual_rms": float(np.sqrt(np.mean(d**2))), "cluster_size": n_pts, "sigma2": sigma2}
+    return WallPosterior("line", np.array([phi, b]), cov, n_points=n_pts, extent=extent, info=info)
+
+
+class LSQWallEstimator(WallEstimator):
+    """Total-least-squares line per single-linkage cluster of LOS points, with (φ, b) covariance."""
+
+    Params = LSQParams
+
+    def estimate(self, detections: Detections) -> list[WallPosterior]:
+        """One 'line' WallPosterior per cluster with ≥ min_points LOS points, largest cluster first.
+
+        info: residual_rms [m], cluster_size, sigma2 [m²], detection_index (indices into
+        ``detections``). If no cluster reaches min_points, the largest cluster is fitted if it has
+        ≥ 2 points. Raises InsufficientDataError with < 2 LOS points or no usable cluster.
+        """
+        if not isinstance(detections, Detections):
+            raise InputError(f"LSQWallEstimator.estimate: expected Detections, got {type(detections).__name__}")
+        idx = detections.of_class(LOS)
+        if len(idx) < 2:
+            raise InsufficientDataError(
+                f"LSQWallEstimator: {len(idx)} LOS detection(s) among {len(detections)} detections; "
+                "a wall line needs at least 2 LOS points")
+        pts = detections.position[idx]
+        cov = detections.position_cov()[idx]
+        labels = single_linkage(pts, self.params.cluster_distance)
+        sizes = np.bincount(labels)
+        order = np.argsort(-sizes, kind="stable")
+        chosen = [k for k in order if sizes[k] >= self.params.min_points]
+        if not chosen:
+            if sizes[order[0]] < 2:
+                raise InsufficientDataError(
+                    f"LSQWallEstimator: {len(idx)} LOS points but no two lie within cluster_distance="
+                    f"{self.params.cluster_distance} m of each other; no wall can be fitted")
+            chosen = [order[0]]
+        walls, skipped = [], []
+        for k in chosen:
+            members = np.flatnonzero(labels == k)
+            try:
+                w = fit_line(pts[members], cov[members])
+            except InsufficientDataError as exc:
+                skipped.append(str(exc))
+                continue
+            w.info["detection_index"] = idx[members].tolist()
+            walls.append(w)
+        if not walls:
+            raise InsufficientDataError("LSQWallEstimator: no cluster gave a line: " + "; ".join(skipped))
+        return walls

@@ -1,0 +1,135 @@
+"""Nearest-neighbour constant-velocity tracker of hidden objects.
+
+Per frame at time t [s]:
+1. The hidden points are grouped by single linkage (cut at ``cluster_distance`` [m]); each
+   cluster's centroid is one measurement z (a car's several scatterers make one measurement).
+2. Every live track predicts p̂ = p + v·(t − t_last). Measurements are assigned one-to-one by
+   scipy.optimize.linear_sum_assignment on the Euclidean distances |p̂ − z|; pairs farther apart
+   than ``gate`` [m] stay unassigned.
+3. Matched tracks update with an α–β filter (residual r = z − p̂, Δt = t − t_last):
+   p = p̂ + α r, v = v + (β/Δt) r. The second measurement of a track initialises the velocity by
+   the finite difference v = (z − p_prev)/Δt. Unmatched measurements start new tracks (v = 0).
+4. Unmatched tracks coast (p̂ kept) and are deleted after ``max_misses`` consecutive misses.
+
+The reported ``predicted`` position is at t + Δt_frame, the last frame interval (0 on the first
+frame). Timestamps must not decrease.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.optimize import linear_sum_assignment
+
+from xnlos_core.errors import InputError
+from xnlos_core.interfaces import Tracker
+from xnlos_core.types import HiddenPoints, Tracks
+
+from .lsq import single_linkage
+
+
+class NearestParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    gate: float = Field(3.0, gt=0, le=1e3, description="largest predicted-to-measured distance [m] of a match")
+    max_misses: int = Field(3, ge=1, le=10_000, description="a track is deleted after this many consecutive "
+                                                           "frames without a match")
+    cluster_distance: float = Field(2.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one "
+                                                                   "frame's hidden points into objects")
+    alpha: float = Field(0.8, gt=0, le=1, description="α–β filter position gain")
+    beta: float = Field(0.4, ge=0, le=2, description="α–β filter velocity gain")
+
+
+@dataclass
+class _Track:
+    id: int
+    position: np.ndarray
+    velocity: np.ndarray
+    t: float
+    hits: int = 1
+    misses: int = 0
+
+    def predict(self, t: float) -> np.ndarray:
+        return self.position + self.velocity * (t - self.t)
+
+
+def cluster_centroids(points: np.ndarray, distance: float) -> np.ndarray:
+    """Centroids (C, 2) [m] of the single-linkage clusters of ``points`` (N, 2)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) == 0:
+        return np.empty((0, 2))
+    labels = single_linkage(pts, distance)
+    counts = np.bincount(labels)
+    sums = np.stack([np.bincount(labels, pts[:, 0]), np.bincount(labels, pts[:, 1])], axis=1)
+    return sums / counts[:, None]
+
+
+class NearestTracker(Tracker):
+    """Constant-velocity tracks of clustered hidden points, Hungarian association within a gate."""
+
+    Params = NearestParams
+
+    def reset(self) -> None:
+        """Forget all tracks; ids restart at 0."""
+        self._tracks: list[_Track] = []
+        self._next_id = 0
+        self._t_last: float | None = None
+        self._dt_frame = 0.0
+
+    def update(self, points: HiddenPoints, timestamp: float) -> Tracks:
+        """Ingest one frame's hidden points at ``timestamp`` [s]; return the live tracks."""
+        if not hasattr(self, "_tracks"):
+            self.reset()
+        if not isinstance(points, HiddenPoints):
+            raise InputError(f"NearestTracker.update: expected HiddenPoints, got {type(points).__name__}")
+        t = float(timestamp)
+        if not np.isfinite(t):
+            raise InputError(f"NearestTracker.update: timestamp must be finite, got {timestamp}")
+        if self._t_last is not None and t < self._t_last:
+            raise InputError(f"NearestTracker.update: timestamp {t} s is before the previous frame's "
+                             f"{self._t_last} s; timestamps must not decrease (call reset() to start over)")
+        z = cluster_centroids(points.mean, self.params.cluster_distance)
+        pred = np.array([tr.predict(t) for tr in self._tracks]).reshape(-1, 2)
+        matched_tr, matched_z = self._associate(pred, z)
+        p = self.params
+        for i, k in zip(matched_tr, matched_z):
+            tr = self._tracks[i]
+            dt = t - tr.t
+            if tr.hits == 1 and dt > 0:
+                tr.velocity = (z[k] - tr.position) / dt
+                tr.position = z[k].copy()
+            else:
+                r = z[k] - pred[i]
+                tr.position = pred[i] + p.alpha * r
+                if dt > 0:
+                    tr.velocity = tr.velocity + (p.beta / dt) * r
+            tr.t, tr.hits, tr.misses = t, tr.hits + 1, 0
+        unmatched = np.setdiff1d(np.arange(len(self._tracks)), matched_tr)
+        for i in unmatched:
+            self._tracks[i].misses += 1
+        self._tracks = [tr for tr in self._tracks if tr.misses < p.max_misses]
+        for k in np.setdiff1d(np.arange(len(z)), matched_z):
+            self._tracks.append(_Track(self._next_id, z[k].copy(), np.zeros(2), t))
+            self._next_id += 1
+        if self._t_last is not None:
+            self._dt_frame = t - self._t_last
+        self._t_last = t
+        return self._report(t)
+
+    def _associate(self, pred: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if len(pred) == 0 or len(z) == 0:
+            return np.empty(0, np.int64), np.empty(0, np.int64)
+        d = np.hypot(*(pred[:, None, :] - z[None, :, :]).transpose(2, 0, 1))
+        big = self.params.gate * (min(d.shape) + 1)  # any gated match beats all out-of-gate ones
+        rows, cols = linear_sum_assignment(np.where(d <= self.params.gate, d, big))
+        ok = d[rows, cols] <= self.params.gate
+        return rows[ok], cols[ok]
+
+    def _report(self, t: float) -> Tracks:
+        trs = self._tracks
+        if not trs:
+            e = np.empty((0, 2))
+            return Tracks(np.empty(0, np.int64), e, e, e, t)
+        pos = np.array([tr.predict(t) for tr in trs])
+        vel = np.array([tr.velocity for tr in trs])
+        return Tracks(np.array([tr.id for tr in trs]), pos, vel, pos + vel * self._dt_frame, t)

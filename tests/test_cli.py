@@ -1,0 +1,98 @@
+"""The command line: errors without tracebacks, plugins listing, sweeps locally and on Dask."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from xnlos_core.cli import main
+from xnlos_core.io import read_jsonl
+
+SWEEP = """
+name = "tiny-sweep"
+seed = 2
+[radar]
+n_samples = 256
+max_range = 60.0
+n_azimuth_bins = 61
+[scene]
+builtin = "corner"
+[forward_model]
+name = "image"
+[detector]
+name = "nlos_cfar"
+[wall_estimator]
+name = "lsq"
+[reconstructor]
+name = "mirror"
+[run]
+frames = 1
+figure = false
+[sweep]
+"detector.name" = ["cfar", "nlos_cfar"]
+"""
+
+
+def test_version_and_module_entry():
+    out = subprocess.run([sys.executable, "-m", "xnlos_core", "--version"], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.startswith("xnlos ")
+
+
+def test_plugins_json_lists_kind_name_provider_params(capsys):
+    assert main(["plugins", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    cfar = next(r for r in rows if r["kind"] == "detector" and r["name"] == "cfar")
+    assert cfar["provider"].startswith("xnlos ")
+    assert "pfa" in cfar["parameters"] and cfar["parameters"]["pfa"]["lt"] == 1
+    assert main(["plugins"]) == 0
+    assert "nlos_cfar" in capsys.readouterr().out
+
+
+def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text(SWEEP.replace('name = "lsq"', 'name = "lsq"\nparams = { cluster_distance = -1 }'))
+    out = subprocess.run([sys.executable, "-m", "xnlos_core", "run", str(p), "--out", str(tmp_path / "o")],
+                         capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr
+    assert "bad.toml" in out.stderr and "wall_estimator.params.cluster_distance" in out.stderr
+
+
+def test_run_cli_writes_outputs(tmp_path, capsys):
+    p = tmp_path / "p.toml"
+    p.write_text(SWEEP.split("[sweep]")[0].replace("figure = false", "figure = true"))
+    assert main(["run", str(p), "--out", str(tmp_path / "o"), "-q"]) == 0
+    assert (tmp_path / "o" / "summary.md").exists() and list((tmp_path / "o").glob("*.png"))
+    assert "hidden car" in capsys.readouterr().out
+
+
+def test_sweep_local(tmp_path):
+    p = tmp_path / "s.toml"
+    p.write_text(SWEEP)
+    assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--workers", "1", "-q"]) == 0
+    recs = read_jsonl(tmp_path / "o" / "sweep.jsonl")
+    assert sorted(r["assignment"]["detector.name"] for r in recs) == ["cfar", "nlos_cfar"]
+    table = (tmp_path / "o" / "sweep.md").read_text()
+    assert "| 0 | cfar |" in table and "| 1 | nlos_cfar |" in table
+    # A rerun finds every point done and runs nothing new.
+    assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--workers", "1", "-q"]) == 0
+    assert len(read_jsonl(tmp_path / "o" / "sweep.jsonl")) == 2
+
+
+def test_sweep_on_dask_local_cluster(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    p = tmp_path / "s.toml"
+    p.write_text(SWEEP)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--scheduler", cluster.scheduler_address,
+                     "-q"]) == 0
+    assert len(read_jsonl(tmp_path / "o" / "sweep.jsonl")) == 2
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
+    p = tmp_path / "s.toml"
+    p.write_text(SWEEP)
+    assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9", "-q"]) == 2
+    assert "cannot connect to a Dask scheduler" in capsys.readouterr().err

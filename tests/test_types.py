@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+
+from xnlos_core import (LOS, MNLOS, Detections, Frame, GroundTruth, HiddenPoints, InputError, RadarConfig,
+                        RAMap, WallPosterior)
+from xnlos_core.testing import small_radar
+
+
+def test_ramap_rejects_nan_and_bad_shapes():
+    radar = small_radar()
+    good = np.zeros((radar.n_range_bins, radar.n_azimuth_bins), np.complex64)
+    RAMap.from_radar(good, radar)
+    bad = good.copy()
+    bad[3, 4] = np.nan
+    with pytest.raises(InputError, match="RAMap.data: 1 of .* NaN"):
+        RAMap.from_radar(bad, radar)
+    with pytest.raises(InputError, match="RAMap.range_axis: has .* entries but RAMap.data axis 0"):
+        RAMap.from_radar(good[:-1], radar)
+    with pytest.raises(InputError, match="expected a 2-D array"):
+        RAMap.from_radar(good[0], radar)
+    with pytest.raises(InputError, match="strictly ascending"):
+        RAMap(good, radar.range_axis[::-1], radar.azimuth_axis, radar)
+
+
+def test_ramap_is_complex64():
+    radar = small_radar()
+    m = RAMap.from_radar(np.ones((radar.n_range_bins, radar.n_azimuth_bins)), radar)
+    assert m.data.dtype == np.complex64 and m.range_axis.dtype == np.float64
+
+
+def test_detections_validate_and_position():
+    d = Detections([10.0, 20.0], [0.0, np.pi / 2], [LOS, MNLOS], [0.5, 1.0])
+    np.testing.assert_allclose(d.position, [[10, 0], [0, 20]], atol=1e-12)
+    with pytest.raises(InputError, match="Detections.label"):
+        Detections([1.0], [0.0], [7], [0.5])
+    with pytest.raises(InputError, match="confidence"):
+        Detections([1.0], [0.0], [0], [1.5])
+    with pytest.raises(InputError, match="Detections.azimuth: expected shape"):
+        Detections([1.0, 2.0], [0.0], [0, 0], [0.5, 0.5])
+    assert len(Detections.empty()) == 0
+
+
+def test_position_cov_is_range_azimuth_ellipse():
+    d = Detections([10.0], [0.0], [LOS], [1.0], [0.1], [0.01])
+    np.testing.assert_allclose(d.position_cov()[0], np.diag([0.01, 0.01]), atol=1e-12)
+
+
+def test_wall_posterior_canonical_and_psd():
+    w = WallPosterior.line([1.0, 0.0], -5.0)  # x = 5 written with b < 0 → flipped to b ≥ 0
+    assert w.offset == pytest.approx(5.0)
+    np.testing.assert_allclose(w.normal, [-1, 0], atol=1e-12)
+    with pytest.raises(InputError, match="positive semi-definite"):
+        WallPosterior("line", [0.0, 1.0], [[-1.0, 0], [0, 1.0]])
+    with pytest.raises(InputError, match="symmetric"):
+        WallPosterior("line", [0.0, 1.0], [[1.0, 0.5], [0, 1.0]])
+
+
+def test_ground_truth_alignment_and_hidden_points():
+    with pytest.raises(InputError, match="hidden_points"):
+        GroundTruth(mnlos_points=np.zeros((2, 2)), hidden_points=np.zeros((1, 2)))
+    h = HiddenPoints(np.zeros((1, 2)), np.eye(2)[None], [0], [0])
+    assert len(h) == 1 and len(HiddenPoints.empty()) == 0
+
+
+def test_frame_checks_types():
+    with pytest.raises(InputError, match="Frame.ra_map"):
+        Frame(np.zeros((3, 3)))
+
+
+def test_radar_derived_quantities():
+    r = RadarConfig()
+    assert r.range_resolution == pytest.approx(299_792_458 / 1.2e9)
+    assert r.wavelength == pytest.approx(0.02998, rel=1e-3)
+    assert r.max_unambiguous_range >= 100
+    assert len(r.virtual_positions) == 32
+    np.testing.assert_allclose(np.diff(r.virtual_positions), r.wavelength / 2)
