@@ -30,9 +30,11 @@ from xnlos_core.types import LOS, Detections, WallPosterior
 
 class LSQParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    cluster_distance: float = Field(2.0, gt=0, le=1e3, description="single-linkage cut: LOS points closer "
+    cluster_distance: float = Field(4.0, gt=0, le=1e3, description="single-linkage cut: LOS points closer "
                                                                    "than this [m] chain into one wall")
     min_points: int = Field(3, ge=2, le=100_000, description="LOS points a cluster needs to become a wall")
+    merge_tolerance: float = Field(0.75, ge=0, le=100, description="clusters (or single points) lying within "
+                                   "this distance [m] of a larger cluster's line join it (one wall seen in pieces)")
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
@@ -99,18 +101,16 @@ class LSQWallEstimator(WallEstimator):
         pts = detections.position[idx]
         cov = detections.position_cov()[idx]
         labels = single_linkage(pts, self.params.cluster_distance)
-        sizes = np.bincount(labels)
-        order = np.argsort(-sizes, kind="stable")
-        chosen = [k for k in order if sizes[k] >= self.params.min_points]
+        groups = _merge_collinear(pts, labels, self.params.merge_tolerance)
+        chosen = [g for g in groups if len(g) >= self.params.min_points]
         if not chosen:
-            if sizes[order[0]] < 2:
+            if len(groups[0]) < 2:
                 raise InsufficientDataError(
                     f"LSQWallEstimator: {len(idx)} LOS points but no two lie within cluster_distance="
                     f"{self.params.cluster_distance} m of each other; no wall can be fitted")
-            chosen = [order[0]]
+            chosen = [groups[0]]
         walls, skipped = [], []
-        for k in chosen:
-            members = np.flatnonzero(labels == k)
+        for members in chosen:
             try:
                 w = fit_line(pts[members], cov[members])
             except InsufficientDataError as exc:
@@ -121,3 +121,29 @@ class LSQWallEstimator(WallEstimator):
         if not walls:
             raise InsufficientDataError("LSQWallEstimator: no cluster gave a line: " + "; ".join(skipped))
         return walls
+
+
+def _merge_collinear(pts: np.ndarray, labels: np.ndarray, tol: float) -> list[np.ndarray]:
+    """Clusters as index arrays, largest first, after merging pieces of one wall.
+
+    Sparse detections split a long wall into several single-linkage clusters; a cluster (or a
+    lone point) whose points all lie within ``tol`` [m] of a larger cluster's TLS line joins it.
+    """
+    groups = sorted((np.flatnonzero(labels == k) for k in np.unique(labels)), key=len, reverse=True)
+    out = []
+    while groups:
+        g = groups.pop(0)
+        changed = len(g) >= 2
+        while changed:
+            changed = False
+            try:
+                line = fit_line(pts[g])
+            except InsufficientDataError:
+                break
+            for h in list(groups):
+                if np.abs(pts[h] @ line.normal + line.offset).max() <= tol:
+                    g = np.concatenate([g, h])
+                    groups = [x for x in groups if x is not h]
+                    changed = True
+        out.append(np.sort(g))
+    return sorted(out, key=len, reverse=True)

@@ -36,8 +36,9 @@ class NearestParams(BaseModel):
                                                            "frames without a match")
     cluster_distance: float = Field(2.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one "
                                                                    "frame's hidden points into objects")
-    alpha: float = Field(0.8, gt=0, le=1, description="α–β filter position gain")
-    beta: float = Field(0.4, ge=0, le=2, description="α–β filter velocity gain")
+    alpha: float = Field(0.5, gt=0, le=1, description="α–β filter position gain")
+    beta: float = Field(0.17, ge=0, le=2, description="α–β filter velocity gain (Kalata's optimal pair "
+                                                      "for α = 0.5: β = 2(2 − α) − 4√(1 − α) ≈ 0.17)")
 
 
 @dataclass

@@ -4,6 +4,11 @@ Each relay wall is a mirror (Eq. 2): a hidden scatterer o seen via wall Π appea
 image o' = R_Π(o) (Eq. 5), with unfolded round trip L = 2|o'| and path loss 1/L² per leg (Eq. 4).
 Walls also return diffusely in line of sight (extended targets sampled at ``wall.spacing``).
 Every path is then rendered through the FMCW chain of :mod:`xnlos_core.signal_chain`.
+
+Simplifications (deliberate, first-order model): only walls occlude (objects do not shadow
+walls or each other); one relay bounce on each side of an object (no wall–wall or multi-wall
+chains); the specular reflectivity α does not depend on incidence angle; the scene is 2-D with
+wall height entering only the diffuse wall RCS.
 """
 from __future__ import annotations
 
@@ -52,6 +57,10 @@ def _faces(normals: np.ndarray, points: np.ndarray, towards: np.ndarray) -> np.n
     return point_like | (np.einsum("ij,ij->i", normals, towards - points) > 0)
 
 
+def _cat(parts: list[np.ndarray], empty_shape=(0,)) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(empty_shape)
+
+
 def _wall_scatterers(spec) -> tuple[np.ndarray, float]:
     """Cell centres (K, 2) [m] of a wall cut into K ≈ length/spacing cells, and the cell length [m]."""
     start, end = np.asarray(spec.start, float), np.asarray(spec.end, float)
@@ -81,20 +90,20 @@ class ImageForwardModel(ForwardModel):
         # Random phases first, in a fixed order (walls, then objects), one per scatterer: the rng
         # stream then does not depend on visibility, and an object keeps its phase on every path.
         walls = [_wall_scatterers(w) for w in scene.walls]
-        def phases(n):
-            return rng.uniform(0, 2 * np.pi, n) if p.random_phase else np.zeros(n)
-        wall_phase = [phases(len(pts)) for pts, _ in walls]
-        obj_phase = [phases(len(o[0])) for o in objs]
+        sizes = [len(pts) for pts, _ in walls] + [len(o[0]) for o in objs]
+        drawn = [rng.uniform(0, 2 * np.pi, n) if p.random_phase else np.zeros(n) for n in sizes]
+        wall_phase, obj_phase = drawn[:len(walls)], drawn[len(walls):]
 
         # Each path: unfolded one-way range r [m], arrival azimuth [rad], power [W], phase,
         # ground-truth kind (0 LOS, 1 mNLOS), GT position (LOS point or o'), hidden o, object index.
-        r_all, th_all, pw_all, ph_all, kind, gt_pos, gt_hidden, gt_obj = [], [], [], [], [], [], [], []
+        cols = {k: [] for k in ("r", "th", "power", "phase", "kind", "pos", "hidden", "obj")}
 
-        def emit(points, power, phase, k, hidden=None, obj=-1):
+        def emit(points, power, phase, kind, hidden=None, obj=-1):
             r, th = cartesian_to_polar(points)
-            r_all.append(r); th_all.append(th); pw_all.append(power); ph_all.append(phase)
-            kind.append(np.full(len(r), k)); gt_pos.append(points)
-            gt_hidden.append(points if hidden is None else hidden); gt_obj.append(np.full(len(r), obj))
+            row = dict(r=r, th=th, power=power, phase=phase, kind=np.full(len(r), kind), pos=points,
+                       hidden=points if hidden is None else hidden, obj=np.full(len(r), obj))
+            for k, v in row.items():
+                cols[k].append(v)
 
         # --- LOS: diffuse wall returns, σ = σ⁰·cos²ψ·Δs·h per cell ---------------------------
         for i, (spec, seg, (pts, ds)) in enumerate(zip(scene.walls, segs, walls)):
@@ -130,10 +139,9 @@ class ImageForwardModel(ForwardModel):
                     power = received_power(radar, r, th, rcs[ok], spec.reflectivity)
                     emit(img[ok], power, obj_phase[j][ok], 1, hidden=pts[ok], obj=j)
 
-        cat = (lambda xs, shape=(0,): np.concatenate(xs) if xs else np.zeros(shape))
-        r, th, power, phase = cat(r_all), cat(th_all), cat(pw_all), cat(ph_all)
-        kind, gt_obj = cat(kind).astype(int), cat(gt_obj).astype(int)
-        pos, hidden = cat(gt_pos, (0, 2)), cat(gt_hidden, (0, 2))
+        r, th, power, phase = (_cat(cols[k]) for k in ("r", "th", "power", "phase"))
+        kind, gt_obj = _cat(cols["kind"]).astype(int), _cat(cols["obj"]).astype(int)
+        pos, hidden = _cat(cols["pos"], (0, 2)), _cat(cols["hidden"], (0, 2))
         live = power > 0  # drop paths behind the array (zero element gain)
 
         cube = dechirp(radar, 2 * r[live], th[live], np.sqrt(power[live]) * np.exp(1j * phase[live]))

@@ -11,11 +11,11 @@ import pytest
 
 HERE = Path(__file__).parent
 
-SMALL_RADAR = {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 61}
+SMALL_RADAR = {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 121}
 
 
 def small_table(**over) -> dict:
-    """A fast pipeline table on the built-in corner scene (60 m, 61 azimuth bins)."""
+    """A fast pipeline table on the built-in corner scene (60 m, 1° azimuth bins)."""
     t = {
         "name": "small", "seed": 5, "radar": dict(SMALL_RADAR), "scene": {"builtin": "corner"},
         "forward_model": {"name": "image"}, "detector": {"name": "nlos_cfar"},

@@ -14,7 +14,7 @@ seed = 2
 [radar]
 n_samples = 256
 max_range = 60.0
-n_azimuth_bins = 61
+n_azimuth_bins = 121
 [scene]
 builtin = "corner"
 [forward_model]

@@ -17,7 +17,7 @@ def test_thirdparty_detector_listed_and_runs(thirdparty_installed, tmp_path):
     # One config line names the third-party detector; the pipeline runs in a fresh process.
     t = small_table()
     lines = ['name = "thirdparty"', "seed = 1", "[radar]", "n_samples = 256", "max_range = 60.0",
-             "n_azimuth_bins = 61", "[scene]", 'builtin = "corner"', "[forward_model]", 'name = "image"',
+             "n_azimuth_bins = 121", "[scene]", 'builtin = "corner"', "[forward_model]", 'name = "image"',
              "[detector]", 'name = "peak_threshold"', "[wall_estimator]", 'name = "lsq"',
              "[reconstructor]", 'name = "mirror"', "[run]", "frames = 1", "figure = false"]
     assert t["detector"]["name"] == "nlos_cfar"

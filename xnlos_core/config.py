@@ -205,8 +205,8 @@ def expand_sweep(table: dict[str, Any], source: str = "<config>") -> list[tuple[
         assignment = dict(zip(keys, values))
         for k, v in assignment.items():
             stage = k.rsplit(".", 1)[0]
-            base_name = (table.get(stage) or {}).get("name") if "." not in stage else None
-            if k.endswith(".name") and v != base_name and not any(a.startswith(stage + ".params") for a in assignment):
+            if k.endswith(".name") and isinstance(table.get(stage), dict) and v != table[stage].get("name") \
+                    and not any(a.startswith(stage + ".params") for a in assignment):
                 # Another plugin takes other parameters: the base file's params do not carry over.
                 _set_dotted(t, stage + ".params", {}, source)
             _set_dotted(t, k, v, source)

@@ -47,9 +47,10 @@ def _dask(fn, items, address: str):
     except OSError as exc:
         raise ConfigError(f"scheduler {address!r}: cannot connect to a Dask scheduler ({exc})") from None
     try:
-        futures = client.map(fn, list(items), pure=False)
-        index = {f.key: i for i, f in enumerate(futures)}
-        for fut in dask_completed(futures):
-            yield index[fut.key], fut.result()
+        with client.as_current():  # as_completed looks the client up; it is not the global default
+            futures = client.map(fn, list(items), pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for fut in dask_completed(futures):
+                yield index[fut.key], fut.result()
     finally:
         client.close()

@@ -42,8 +42,9 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
     for lab, (name, color, marker) in CLASS_STYLE.items():
         m = det.label == lab
         if m.any():
-            ax_ra.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, facecolors="none" if marker == "o" else color,
-                          edgecolors=color, marker=marker, label=f"{name} ({m.sum()})", linewidths=1.2)
+            style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
+            ax_ra.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker,
+                          label=f"{name} ({m.sum()})", linewidths=1.2, **style)
     ax_ra.set_xlabel("azimuth θ [deg] (positive = left)")
     ax_ra.set_ylabel("range [m]")
     ax_ra.set_title("RA map and detections")

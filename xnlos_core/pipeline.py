@@ -37,9 +37,9 @@ class FrameResult:
     notes: list[str] = field(default_factory=list)
 
     def record(self) -> dict[str, Any]:
-        """JSON-ready summary of this frame (one line of results.jsonl)."""
+        """JSON-ready summary of this frame (one line of results.jsonl); NaN becomes None."""
         d = self.detections
-        return {
+        return _no_nan({
             "frame": self.frame.index,
             "timestamp": self.frame.timestamp,
             "detections": {"LOS": int((d.label == 0).sum()), "mNLOS": int((d.label == 1).sum()),
@@ -53,7 +53,18 @@ class FrameResult:
             "metrics": self.metrics,
             "timings_s": self.timings,
             "notes": self.notes,
-        }
+        })
+
+
+def _no_nan(x):
+    """NaN → None recursively (JSON has no NaN; ±inf stays, e.g. Chamfer with an empty side)."""
+    if isinstance(x, float) and x != x:
+        return None
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_no_nan(v) for v in x]
+    return x
 
 
 def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
@@ -159,9 +170,12 @@ class Pipeline:
             tracks = timed("tracker", self.stages["tracker"].update, hidden, frame.timestamp)
         res = FrameResult(frame, det, walls, hidden, tracks, timings, notes=notes)
         if frame.ground_truth is not None:
+            # F1/CD against what the radar can resolve; the object error against the full surface.
             r = self.config.run.match_radius
-            res.metrics = {"dense": metrics.dense_metrics(det, frame.ground_truth, r),
-                           "reconstruction": metrics.reconstruction_metrics(hidden, frame.ground_truth, r)}
+            resolved = metrics.thin_to_resolution(frame.ground_truth, frame.ra_map.radar)
+            recon = metrics.reconstruction_metrics(hidden, resolved, r)
+            recon["object_error_m"] = metrics.reconstruction_metrics(hidden, frame.ground_truth, r)["object_error_m"]
+            res.metrics = {"dense": metrics.dense_metrics(det, resolved, r), "reconstruction": recon}
         return res
 
     def run(self, start: int = 0) -> Iterator[FrameResult]:

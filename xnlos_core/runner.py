@@ -34,6 +34,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
                               f"{old.get('config_sha256', '?')[:12]} ≠ {prov['config_sha256'][:12]}); "
                               "choose another --out or pass --overwrite")
         done = read_jsonl(res_path)
+        # Drop a torn last line (crash mid-write) before appending after the complete records.
+        atomic_write_text(res_path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))
         prov = {**old, "resumed": old.get("resumed", 0) + 1}
     else:
         res_path.unlink(missing_ok=True)
@@ -98,8 +100,8 @@ def _flatten(d: dict, prefix: str = "") -> dict[str, float]:
         key = f"{prefix}{k}"
         if isinstance(v, dict):
             out.update(_flatten(v, key + "."))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            out[key] = float(v)
+        elif v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)):
+            out[key] = None if v is None else float(v)  # None: undefined this frame (e.g. not reconstructed)
     return out
 
 

@@ -39,7 +39,8 @@ def chirp(radar: RadarConfig, t) -> np.ndarray:
 
 def beat_frequency(radar: RadarConfig, range_m) -> np.ndarray:
     """Beat frequency f_b = S·τ = 2·R·B/(c·T) [Hz] of a target at one-way range R [m] (Eq. 6)."""
-    return 2.0 * np.asarray(range_m, dtype=np.float64) * radar.bandwidth / (SPEED_OF_LIGHT * radar.chirp_duration)
+    r = np.asarray(range_m, dtype=np.float64)
+    return 2.0 * r * radar.bandwidth / (SPEED_OF_LIGHT * radar.chirp_duration)
 
 
 def sample_times(radar: RadarConfig) -> np.ndarray:
@@ -89,6 +90,7 @@ def add_noise(cube: np.ndarray, radar: RadarConfig, rng: np.random.Generator) ->
 
 
 def _window(name: str, n: int) -> np.ndarray:
+    # symmetric taper (fftbins=False), same convention as the azimuth weights
     return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
 
 
@@ -139,6 +141,7 @@ def adc_to_ra_map(cube, radar: RadarConfig) -> RAMap:
     want = (radar.n_samples, radar.n_tx * radar.n_rx)
     shape = np.shape(cube)
     if tuple(shape) != want:
-        raise InputError(f"adc cube: expected shape (n_samples, n_tx*n_rx) = {want} for this radar, got {tuple(shape)}")
+        raise InputError(f"adc cube: expected shape (n_samples, n_tx*n_rx) = {want} for this radar, "
+                         f"got {tuple(shape)}")
     arr = as_array("adc cube", cube, dtype=np.complex128)
     return ra_map_from_cube(arr, radar)

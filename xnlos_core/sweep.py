@@ -16,9 +16,9 @@ from .executor import map_unordered
 from .io import append_jsonl, atomic_write_text, read_jsonl
 
 COLUMNS = (
-    ("dense.macro.f1", "macro F1"), ("dense.LOS.f1", "LOS F1"), ("dense.mNLOS.f1", "mNLOS F1"),
-    ("dense.macro.chamfer_m2", "macro CD [m²]"), ("reconstruction.f1", "recon F1"),
-    ("reconstruction.chamfer_m2", "recon CD [m²]"),
+    ("dense.macro.f1", "macro F1"), ("dense.los.f1", "LOS F1"), ("dense.mnlos.f1", "mNLOS F1"),
+    ("dense.all.f1", "class-agnostic F1"), ("dense.macro.cd", "macro CD [m²]"),
+    ("reconstruction.f1", "recon F1"), ("reconstruction.cd", "recon CD [m²]"),
 )
 
 

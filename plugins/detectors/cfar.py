@@ -25,9 +25,9 @@ class CFARParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     pfa: float = Field(1e-5, gt=0, lt=1, description="false-alarm probability per cell (0 < pfa < 1)")
     guard_cells: tuple[Cells, Cells] = Field(
-        (2, 1), description="guard cells on each side of the cell under test (range, azimuth) [bins]")
+        (3, 4), description="guard cells on each side of the cell under test (range, azimuth) [bins]")
     train_cells: tuple[Cells, Cells] = Field(
-        (8, 4), description="training cells beyond the guard cells on each side (range, azimuth) [bins]")
+        (4, 8), description="training cells beyond the guard cells on each side (range, azimuth) [bins]")
     min_range: float = Field(1.0, ge=0, le=1e4, description="cells nearer than this [m] (TX→RX leakage "
                                                            "around 0 m) are neither tested nor used for training")
 

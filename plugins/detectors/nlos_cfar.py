@@ -7,6 +7,8 @@ the origin to p crosses a wall segment at least ``wall_margin`` metres before p:
     ∃ wall: ray(t) = t·p crosses the segment at 0 < t < 1 with (1 − t)·|p| > wall_margin,
 
 otherwise LOS. The margin keeps scatterers on the wall itself (range error ± a few cm–dm) LOS.
+The walls are looked up only when there is a peak to classify, so a frame without peaks gives
+empty Detections even when its wall source is missing.
 """
 from __future__ import annotations
 
@@ -87,8 +89,10 @@ class NLOSCFARDetector(Detector):
         """CFAR detections of ``frame`` with labels LOS / MNLOS (order: descending power)."""
         if not isinstance(frame, Frame):
             raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
-        walls = self._walls(frame)
         cfar = CFARDetector(CFARParams(**self.params.model_dump(include=set(CFARParams.model_fields))))
         det = cfar.detect(frame)
+        if len(det) == 0:  # nothing to classify: no walls needed (an empty map never errors)
+            return det
+        walls = self._walls(frame)
         label = np.where(behind_walls(det.position, walls, self.params.wall_margin), MNLOS, LOS).astype(np.int8)
         return Detections(det.range, det.azimuth, label, det.confidence, det.range_std, det.azimuth_std)

@@ -93,7 +93,8 @@ class MirrorReconstructor(Reconstructor):
         for j, w in enumerate(walls):
             if not isinstance(w, WallPosterior) or w.model != "line":
                 got = w.model if isinstance(w, WallPosterior) else type(w).__name__
-                raise InputError(f"MirrorReconstructor: walls[{j}] must be a WallPosterior of model 'line', got {got!r}")
+                raise InputError(f"MirrorReconstructor: walls[{j}] must be a WallPosterior of model 'line', "
+                                 f"got {got!r}")
         idx = detections.of_class(MNLOS)
         self.last_unanchored_ = np.empty(0, dtype=np.int64)
         if len(idx) == 0:

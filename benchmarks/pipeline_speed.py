@@ -1,0 +1,50 @@
+"""Per-stage wall time of the demo pipeline at the default radar size (not a test).
+
+    .venv/bin/python benchmarks/pipeline_speed.py [--frames 20] [--config PATH]
+
+Prints mean / median / p95 milliseconds per stage over the frames (after one warm-up frame),
+plus the hidden-object error, so speed and accuracy are read side by side.
+"""
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+from xnlos_core.cli import DEMO_CONFIG
+from xnlos_core.config import load_pipeline
+from xnlos_core.pipeline import Pipeline
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=20)
+    ap.add_argument("--config", default=str(DEMO_CONFIG))
+    args = ap.parse_args()
+    cfg = load_pipeline(args.config)
+    cfg = cfg.model_copy(update={"run": cfg.run.model_copy(update={"frames": args.frames + 1})})
+    pipe = Pipeline(cfg, source=args.config)
+    t0 = time.perf_counter()
+    results = list(pipe.run())[1:]
+    wall = time.perf_counter() - t0
+    stages = list(results[0].timings)
+    print(f"# {cfg.name}: {len(results)} frames, RA map {results[0].frame.ra_map.shape}, "
+          f"{platform.processor() or platform.machine()}, total {wall:.1f} s")
+    print("| stage | mean ms | median ms | p95 ms |\n|---|---|---|---|")
+    for s in stages:
+        v = 1e3 * np.array([r.timings.get(s, 0.0) for r in results])
+        print(f"| {s} | {v.mean():.1f} | {np.median(v):.1f} | {np.percentile(v, 95):.1f} |")
+    proc = 1e3 * np.array([sum(t for k, t in r.timings.items() if k != "source") for r in results])
+    print(f"| processing (detector→reconstructor) | {proc.mean():.1f} | {np.median(proc):.1f} | "
+          f"{np.percentile(proc, 95):.1f} |")
+    errs = [r.metrics.get("reconstruction", {}).get("object_error_m", {}) for r in results]
+    for name in sorted({k for e in errs for k in e}):
+        e = np.array([x.get(name, np.nan) for x in errs], float)
+        print(f"hidden {name}: error mean {np.nanmean(e):.2f} m, max {np.nanmax(e):.2f} m, "
+              f"reconstructed in {np.isfinite(e).sum()}/{len(e)} frames")
+
+
+if __name__ == "__main__":
+    main()
