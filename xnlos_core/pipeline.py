@@ -163,6 +163,9 @@ class Pipeline:
         n_mnlos = int((det.label == MNLOS).sum())
         if walls and n_mnlos:
             hidden = timed("reconstructor", self.stages["reconstructor"].reconstruct, det, walls)
+            missing = n_mnlos - len(np.unique(hidden.source_index))
+            if missing:
+                notes.append(f"reconstructor: {missing} of {n_mnlos} mNLOS detections matched no wall; not reconstructed")
         elif n_mnlos:
             notes.append(f"reconstructor: {n_mnlos} mNLOS detections but no wall estimate; nothing reconstructed")
         tracks = None

@@ -108,7 +108,7 @@ class MirrorReconstructor(Reconstructor):
         choice = self.assign_walls(pts, walls)
         self.last_unanchored_ = idx[choice < 0]
         if len(self.last_unanchored_):
-            log.warning("MirrorReconstructor: %d of %d mNLOS detection(s) cross no wall and were dropped "
+            log.info("MirrorReconstructor: %d of %d mNLOS detection(s) cross no wall and were dropped "
                         "(fallback=%r): indices %s", len(self.last_unanchored_), len(idx),
                         self.params.fallback, self.last_unanchored_.tolist())
         keep = choice >= 0
