@@ -63,11 +63,12 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
         ax_bev.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":")
     if gt is not None:
         for i, w in enumerate(gt.walls):
-            ax_bev.plot(*bev([w.start, w.end]), color="0.35", lw=4, solid_capstyle="butt",
+            ax_bev.plot(*bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
                         label="true walls" if i == 0 else None)
     for i, w in enumerate(result.walls):
         if w.model == "line" and w.extent is not None:
-            ax_bev.plot(*bev(w.extent), color="tab:blue", lw=1.6, ls="--", label="estimated walls" if i == 0 else None)
+            ax_bev.plot(*bev(w.extent), color="tab:orange", lw=2, ls="--", zorder=4,
+                        label="estimated walls" if i == 0 else None)
     for lab, (name, color, marker) in CLASS_STYLE.items():
         m = det.label == lab
         if m.any():
@@ -81,18 +82,22 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
         for mu, c in zip(h.mean, h.cov):
             ax_bev.plot(*bev(_ellipse_xy(mu, c)), color="tab:purple", lw=0.8, alpha=0.7)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
-    pts = [np.zeros((1, 2)), det.position, h.mean]
-    if gt is not None:
-        pts += [gt.hidden_points] + [np.stack([w.start, w.end]) for w in gt.walls]
+    # Frame the scene (ground truth when known); far false alarms fall outside rather than
+    # shrinking the scene to a corner of the plot.
+    pts = [np.zeros((1, 2))]
+    if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
+        pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
+    else:
+        pts += [det.position, h.mean]
     allp = np.concatenate([p.reshape(-1, 2) for p in pts])
-    lo, hi = allp.min(0) - 3, allp.max(0) + 3
+    lo, hi = allp.min(0) - 5, allp.max(0) + 5
     ax_bev.set_xlim(-hi[1], -lo[1])
     ax_bev.set_ylim(min(lo[0], -2), hi[0])
     ax_bev.set_aspect("equal")
     ax_bev.set_xlabel("−y [m] (right →)")
     ax_bev.set_ylabel("x [m] (forward)")
     ax_bev.set_title("bird's-eye view: walls and hidden points")
-    ax_bev.legend(loc="lower left", fontsize=7, framealpha=0.85)
+    ax_bev.legend(loc="upper right", fontsize=7, framealpha=0.85)
     ax_bev.grid(alpha=0.3)
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
