@@ -115,7 +115,10 @@ def render_summary(summary: dict, prov: dict, config: PipelineConfig) -> str:
     m = summary["metrics"]
     errs = {k.split(".")[-1]: v for k, v in m.items() if k.startswith("reconstruction.object_error_m.")}
     if errs:
-        lines += ["## Hidden objects", "", "| object | reconstruction error [m] |", "|---|---|"]
+        lines += ["## Hidden objects", "",
+                  "Mean distance from the reconstructed points to the object's nearest true (illuminated) "
+                  "surface point, over the frames where it was reconstructed.", "",
+                  "| object | reconstruction error [m] |", "|---|---|"]
         lines += [f"| {k} | {'n/a (not reconstructed)' if v is None else f'{v:.2f}'} |" for k, v in errs.items()]
         lines.append("")
     if m:
