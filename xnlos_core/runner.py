@@ -1,7 +1,7 @@
 """``xnlos run``: a pipeline over its frames into an output directory, resumable after a crash.
 
 Writes ``provenance.json`` (once), ``results.jsonl`` (one fsync'd line per frame, so a killed
-run resumes after the last complete frame), ``summary.md`` and ``frame_XXXX.png`` figures.
+run resumes after the last complete frame), ``summary.md`` and ``frame_NNNN.png`` figures.
 """
 from __future__ import annotations
 

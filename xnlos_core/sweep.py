@@ -1,6 +1,6 @@
 """``xnlos sweep``: a `[sweep]` grid of pipelines (config-driven ablations), one run per point.
 
-Each grid point runs in ``OUT/point-XXX/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
+Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
 per finished point, so a killed sweep resumes with the points still missing. ``sweep.md``
 tabulates the assignment of every point beside its metrics and per-stage time.
 """
