@@ -4,23 +4,15 @@ import pytest
 
 from estimators.lsq import LSQWallEstimator, fit_line
 from xnlos_core import LOS, MNLOS, Detections, InsufficientDataError, WallPosterior
-from xnlos_core.geometry import cartesian_to_polar
-
 
 def detections(points, label=LOS, range_std=0.0, azimuth_std=0.0):
-    pts = np.asarray(points, float).reshape(-1, 2)
-    r, a = cartesian_to_polar(pts)
-    k = len(pts)
-    lab = np.full(k, label, np.int8) if np.isscalar(label) else np.asarray(label, np.int8)
-    return Detections(r, a, lab, np.ones(k), np.full(k, range_std), np.full(k, azimuth_std))
-
+    return Detections.from_points(points, label, 1.0, range_std, azimuth_std)
 
 def on_line(n, b, t):
     """Points on nᵀx + b = 0 at along-line coordinates t (from the foot point −b n)."""
     n = np.asarray(n, float) / np.linalg.norm(n)
     u = np.array([-n[1], n[0]])
     return -b * n + np.asarray(t, float)[:, None] * u
-
 
 def test_exact_line_recovered():
     n = np.array([-1.0, -1.0]) / np.sqrt(2)  # wall x + y = 25, radar side positive
@@ -33,7 +25,6 @@ def test_exact_line_recovered():
     assert np.allclose(np.sort(w.extent[:, 0]), [25 / 2 - 8 / np.sqrt(2), 25 / 2 + 8 / np.sqrt(2)])
     assert w.info["detection_index"] == list(range(30))
 
-
 def test_two_walls_two_posteriors_largest_first_and_mnlos_ignored():
     a = on_line([-1, 0], 20.0, np.linspace(2, 12, 21))  # x = 20
     b = on_line([0, -1], 8.0, np.linspace(-10, -2, 9))  # y = 8
@@ -44,7 +35,6 @@ def test_two_walls_two_posteriors_largest_first_and_mnlos_ignored():
     assert np.allclose(walls[0].normal, [-1, 0]) and walls[0].offset == pytest.approx(20)
     assert np.allclose(walls[1].normal, [0, -1]) and walls[1].offset == pytest.approx(8)
     assert sorted(walls[1].info["detection_index"]) == list(range(9))
-
 
 def test_covariance_matches_monte_carlo():
     rng = np.random.default_rng(7)
@@ -68,13 +58,11 @@ def test_covariance_matches_monte_carlo():
     (w,) = LSQWallEstimator().estimate(detections(noisy))
     assert np.allclose(w.cov, fit_line(noisy).cov)
 
-
 def test_two_points_use_detection_covariance():
     pts = on_line([-1, 0], 20.0, [-5.0, -4.0])
     (w,) = LSQWallEstimator().estimate(detections(pts, range_std=0.1, azimuth_std=0.01))
     assert w.n_points == 2 and w.cov[0, 0] > 0 and w.cov[1, 1] > 0
     assert np.linalg.eigvalsh(w.cov).min() >= 0
-
 
 def test_fewer_than_two_los_points_raise_with_count():
     det = detections([[10.0, 0.0], [20.0, 5.0], [30.0, 1.0]], [LOS, MNLOS, MNLOS])
@@ -82,7 +70,6 @@ def test_fewer_than_two_los_points_raise_with_count():
         LSQWallEstimator().estimate(det)
     with pytest.raises(InsufficientDataError, match="0 LOS"):
         LSQWallEstimator().estimate(Detections.empty())
-
 
 def test_min_points_fallback_and_isolated_points():
     pairs = np.array([[10.0, 0.0], [10.0, 1.0], [30.0, 0.0], [30.0, 1.5], [30.0, 3.0]])
@@ -93,7 +80,6 @@ def test_min_points_fallback_and_isolated_points():
         LSQWallEstimator().estimate(detections(far))
     with pytest.raises(InsufficientDataError, match="coincide"):
         LSQWallEstimator().estimate(detections([[10.0, 0.0], [10.0, 0.0]]))
-
 
 def test_wall_posterior_flip_negates_cross_covariance():
     cov = np.array([[0.01, 0.02], [0.02, 0.09]])

@@ -6,15 +6,11 @@ from hypothesis import strategies as st
 
 from plugins.mirror.mirror import MirrorReconstructor
 from xnlos_core import LOS, MNLOS, Detections, InsufficientDataError, WallPosterior
-from xnlos_core.geometry import cartesian_to_polar, mirror_reflect
+from xnlos_core.geometry import mirror_reflect
 
 
 def detections(points, label=MNLOS, range_std=0.05, azimuth_std=0.01):
-    pts = np.asarray(points, float).reshape(-1, 2)
-    r, a = cartesian_to_polar(pts)
-    k = len(pts)
-    lab = np.full(k, label, np.int8) if np.isscalar(label) else np.asarray(label, np.int8)
-    return Detections(r, a, lab, np.ones(k), np.full(k, range_std), np.full(k, azimuth_std))
+    return Detections.from_points(points, label, 1.0, range_std, azimuth_std)
 
 
 def wall(n, b, extent=None, cov=None):

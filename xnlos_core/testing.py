@@ -113,9 +113,7 @@ def check_detector(detector: Detector, radar: RadarConfig | None = None) -> None
 
 
 def _line_detections(points: np.ndarray, label: int) -> Detections:
-    r, a = cartesian_to_polar(points)
-    k = len(points)
-    return Detections(r, a, np.full(k, label, np.int8), np.full(k, 0.9), np.full(k, 0.05), np.full(k, 0.005))
+    return Detections.from_points(points, label, confidence=0.9, range_std=0.05, azimuth_std=0.005)
 
 
 def check_wall_estimator(estimator: WallEstimator) -> None:
@@ -128,10 +126,7 @@ def check_wall_estimator(estimator: WallEstimator) -> None:
     far = np.array([[39.0, 3.0], [41.0, 5.0]])
     det = _line_detections(pts, LOS)
     mn = _line_detections(far, MNLOS)
-    both = Detections(np.r_[det.range, mn.range], np.r_[det.azimuth, mn.azimuth], np.r_[det.label, mn.label],
-                      np.r_[det.confidence, mn.confidence], np.r_[det.range_std, mn.range_std],
-                      np.r_[det.azimuth_std, mn.azimuth_std])
-    walls = estimator.estimate(both)
+    walls = estimator.estimate(Detections.concat(det, mn))
     _assert(isinstance(walls, list) and walls and all(isinstance(w, WallPosterior) for w in walls), estimator,
             "estimate() must return a non-empty list of WallPosterior")
     w = walls[0]
@@ -157,9 +152,7 @@ def check_reconstructor(reconstructor: Reconstructor, atol: float = 0.5) -> None
     virt = mirror_reflect(hidden, KIT_WALL.normal, KIT_WALL.offset)
     los = KIT_WALL.start + np.linspace(0.2, 0.7, 4)[:, None] * (KIT_WALL.end - KIT_WALL.start)
     a, b = _line_detections(los, LOS), _line_detections(virt, MNLOS)
-    det = Detections(np.r_[a.range, b.range], np.r_[a.azimuth, b.azimuth], np.r_[a.label, b.label],
-                     np.r_[a.confidence, b.confidence], np.r_[a.range_std, b.range_std],
-                     np.r_[a.azimuth_std, b.azimuth_std])
+    det = Detections.concat(a, b)
     n, off = line_from_points(KIT_WALL.start, KIT_WALL.end)
     wall = WallPosterior.line(n, off, np.diag([1e-4, 1e-2]), n_points=4, extent=np.stack([KIT_WALL.start, KIT_WALL.end]))
     out = reconstructor.reconstruct(det, [wall])

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
-from .geometry import canonical_line, line_from_points, polar_to_cartesian
+from .geometry import cartesian_to_polar, canonical_line, line_from_points, polar_to_cartesian
 from .radar import RadarConfig
 from .validation import as_array, check_ascending, check_length
 
@@ -208,6 +208,21 @@ class Detections:
     def empty(cls) -> "Detections":
         z = np.empty(0)
         return cls(z, z, np.empty(0, np.int8), z)
+
+    @classmethod
+    def from_points(cls, points, label=LOS, confidence=1.0, range_std=0.0, azimuth_std=0.0) -> "Detections":
+        """Detections at Cartesian points (K, 2) [m]; scalar or (K,) label, confidence and stds."""
+        pts = as_array("Detections.from_points: points", points).reshape(-1, 2)
+        r, a = cartesian_to_polar(pts)
+        k = len(pts)
+        full = lambda v, dtype=np.float64: np.broadcast_to(np.asarray(v, dtype), (k,))  # noqa: E731
+        return cls(r, a, full(label, np.int8), full(confidence), full(range_std), full(azimuth_std))
+
+    @classmethod
+    def concat(cls, *parts: "Detections") -> "Detections":
+        """Rows of several Detections, in order."""
+        fields = ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std")
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields))
 
     def __len__(self) -> int:
         return len(self.range)

@@ -14,14 +14,13 @@ def as_array(
     ndim: int | None = None,
     shape: tuple[int | None, ...] | None = None,
     finite: bool = True,
-    copy: bool = False,
 ) -> np.ndarray:
     """Return ``value`` as an array of ``dtype`` after checking dimensions, shape and finiteness.
 
     ``shape`` entries of ``None`` match any length. Raises :class:`InputError` naming ``name``.
     """
     try:
-        arr = np.array(value, copy=copy) if copy else np.asarray(value)
+        arr = np.asarray(value)
     except Exception as exc:
         raise InputError(f"{name}: cannot convert {type(value).__name__} to an array ({exc})") from None
     if dtype is not None:
