@@ -1,48 +1,178 @@
-"""Antenna model: element pattern (B_t, B_r of Eq. 1–6), virtual-array steering and beam metrics.
+"""Antenna model: 3-D patch element pattern, planar TX/RX arrays, steering, coupling, beam metrics.
 
-Conventions (DESIGN.md): the virtual uniform linear array lies along the ego y axis at
-``radar.virtual_positions`` y_k [m]; azimuth θ = atan2(y, x) [rad], positive to the left.
-A path arriving from θ is shorter at element k by y_k·sin θ (round trip through the MIMO virtual
-element), so its phase there is advanced: the steering vector is a_k(θ) = exp(−j 2π y_k sin θ / λ).
-This is the same sign that :func:`xnlos_core.signal_chain.dechirp` uses for the synthetic cube.
+These are B_t and B_r of Eq. 1–6; every forward model takes its gains from here.
+
+Geometry (DESIGN.md ego frame): the arrays lie in the y–z plane facing +x. Azimuth
+θ = atan2(y, x) [rad], positive to the left; elevation ε [rad] above the horizontal plane.
+A plane wave from (θ, ε) has direction u = (cos ε cos θ, cos ε sin θ, sin ε).
+
+* RX element j sits at (y, z) = (j·d_rx, 0); TX element i at (i·d_tx, h_tx) with
+  d_rx = rx_spacing·λ, d_tx = tx_spacing·λ (default n_rx·d_rx: a filled virtual array) and
+  h_tx = tx_elevation_offset·λ. Each element is a broadside column of ``n_elevation`` patches
+  (vertical spacing elevation_spacing·λ): a planar n_elevation × (n_tx + n_rx) patch layout.
+* MIMO (``radar.mimo``): TX elements take turns, so channel (i, j) is a virtual element at
+  p_tx,i + p_rx,j (tx-major order), n_tx·n_rx channels. Without MIMO the TX elements radiate
+  together as one beam steered to θ_t = ``radar.tx_steering`` and the n_rx RX elements are the
+  channels; :func:`transmit_gain` carries the TX array factor into the path power.
+* Steering: a path from (θ, ε) is shorter at channel k by p_k·u, so its phase there is
+  advanced: a_k(θ, ε) = exp(−j 2π (y_k sin θ cos ε + z_k sin ε) / λ). This is the same sign that
+  :func:`xnlos_core.signal_chain.dechirp` uses for the synthetic cube.
+* Mutual coupling (optional): the recorded channel vector is x = C·x₀ with a coupling matrix C
+  (n_channels × n_channels), measured (``radar.coupling_file``) or modelled
+  (:func:`coupling_matrix`).
 """
 from __future__ import annotations
+
+import functools
+from pathlib import Path
 
 import numpy as np
 from scipy.signal import get_window
 
+from .errors import InputError
 from .radar import RadarConfig
 
 
-def element_gain(radar: RadarConfig, theta) -> np.ndarray:
-    """Power gain of one patch-like element, G_e(θ) = G0·cos(θ)^q (linear, not dB).
+def _wrap(angle) -> np.ndarray:
+    return np.angle(np.exp(1j * np.asarray(angle, dtype=np.float64)))  # (−π, π]
 
-    This is B_t = B_r of Eq. 1/3/5. G0 = 10^(element_gain_dbi/10), q = element_pattern_exponent.
-    θ [rad], any shape; the pattern is zero for |θ| ≥ 90° (a patch radiates into its half-space).
+
+def column_factor(radar: RadarConfig, elevation) -> np.ndarray:
+    """Power array factor of one broadside patch column, normalised to 1 at ε = 0, shape like ``elevation``.
+
+    |Σ_m exp(j 2π m d_el sin ε / λ)|² / n_el² = (sin(n ψ/2) / (n sin(ψ/2)))², ψ = 2π d_el sin ε / λ.
     """
-    th = np.angle(np.exp(1j * np.asarray(theta, dtype=np.float64)))  # wrap to (−π, π]
+    n = radar.n_elevation
+    el = np.asarray(elevation, dtype=np.float64)
+    if n == 1:
+        return np.ones_like(el)
+    psi = 2 * np.pi * radar.elevation_spacing * np.sin(el)
+    num, den = np.sin(n * psi / 2), n * np.sin(psi / 2)
+    small = np.abs(den) < 1e-12
+    return np.where(small, 1.0, (num / np.where(small, 1.0, den)) ** 2)
+
+
+def element_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
+    """Power gain of one element (patch column), linear (not dB), broadcast over θ, ε [rad]:
+
+        G_e(θ, ε) = G0 · n_el · cos(θ)^q · cos(ε)^q_el · AF_col(ε)
+
+    G0 = 10^(element_gain_dbi/10) (one patch), q = element_pattern_exponent (azimuth plane),
+    q_el = element_pattern_exponent_el, AF_col from :func:`column_factor`. Zero behind the
+    ground plane (|θ| ≥ 90° or |ε| ≥ 90°). With ε = 0 and n_el = 1 this is G0·cos(θ)^q.
+    """
+    th, el = np.broadcast_arrays(_wrap(azimuth), _wrap(elevation))
     g0 = 10.0 ** (radar.element_gain_dbi / 10.0)
-    c = np.cos(th)
-    front = np.abs(th) < np.pi / 2
+    front = (np.abs(th) < np.pi / 2) & (np.abs(el) < np.pi / 2)
     # clip before the power: cos^q of a negative number is NaN for non-integer q
-    return np.where(front, g0 * np.clip(c, 0.0, None) ** radar.element_pattern_exponent, 0.0)
+    ca = np.clip(np.cos(th), 0.0, None) ** radar.element_pattern_exponent
+    ce = np.clip(np.cos(el), 0.0, None) ** radar.element_pattern_exponent_el
+    return np.where(front, g0 * radar.n_elevation * ca * ce * column_factor(radar, el), 0.0)
 
 
-def steering_vector(radar: RadarConfig, theta) -> np.ndarray:
-    """Array response a_k(θ) = exp(−j 2π y_k sin θ / λ), shape (n_virtual, n_theta), complex128.
+def element_directivity(radar: RadarConfig, n: int = 721) -> float:
+    """Directivity D = 4π·max G / ∮ G dΩ of :func:`element_gain` (linear), by quadrature over the sphere.
 
-    θ [rad]: scalar or 1-D. Unit modulus per element; no element pattern included.
+    Comparing it with the boresight gain gives the implied radiation efficiency G0·n_el / D.
     """
-    th = np.atleast_1d(np.asarray(theta, dtype=np.float64))
-    y = radar.virtual_positions  # float64 [m]
-    return np.exp(-2j * np.pi * np.outer(y, np.sin(th)) / radar.wavelength)
+    th = np.linspace(-np.pi / 2, np.pi / 2, n)
+    el = np.linspace(-np.pi / 2, np.pi / 2, n)
+    g = element_gain(radar, th[None, :], el[:, None])
+    # dΩ = cos ε dθ dε on the front hemisphere (the pattern is zero behind)
+    integral = np.trapezoid(np.trapezoid(g, th, axis=1) * np.cos(el), el)
+    return float(4 * np.pi * g.max() / integral)
+
+
+def tx_positions(radar: RadarConfig) -> np.ndarray:
+    """(n_tx, 2) TX element (y, z) positions [m] (module doc), y centred on the RX array's centre."""
+    lam = radar.wavelength
+    step = radar.tx_spacing if radar.tx_spacing is not None else radar.n_rx * radar.rx_spacing
+    y = np.arange(radar.n_tx) * step * lam
+    return np.stack([y - y.mean(), np.full(radar.n_tx, radar.tx_elevation_offset * lam)], axis=1)
+
+
+def rx_positions(radar: RadarConfig) -> np.ndarray:
+    """(n_rx, 2) RX element (y, z) positions [m], centred on y = 0, z = 0."""
+    y = np.arange(radar.n_rx) * radar.rx_spacing * radar.wavelength
+    return np.stack([y - y.mean(), np.zeros(radar.n_rx)], axis=1)
+
+
+def channel_positions(radar: RadarConfig) -> np.ndarray:
+    """(n_channels, 2) phase-centre (y, z) [m] of each recorded channel.
+
+    MIMO: p_tx,i + p_rx,j tx-major (y equals ``radar.virtual_positions``); else the RX elements.
+    """
+    rx = rx_positions(radar)
+    if not radar.mimo:
+        return rx
+    v = (tx_positions(radar)[:, None, :] + rx[None, :, :]).reshape(-1, 2)
+    return v - np.array([v[:, 0].mean(), 0.0])
+
+
+def array_response(positions, wavelength: float, azimuth, elevation=0.0) -> np.ndarray:
+    """Steering vectors exp(−j 2π (y sin θ cos ε + z sin ε)/λ), shape (K, P) for positions (K, 2)
+    [m] and P directions (θ, ε broadcast to 1-D), complex128, float64 phases."""
+    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    th, el = np.broadcast_arrays(np.atleast_1d(np.asarray(azimuth, dtype=np.float64)),
+                                 np.atleast_1d(np.asarray(elevation, dtype=np.float64)))
+    th, el = th.ravel(), el.ravel()
+    path = np.outer(pos[:, 0], np.sin(th) * np.cos(el)) + np.outer(pos[:, 1], np.sin(el))
+    # cycles reduced mod 1 before ×2π keeps the phase exact for apertures of many wavelengths
+    return np.exp(-2j * np.pi * np.mod(path / wavelength, 1.0))
+
+
+def steering_vector(radar: RadarConfig, theta, elevation=0.0) -> np.ndarray:
+    """Channel response a_k(θ, ε), shape (n_channels, n_dirs), complex128, unit modulus per channel.
+
+    θ, ε [rad]: scalars or 1-D (broadcast). No element pattern and no coupling included.
+    """
+    return array_response(channel_positions(radar), radar.wavelength, theta, elevation)
+
+
+def array_gain(positions, wavelength: float, azimuth, steer: float, elevation=0.0, weights=None) -> np.ndarray:
+    """Power gain |Σ w_k a_k(θ, ε) a_k*(θ₀, 0)|² / Σ|w_k|² of an array steered to θ₀ = ``steer`` [rad].
+
+    Equals the number of elements at θ = θ₀ for uniform weights (the coherent array gain).
+    Returns the shape of the broadcast (azimuth, elevation).
+    """
+    th, el = np.broadcast_arrays(np.asarray(azimuth, dtype=np.float64), np.asarray(elevation, dtype=np.float64))
+    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    w = np.ones(len(pos)) if weights is None else np.asarray(weights, dtype=np.float64)
+    a = array_response(pos, wavelength, th.ravel(), el.ravel())
+    a0 = array_response(pos, wavelength, steer)[:, 0]
+    af = (w * a0.conj()) @ a
+    return (np.abs(af) ** 2 / np.sum(w**2)).reshape(th.shape)
+
+
+def beam_pattern(radar: RadarConfig, which: str, azimuth, steer: float = 0.0, elevation=0.0) -> np.ndarray:
+    """B_t(θ; θ_t) or B_r(θ; θ_r): element gain × array gain of the TX or RX array steered to ``steer``.
+
+    which: "tx" or "rx". Linear power gain; at the steering angle it is G_e·n (n elements).
+    """
+    if which not in ("tx", "rx"):
+        raise InputError(f"beam_pattern: which must be 'tx' or 'rx', got {which!r}")
+    pos = tx_positions(radar) if which == "tx" else rx_positions(radar)
+    return element_gain(radar, azimuth, elevation) * array_gain(pos, radar.wavelength, azimuth, steer, elevation)
+
+
+def transmit_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
+    """Factor on a path's per-channel received power from transmitting with several elements at once.
+
+    MIMO: 1 (one TX per chirp; the TX phase lives in the virtual channel). Otherwise the n_tx
+    elements radiate coherently towards θ_t: |Σ_i a_i(θ, ε) a_i*(θ_t)|² (n_tx² at θ_t: n_tx times
+    the power, n_tx times the directivity).
+    """
+    th, el = np.broadcast_arrays(np.asarray(azimuth, dtype=np.float64), np.asarray(elevation, dtype=np.float64))
+    if radar.mimo:
+        return np.ones(th.shape)
+    return radar.n_tx * array_gain(tx_positions(radar), radar.wavelength, th, radar.tx_steering, el)
 
 
 def azimuth_weights(radar: RadarConfig, window: str | None = None) -> np.ndarray:
-    """Real taper over the virtual elements (n_virtual,), symmetric; default radar.azimuth_window."""
+    """Real taper over the channels (n_channels,), symmetric; default radar.azimuth_window."""
     name = radar.azimuth_window if window is None else window
     # symmetric (fftbins=False) so the beam is symmetric about the steering angle
-    return np.asarray(get_window(name, radar.n_tx * radar.n_rx, fftbins=False), dtype=np.float64)
+    return np.asarray(get_window(name, radar.n_channels, fftbins=False), dtype=np.float64)
 
 
 def array_factor(radar: RadarConfig, theta, steer_to: float = 0.0, window: str = "boxcar") -> np.ndarray:
@@ -53,10 +183,53 @@ def array_factor(radar: RadarConfig, theta, steer_to: float = 0.0, window: str =
     """
     th = np.asarray(theta, dtype=np.float64)
     w = azimuth_weights(radar, window)
-    a = steering_vector(radar, th.ravel())
-    a0 = steering_vector(radar, steer_to)[:, 0]
-    af = (w * a0.conj()) @ a / w.sum()
-    return (np.abs(af) ** 2).reshape(th.shape)
+    return array_gain(channel_positions(radar), radar.wavelength, th, steer_to, weights=w) * np.sum(w**2) / w.sum() ** 2
+
+
+@functools.lru_cache(maxsize=32)
+def coupling_matrix(radar: RadarConfig) -> np.ndarray | None:
+    """Mutual-coupling matrix C (n_channels, n_channels) complex128, or None when none is configured.
+
+    Measured (``radar.coupling_file``): .npy / .npz (array ``coupling``) / .csv of complex numbers,
+    loaded without pickle. Modelled (``radar.coupling_db``): between two elements of one array a
+    distance d apart, c(d) = (10^(c_dB/20)·e^{jφ})^(d/d_rx) with d_rx the RX spacing (geometric
+    decay with separation, so neighbours couple at c_dB and the 2λ-spaced TX elements barely do),
+    c(0) = 1; the MIMO matrix is C_tx ⊗ C_rx (tx-major like the channels). Cached per radar.
+    """
+    if radar.coupling_file is not None:
+        return _load_coupling(radar)
+    if radar.coupling_db is None:
+        return None
+    d0 = radar.rx_spacing * radar.wavelength
+    base_mag, base_phase = 10 ** (radar.coupling_db / 20), radar.coupling_phase
+
+    def toeplitz(pos):
+        d = np.abs(pos[:, None, 0] - pos[None, :, 0]) / d0
+        return np.where(d == 0, 1.0 + 0j, base_mag**d * np.exp(1j * base_phase * d))
+
+    c = toeplitz(rx_positions(radar))
+    return np.kron(toeplitz(tx_positions(radar)), c) if radar.mimo else c
+
+
+def _load_coupling(radar: RadarConfig) -> np.ndarray:
+    path = Path(radar.coupling_file).expanduser()
+    m = radar.n_channels
+    try:
+        if path.suffix == ".csv":
+            c = np.loadtxt(path, delimiter=",", dtype=np.complex128, ndmin=2)
+        elif path.suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                c = np.asarray(z["coupling"])
+        else:
+            c = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"coupling_file {str(path)!r}: cannot read a coupling matrix "
+                         f"(.npy, .npz with 'coupling', or .csv of complex): {exc}") from None
+    c = np.asarray(c, dtype=np.complex128)
+    if c.shape != (m, m) or not np.all(np.isfinite(c)):
+        raise InputError(f"coupling_file {str(path)!r}: expected a finite ({m}, {m}) matrix "
+                         f"(n_channels × n_channels), got shape {c.shape}")
+    return c
 
 
 def beam_metrics(radar: RadarConfig, window: str | None = None, step: float = 2e-5) -> dict[str, float]:

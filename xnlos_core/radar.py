@@ -8,6 +8,8 @@ import math
 from pathlib import Path
 
 import numpy as np
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 SPEED_OF_LIGHT = 299_792_458.0  # m/s
@@ -39,10 +41,35 @@ class RadarConfig(BaseModel):
     tx_spacing: float | None = Field(
         None, gt=0, le=1000, description="TX spacing [wavelengths]; default n_rx·rx_spacing (filled virtual ULA)"
     )
+    tx_elevation_offset: float = Field(
+        0.0, ge=-100, le=100, description="height of the TX row above the RX row [wavelengths] (planar layout)")
+    mimo: bool = Field(True, description="MIMO virtual array (TX time-multiplexed, n_tx·n_rx channels); "
+                                         "False: the TX elements radiate together as one beam steered to "
+                                         "tx_steering and only the n_rx RX channels are recorded")
+    tx_steering: float = Field(0.0, ge=-math.pi / 2, le=math.pi / 2,
+                               description="θ_t [rad]: TX beam direction when mimo = False")
     element_gain_dbi: float = Field(6.0, ge=-10, le=30, description="patch element boresight gain [dBi]")
     element_pattern_exponent: float = Field(
-        1.2, ge=0, le=20, description="q in the element power pattern cos(θ)^q"
+        1.2, ge=0, le=20, description="q in the element power pattern cos(θ)^q (azimuth plane)"
     )
+    element_pattern_exponent_el: float = Field(
+        1.2, ge=0, le=20, description="q_el in the element power pattern cos(ε)^q_el (elevation plane)"
+    )
+    n_elevation: int = Field(1, ge=1, le=64, description="patches per element column (fixed broadside "
+                                                        "elevation sub-array); raises gain, narrows elevation")
+    elevation_spacing: float = Field(0.5, gt=0, le=10, description="patch spacing in a column [wavelengths]")
+    polarization: Literal["V", "H"] = Field(
+        "V", description="E-field polarisation: V is TE (s) on vertical walls, H is TM (p)")
+    coupling_db: float | None = Field(
+        None, ge=-100, le=-3, description="modelled mutual coupling between adjacent RX (and TX) elements "
+                                          "[dB]; None: no coupling unless coupling_file is given")
+    coupling_phase: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi,
+                                  description="phase of the adjacent-element coupling coefficient [rad]")
+    coupling_file: str | None = Field(
+        None, description="measured coupling matrix (.npy/.npz key 'coupling' or .csv of complex), "
+                          "shape (n_channels, n_channels); replaces the modelled one")
+    coupling_compensation: bool = Field(
+        False, description="the signal chain undoes the coupling (C⁻¹) before beamforming (calibrated radar)")
     field_of_view: float = Field(math.radians(60), gt=0, lt=math.pi / 2, description="half FOV [rad]")
     n_azimuth_bins: int = Field(121, ge=3, le=4096)
     max_range: float = Field(100.0, gt=0, description="RA maps are cropped to [0, max_range] [m]")
@@ -60,6 +87,9 @@ class RadarConfig(BaseModel):
             raise ValueError(f"max_range={self.max_range} m is below two range bins ({self.range_resolution:.3f} m each)")
         for name in ("range_window", "azimuth_window"):
             _check_window(name, getattr(self, name))
+        if self.coupling_db is not None and self.coupling_file is not None:
+            raise ValueError("coupling_db and coupling_file are exclusive: give the modelled level or a "
+                             "measured matrix, not both")
         return self
 
     # --- derived quantities (float64) ----------------------------------------------------
@@ -109,13 +139,26 @@ class RadarConfig(BaseModel):
         return np.linspace(-self.field_of_view, self.field_of_view, self.n_azimuth_bins)
 
     @property
+    def n_channels(self) -> int:
+        """Recorded channels: n_tx·n_rx virtual channels with MIMO, else the n_rx receivers."""
+        return self.n_tx * self.n_rx if self.mimo else self.n_rx
+
+    @property
+    def has_coupling(self) -> bool:
+        """True when a modelled or measured coupling matrix is configured."""
+        return self.coupling_db is not None or self.coupling_file is not None
+
+    @property
     def virtual_positions(self) -> np.ndarray:
         """y positions of the n_tx·n_rx virtual elements [m], shape (n_tx·n_rx,), centred on 0.
 
-        Virtual element (i, j) sits at y_tx,i + y_rx,j, ordered tx-major.
+        Virtual element (i, j) sits at y_tx,i + y_rx,j, ordered tx-major. Without MIMO the
+        channels are the RX elements themselves, (n_rx,) centred on 0.
         """
         lam = self.wavelength
         rx = np.arange(self.n_rx) * self.rx_spacing * lam
+        if not self.mimo:
+            return rx - rx.mean()
         tx_step = self.tx_spacing if self.tx_spacing is not None else self.n_rx * self.rx_spacing
         tx = np.arange(self.n_tx) * tx_step * lam
         v = (tx[:, None] + rx[None, :]).ravel()

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import get_window
 
-from .antenna import azimuth_weights, steering_vector
+from .antenna import azimuth_weights, coupling_matrix, steering_vector
 from .errors import InputError
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .types import RAMap
@@ -48,13 +48,18 @@ def sample_times(radar: RadarConfig) -> np.ndarray:
     return np.arange(radar.n_samples, dtype=np.float64) / radar.sample_rate
 
 
-def dechirp(radar: RadarConfig, path_length, azimuth, amplitude) -> np.ndarray:
-    """Synthesise the dechirped baseband cube of a set of paths (Eq. 6), (n_samples, n_virtual) complex128.
+def dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=None) -> np.ndarray:
+    """Synthesise the dechirped baseband cube of a set of paths (Eq. 6), (n_samples, n_channels) complex128.
 
     path_length (P,): unfolded round-trip length L [m] (one-way equivalent range L/2);
-    azimuth (P,): arrival azimuth θ [rad]; amplitude (P,): complex amplitude a [√W].
+    azimuth (P,): arrival azimuth θ [rad]; amplitude (P,): complex amplitude a [√W];
+    elevation (P,) or None: arrival elevation ε [rad] (None: all in the horizontal plane).
 
-        s_k[n] = Σ_p a_p · exp(j(2π f_b,p t_n + 2π f_c τ_p − π S τ_p²)) · exp(−j 2π y_k sin θ_p / λ)
+        s_k[n] = Σ_p a_p · exp(j(2π f_b,p t_n + 2π f_c τ_p − π S τ_p²)) · a_k(θ_p, ε_p)
+
+    with a_k the channel steering vector (:func:`xnlos_core.antenna.steering_vector`). When the
+    radar has mutual coupling (:func:`xnlos_core.antenna.coupling_matrix`) the channels are mixed
+    as the hardware would: s ← s·Cᵀ (x = C·x₀ per sample).
 
     with τ = L/c, S = B/T, f_b = S·τ (conjugate product g·g*(t−τ), so f_b > 0). The sum is
     separable, so it is a matrix product (N, P) @ (P, M), done in chunks of paths. The IF
@@ -64,22 +69,24 @@ def dechirp(radar: RadarConfig, path_length, azimuth, amplitude) -> np.ndarray:
     L = np.atleast_1d(np.asarray(path_length, dtype=np.float64))
     th = np.atleast_1d(np.asarray(azimuth, dtype=np.float64))
     a = np.atleast_1d(np.asarray(amplitude, dtype=np.complex128))
-    if not (L.shape == th.shape == a.shape and L.ndim == 1):
-        raise InputError(f"dechirp: path_length, azimuth, amplitude must be 1-D of equal length, "
-                         f"got {L.shape}, {th.shape}, {a.shape}")
+    el = np.zeros_like(th) if elevation is None else np.atleast_1d(np.asarray(elevation, dtype=np.float64))
+    if not (L.shape == th.shape == a.shape == el.shape and L.ndim == 1):
+        raise InputError(f"dechirp: path_length, azimuth, amplitude, elevation must be 1-D of equal length, "
+                         f"got {L.shape}, {th.shape}, {a.shape}, {el.shape}")
     tau = L / SPEED_OF_LIGHT
     fb = radar.chirp_slope * tau
     keep = (fb >= 0) & (fb < radar.sample_rate) & (a != 0)
-    L, th, a, tau, fb = L[keep], th[keep], a[keep], tau[keep], fb[keep]
+    L, th, a, tau, fb, el = L[keep], th[keep], a[keep], tau[keep], fb[keep], el[keep]
     t = sample_times(radar)
     # constant phase in cycles: f_c τ = L/λ (mod 1 first, float64), minus the residual video phase S τ²/2
     phase0 = np.mod(L / radar.wavelength, 1.0) - 0.5 * radar.chirp_slope * tau**2
-    cube = np.zeros((radar.n_samples, radar.n_tx * radar.n_rx), dtype=np.complex128)
+    cube = np.zeros((radar.n_samples, radar.n_channels), dtype=np.complex128)
     for i in range(0, len(L), _CHUNK):
         sl = slice(i, i + _CHUNK)
         tones = np.exp(2j * np.pi * (np.outer(t, fb[sl]) + phase0[sl]))  # (N, P)
-        cube += (tones * a[sl]) @ steering_vector(radar, th[sl]).T  # (P, M)
-    return cube
+        cube += (tones * a[sl]) @ steering_vector(radar, th[sl], el[sl]).T  # (P, M)
+    c = coupling_matrix(radar)
+    return cube if c is None else cube @ c.T
 
 
 def add_noise(cube: np.ndarray, radar: RadarConfig, rng: np.random.Generator) -> np.ndarray:
@@ -107,7 +114,7 @@ def noise_floor(radar: RadarConfig) -> float:
 
 
 def range_fft(cube: np.ndarray, radar: RadarConfig) -> np.ndarray:
-    """Windowed range FFT along axis 0, cropped to radar.n_range_bins → (n_range_bins, n_virtual) complex128.
+    """Windowed range FFT along axis 0, cropped to radar.n_range_bins → (n_range_bins, n_channels) complex128.
 
     Normalised by the window's coherent gain Σw_r, so a tone of complex amplitude A at the
     centre of bin k gives exactly A in bin k (bin k ↔ range k·ΔR, f_b = k/T).
@@ -118,7 +125,7 @@ def range_fft(cube: np.ndarray, radar: RadarConfig) -> np.ndarray:
 
 
 def beamform(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
-    """Windowed delay-and-sum onto radar.azimuth_axis: (n_range, n_virtual) → (n_range, n_azimuth).
+    """Windowed delay-and-sum onto radar.azimuth_axis: (n_range, n_channels) → (n_range, n_azimuth).
 
     κ(r, θ) = Σ_k w_k a_k*(θ) X_k(r) / Σ w_k, so a unit plane wave from a grid angle gives 1.
     """
@@ -127,21 +134,36 @@ def beamform(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
     return range_profiles @ weights
 
 
+def decouple(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
+    """Undo mutual coupling, x₀ = C⁻¹x per range bin, when ``radar.coupling_compensation`` is set
+    (a calibrated radar); otherwise return the profiles unchanged. (n_range, n_channels)."""
+    c = coupling_matrix(radar) if radar.coupling_compensation else None
+    if c is None:
+        return range_profiles
+    try:
+        return np.linalg.solve(c, range_profiles.T).T
+    except np.linalg.LinAlgError:
+        raise InputError("coupling matrix is singular: coupling_compensation cannot invert it") from None
+
+
 def ra_map_from_cube(cube: np.ndarray, radar: RadarConfig) -> RAMap:
-    """Range FFT + beamforming of a (n_samples, n_virtual) cube → RAMap (complex64). No validation."""
-    return RAMap.from_radar(beamform(range_fft(cube, radar), radar).astype(np.complex64), radar)
+    """Range FFT, coupling compensation (if configured) and beamforming of a (n_samples,
+    n_channels) cube → RAMap (complex64). No validation."""
+    return RAMap.from_radar(beamform(decouple(range_fft(cube, radar), radar), radar).astype(np.complex64), radar)
 
 
 def adc_to_ra_map(cube, radar: RadarConfig) -> RAMap:
     """Entry point for measured ADC cubes: validate, then :func:`ra_map_from_cube`.
 
-    cube: complex (n_samples, n_tx·n_rx) in √W, virtual channels tx-major like
+    cube: complex (n_samples, n_channels) in √W, channels tx-major like
     radar.virtual_positions. Raises InputError on a wrong shape or non-finite values.
+    For raw hardware layouts (int16 I/Q, other axis orders, several chirps) see
+    :func:`xnlos_core.adc.adc_cube_to_ra_map`.
     """
-    want = (radar.n_samples, radar.n_tx * radar.n_rx)
+    want = (radar.n_samples, radar.n_channels)
     shape = np.shape(cube)
     if tuple(shape) != want:
-        raise InputError(f"adc cube: expected shape (n_samples, n_tx*n_rx) = {want} for this radar, "
+        raise InputError(f"adc cube: expected shape (n_samples, n_channels) = {want} for this radar, "
                          f"got {tuple(shape)}")
     arr = as_array("adc cube", cube, dtype=np.complex128)
     return ra_map_from_cube(arr, radar)

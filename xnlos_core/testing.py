@@ -44,7 +44,7 @@ def synthetic_frame(radar: RadarConfig | None = None, seed: int = 0, snr_db: flo
     pts = np.concatenate([los, virt])
     rr, aa = cartesian_to_polar(pts)
     amp = 10 ** (snr_db / 20)
-    sig_r, sig_a = radar.range_resolution, 2.0 / (radar.n_tx * radar.n_rx)
+    sig_r, sig_a = radar.range_resolution, 2.0 / (radar.n_channels)
     data = (rng.standard_normal((len(r_ax), len(a_ax))) + 1j * rng.standard_normal((len(r_ax), len(a_ax)))) / math.sqrt(2)
     for r, a in zip(rr, aa):
         if r <= r_ax[-1] and abs(a) <= a_ax[-1]:
