@@ -52,35 +52,54 @@ def column_factor(radar: RadarConfig, elevation) -> np.ndarray:
     return np.where(small, 1.0, (num / np.where(small, 1.0, den)) ** 2)
 
 
-def element_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
-    """Power gain of one element (patch column), linear (not dB), broadcast over θ, ε [rad]:
+def element_pattern(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
+    """Normalised power pattern of one element (patch column), 1 at boresight, broadcast over θ, ε [rad]:
 
-        G_e(θ, ε) = G0 · n_el · cos(θ)^q · cos(ε)^q_el · AF_col(ε)
+        P(θ, ε) = cos(θ)^q · cos(ε)^q_el · AF_col(ε)
 
-    G0 = 10^(element_gain_dbi/10) (one patch), q = element_pattern_exponent (azimuth plane),
-    q_el = element_pattern_exponent_el, AF_col from :func:`column_factor`. Zero behind the
-    ground plane (|θ| ≥ 90° or |ε| ≥ 90°). With ε = 0 and n_el = 1 this is G0·cos(θ)^q.
+    q = element_pattern_exponent (azimuth plane), q_el = element_pattern_exponent_el, AF_col
+    from :func:`column_factor`. Zero behind the ground plane (|θ| ≥ 90° or |ε| ≥ 90°).
     """
     th, el = np.broadcast_arrays(_wrap(azimuth), _wrap(elevation))
-    g0 = 10.0 ** (radar.element_gain_dbi / 10.0)
     front = (np.abs(th) < np.pi / 2) & (np.abs(el) < np.pi / 2)
     # clip before the power: cos^q of a negative number is NaN for non-integer q
     ca = np.clip(np.cos(th), 0.0, None) ** radar.element_pattern_exponent
     ce = np.clip(np.cos(el), 0.0, None) ** radar.element_pattern_exponent_el
-    return np.where(front, g0 * radar.n_elevation * ca * ce * column_factor(radar, el), 0.0)
+    return np.where(front, ca * ce * column_factor(radar, el), 0.0)
 
 
-def element_directivity(radar: RadarConfig, n: int = 721) -> float:
-    """Directivity D = 4π·max G / ∮ G dΩ of :func:`element_gain` (linear), by quadrature over the sphere.
-
-    Comparing it with the boresight gain gives the implied radiation efficiency G0·n_el / D.
-    """
+@functools.lru_cache(maxsize=64)
+def _directivity(radar: RadarConfig, n: int = 721) -> float:
     th = np.linspace(-np.pi / 2, np.pi / 2, n)
     el = np.linspace(-np.pi / 2, np.pi / 2, n)
-    g = element_gain(radar, th[None, :], el[:, None])
+    g = element_pattern(radar, th[None, :], el[:, None])
     # dΩ = cos ε dθ dε on the front hemisphere (the pattern is zero behind)
     integral = np.trapezoid(np.trapezoid(g, th, axis=1) * np.cos(el), el)
     return float(4 * np.pi * g.max() / integral)
+
+
+def element_directivity(radar: RadarConfig) -> float:
+    """Directivity D = 4π·max P / ∮ P dΩ of :func:`element_pattern` (linear), by quadrature."""
+    return _directivity(radar)
+
+
+def radiation_efficiency(radar: RadarConfig) -> float:
+    """η = G0 / D₁: stated single-patch gain (element_gain_dbi) over the single patch's directivity."""
+    single = radar if radar.n_elevation == 1 else radar.model_copy(update={"n_elevation": 1})
+    return 10.0 ** (radar.element_gain_dbi / 10.0) / _directivity(single)
+
+
+def element_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
+    """Power gain of one element (patch column), linear (not dB): G_e(θ, ε) = η·D·P(θ, ε).
+
+    This is B_t = B_r of Eq. 1/3/5. P: :func:`element_pattern`; D its directivity; η the patch's
+    radiation efficiency (:func:`radiation_efficiency`), so a single patch has boresight gain
+    exactly G0 = 10^(element_gain_dbi/10) and a column of n_el patches gains what its narrower
+    elevation beam gives (less than n_el·G0 when the patches are already directive).
+    """
+    scale = radiation_efficiency(radar) * _directivity(radar) if radar.n_elevation > 1 else \
+        10.0 ** (radar.element_gain_dbi / 10.0)
+    return scale * element_pattern(radar, azimuth, elevation)
 
 
 def tx_positions(radar: RadarConfig) -> np.ndarray:
