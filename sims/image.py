@@ -5,10 +5,21 @@ image o' = R_Π(o) (Eq. 5), with unfolded round trip L = 2|o'| and path loss 1/L
 Walls also return diffusely in line of sight (extended targets sampled at ``wall.spacing``).
 Every path is then rendered through the FMCW chain of :mod:`xnlos_core.signal_chain`.
 
+Components are added only when the scene or configuration asks for them (``Params``: each
+"auto", "on" or "off"; the frame's ``meta["components"]`` says what was used and why):
+
+* ``diffuse``: LOS echoes of walls with a material from the roughness lobe (:mod:`sims.walls`);
+  walls given by constants always return σ⁰·cos²ψ.
+* ``transmission``: objects behind walls of finite thickness seen through them, power ×|T|⁴
+  per crossed wall (direct paths only); opaque walls (no material or no thickness) block.
+* ``atmosphere``: ITU-R P.676 gaseous loss over each round trip, when the scene declares an
+  atmosphere and the loss over the longest path reaches ``tolerance_db``.
+* ``coupling``: the radar's mutual-coupling matrix mixes the channels (:mod:`xnlos_core.antenna`).
+
 Simplifications (deliberate, first-order model): only walls occlude (objects do not shadow
 walls or each other); one relay bounce on each side of an object (no wall–wall or multi-wall
-chains); the specular reflectivity α does not depend on incidence angle; the scene is 2-D with
-wall height entering only the diffuse wall RCS.
+chains); the scene is 2-D (all paths in the horizontal plane, ε = 0) with wall height entering
+only the diffuse wall RCS.
 """
 from __future__ import annotations
 
@@ -17,28 +28,21 @@ import math
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from xnlos_core.antenna import element_gain
+from typing import Literal
+
 from xnlos_core.geometry import cartesian_to_polar, mirror_reflect, ray_segment_intersection, segments_intersect
 from xnlos_core.interfaces import ForwardModel
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import add_noise, dechirp, processing_gain, ra_map_from_cube
+from xnlos_core.signal_chain import add_noise, dechirp, ra_map_from_cube
 from xnlos_core.types import Frame, GroundTruth
 
+from . import walls as wall_em
+from .atmosphere import attenuation_db
+from .propagation import ra_snr_db, received_power
+
 _ORIGIN = np.zeros(2)
-
-
-def received_power(radar: RadarConfig, r, theta, sigma, alpha=1.0) -> np.ndarray:
-    """Radar equation per path [W] (Eq. 4 per leg, unfolded leg lengths r_t = r_r = r):
-
-        P_r = P_t·G(θ)²·λ²·σ·|α|⁴ / ((4π)³·r⁴·L_sys)
-
-    r [m] (unfolded one-way range, |o| direct or |o'| mirrored); θ arrival azimuth [rad];
-    σ [m²]; α specular amplitude reflectivity of the relay wall (two bounces → |α|⁴ in power).
-    """
-    g = element_gain(radar, theta)
-    loss = 10.0 ** (radar.system_loss_db / 10.0)
-    num = radar.transmit_power * g * g * radar.wavelength**2 * np.asarray(sigma) * np.abs(alpha) ** 4
-    return num / ((4 * np.pi) ** 3 * np.asarray(r, dtype=np.float64) ** 4 * loss)
+Switch = Literal["auto", "on", "off"]
+COMPONENTS = ("diffuse", "transmission", "atmosphere", "coupling")
 
 
 def _blocked(p0, p1, segments, skip: int | None = None) -> np.ndarray:
@@ -79,11 +83,56 @@ class ImageForwardModel(ForwardModel):
         min_snr_db: float = Field(0.0, ge=-100, le=200,
                                   description="ground truth lists a path only above this RA-map SNR [dB]")
         mirror_paths: bool = Field(True, description="model relay-wall (mNLOS) mirror paths")
+        reflection: Literal["analytic", "fdtd"] = Field(
+            "analytic", description="wall reflection coefficients from the slab formula or the cached FDTD solver")
+        diffuse: Switch = Field("auto", description="diffuse roughness lobe of material walls (LOS echoes)")
+        transmission: Switch = Field("auto", description="direct paths through walls of finite thickness")
+        atmosphere: Switch = Field("auto", description="ITU-R P.676 gaseous loss")
+        coupling: Switch = Field("auto", description="the radar's mutual-coupling matrix")
+        tolerance_db: float = Field(0.1, ge=0, le=60, description="'auto' leaves out a loss term whose "
+                                                                   "largest effect stays below this [dB]")
+
+    def components(self, scene, radar: RadarConfig) -> dict[str, str]:
+        """Which optional components this scene and radar need: name → "on" or "off: reason"."""
+        p = self.params
+        mat = [w for w in scene.walls if w.material is not None]
+        need = {
+            "diffuse": (any(w.roughness > 0 for w in mat), "no rough material wall"),
+            "transmission": (bool(scene.objects) and any(w.thickness is not None for w in mat),
+                             "no object and finite-thickness material wall"),
+            "coupling": (radar.has_coupling, "radar has no coupling matrix"),
+        }
+        if scene.atmosphere is None:
+            need["atmosphere"] = (False, "scene declares no atmosphere")
+        else:
+            worst = float(attenuation_db(radar.carrier_frequency, 2 * radar.max_range,
+                                         **scene.atmosphere.model_dump()))
+            need["atmosphere"] = (worst >= p.tolerance_db,
+                                  f"≤ {worst:.3g} dB over the longest round trip < tolerance {p.tolerance_db} dB")
+        out = {}
+        for name in COMPONENTS:
+            switch = getattr(p, name)
+            on, why = need[name]
+            out[name] = "on" if switch == "on" or (switch == "auto" and on) else (
+                "off: switched off" if switch == "off" else f"off: {why}")
+        return out
 
     def simulate(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                  index: int = 0) -> Frame:
         """Render ``scene`` at ``timestamp`` [s] into a Frame with its RA map and ground truth."""
+        return self.simulate_adc(scene, radar, rng, timestamp, index)[1]
+
+    def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
+                     index: int = 0) -> tuple[np.ndarray, Frame]:
+        """Like :meth:`simulate`, also returning the noisy ADC cube (n_samples, n_channels) [√W]
+        the RA map was formed from (what a hardware emulator sends)."""
         p = self.params
+        use = self.components(scene, radar)
+        on = {k: v == "on" for k, v in use.items()}
+        if not on["coupling"] and radar.has_coupling:
+            radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
+        else:
+            radar_syn = radar
         segs = scene.wall_segments()
         objs = [o.scatterers(timestamp) for o in scene.objects]  # (pos (K,2), normal (K,2), rcs (K,))
 
@@ -105,21 +154,26 @@ class ImageForwardModel(ForwardModel):
             for k, v in row.items():
                 cols[k].append(v)
 
-        # --- LOS: diffuse wall returns, σ = σ⁰·cos²ψ·Δs·h per cell ---------------------------
+        # --- LOS: diffuse wall returns, σ = σ⁰(ψ)·Δs·h per cell --------------------------------
         for i, (spec, seg, (pts, ds)) in enumerate(zip(scene.walls, segs, walls)):
-            if seg.offset <= 0:  # radar on the wall line: grazing, no return
-                continue
+            if seg.offset <= 0 or (spec.material is not None and not on["diffuse"]):
+                continue  # radar on the wall line (grazing), or the lobe is not modelled
             r, th = cartesian_to_polar(pts)
             cos_psi = (-pts @ seg.normal) / r  # incidence angle from the wall normal (towards radar)
             vis = (cos_psi > 0) & ~_blocked(_ORIGIN, pts, segs, skip=i)
-            sigma = 10 ** (spec.backscatter_db / 10) * cos_psi**2 * ds * spec.height
-            emit(pts[vis], received_power(radar, r[vis], th[vis], sigma[vis]), wall_phase[i][vis], 0)
+            psi = np.arccos(np.clip(cos_psi[vis], -1.0, 1.0))
+            sigma = wall_em.backscatter_sigma0(spec, radar, psi) * ds * spec.height
+            emit(pts[vis], received_power(radar, r[vis], th[vis], sigma), wall_phase[i][vis], 0)
 
-        # --- LOS: objects seen directly -------------------------------------------------------
+        # --- LOS: objects seen directly, or through thin walls -----------------------------------
         for j, (pts, nrm, rcs) in enumerate(objs):
-            vis = _faces(nrm, pts, _ORIGIN) & ~_blocked(_ORIGIN, pts, segs)
+            face = _faces(nrm, pts, _ORIGIN)
+            gain = np.where(_blocked(_ORIGIN, pts, segs), 0.0, 1.0)
+            if on["transmission"]:
+                gain = _through_walls(scene, segs, radar, pts)
+            vis = face & (gain > 0)
             r, th = cartesian_to_polar(pts[vis])
-            emit(pts[vis], received_power(radar, r, th, rcs[vis]), obj_phase[j][vis], 0, obj=j)
+            emit(pts[vis], received_power(radar, r, th, rcs[vis] * gain[vis]), obj_phase[j][vis], 0, obj=j)
 
         # --- mNLOS: one specular bounce on each side of the object (Eq. 3, 5) ------------------
         if p.mirror_paths:
@@ -136,27 +190,46 @@ class ImageForwardModel(ForwardModel):
                     ok &= ~_blocked(_ORIGIN, w, segs, skip=i) & ~_blocked(w, pts, segs, skip=i)
                     ok &= _faces(nrm, pts, w)
                     r, th = cartesian_to_polar(img[ok])
-                    power = received_power(radar, r, th, rcs[ok], spec.reflectivity)
+                    inc = np.arccos(np.clip(np.abs(w[ok] @ n) / np.linalg.norm(w[ok], axis=1), 0.0, 1.0))
+                    alpha = wall_em.specular_alpha(spec, radar, inc, p.reflection)
+                    power = received_power(radar, r, th, rcs[ok], alpha)
                     emit(img[ok], power, obj_phase[j][ok], 1, hidden=pts[ok], obj=j)
 
         r, th, power, phase = (_cat(cols[k]) for k in ("r", "th", "power", "phase"))
         kind, gt_obj = _cat(cols["kind"]).astype(int), _cat(cols["obj"]).astype(int)
         pos, hidden = _cat(cols["pos"], (0, 2)), _cat(cols["hidden"], (0, 2))
+        if on["atmosphere"] and len(r):
+            conditions = (scene.atmosphere.model_dump() if scene.atmosphere is not None else {})
+            power = power * 10 ** (-attenuation_db(radar.carrier_frequency, 2 * r, **conditions) / 10)
         live = power > 0  # drop paths behind the array (zero element gain)
 
-        cube = dechirp(radar, 2 * r[live], th[live], np.sqrt(power[live]) * np.exp(1j * phase[live]))
+        cube = dechirp(radar_syn, 2 * r[live], th[live], np.sqrt(power[live]) * np.exp(1j * phase[live]))
         if p.noise:
-            cube = add_noise(cube, radar, rng)
+            cube = add_noise(cube, radar_syn, rng)
         ra = ra_map_from_cube(cube, radar)
 
         # Ground truth: paths a radar could see in this map (inside FOV and range, above SNR).
-        with np.errstate(divide="ignore"):
-            snr_db = 10 * np.log10(power * processing_gain(radar) / radar.noise_power)
+        snr_db = ra_snr_db(radar, power)
         seen = live & (snr_db >= p.min_snr_db) & (np.abs(th) <= radar.field_of_view) & (r <= radar.max_range)
         los, mn = seen & (kind == 0), seen & (kind == 1)
         gt = GroundTruth(los_points=pos[los], mnlos_points=pos[mn], hidden_points=hidden[mn],
                          mnlos_object=gt_obj[mn], object_names=tuple(o.name for o in scene.objects),
                          walls=segs)
         meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (kind == 0)).sum()),
-                "n_mnlos_paths": int((live & (kind == 1)).sum()), "forward_model": "image"}
-        return Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)
+                "n_mnlos_paths": int((live & (kind == 1)).sum()), "forward_model": "image",
+                "components": use}
+        return cube, Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)
+
+
+def _through_walls(scene, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:
+    """(K,) round-trip power factor Π|T(θ_i)|⁴ over the walls the segment radar → pts crosses
+    (1 where none, 0 where an opaque wall is crossed)."""
+    gain = np.ones(len(pts))
+    for spec, seg in zip(scene.walls, segs):
+        cross = segments_intersect(_ORIGIN, pts, seg.start, seg.end)
+        if not cross.any():
+            continue
+        r = np.linalg.norm(pts[cross], axis=1)
+        inc = np.arccos(np.clip(np.abs(pts[cross] @ seg.normal) / r, 0.0, 1.0))
+        gain[cross] *= np.abs(wall_em.transmission(spec, radar, inc)) ** 4
+    return gain

@@ -32,15 +32,31 @@ Vec2 = tuple[float, float]
 
 
 class WallSpec(BaseModel):
-    """A vertical planar wall (segment start→end seen from above)."""
+    """A vertical planar wall (segment start→end seen from above).
+
+    Two ways to give its electromagnetics, not both:
+    * constants: ``reflectivity`` α (specular amplitude coefficient, angle-independent) and
+      ``backscatter_db`` σ⁰ at normal incidence (diffuse LOS return ∝ cos²ψ);
+    * physics: ``material`` (ITU-R P.2040 name, :mod:`sims.materials`), optional ``thickness``
+      (a slab; None is a half-space), rms ``roughness`` σ_h and a diffuse ``lobe``: α follows
+      from Fresnel/slab reflection and the specular factor, σ⁰ from the lobe model.
+    Without either, the constants default to α = 0.6 and σ⁰ = −12 dB.
+    """
 
     model_config = ConfigDict(extra="forbid")
     name: str = "wall"
     start: Vec2
     end: Vec2
     height: float = Field(3.0, gt=0, le=500, description="visible height [m] (diffuse RCS)")
-    reflectivity: float = Field(0.6, ge=0, le=1, description="α, specular amplitude coefficient")
-    backscatter_db: float = Field(-12.0, ge=-80, le=20, description="σ⁰ at normal incidence [dB]")
+    reflectivity: float | None = Field(None, ge=0, le=1, description="α, specular amplitude coefficient "
+                                                                     "(default 0.6 without a material)")
+    backscatter_db: float | None = Field(None, ge=-80, le=20, description="σ⁰ at normal incidence [dB] "
+                                                                          "(default −12 without a material)")
+    material: str | None = Field(None, description="ITU-R P.2040 material (concrete, brick, glass, …)")
+    thickness: float | None = Field(None, gt=0, le=10, description="slab thickness [m]; None: half-space")
+    roughness: float = Field(0.0, ge=0, le=0.5, description="rms surface height σ_h [m]")
+    lobe: Literal["lambertian", "directive"] = Field("lambertian", description="diffuse scattering lobe")
+    lobe_exponent: int = Field(4, ge=1, le=100, description="α_R of the directive lobe")
     relay: bool = Field(True, description="acts as a mirror for hidden objects")
     spacing: float = Field(0.25, gt=0.005, le=10, description="scatterer spacing along the wall [m]")
 
@@ -48,7 +64,26 @@ class WallSpec(BaseModel):
     def _length(self):
         if math.dist(self.start, self.end) <= 0:
             raise ValueError(f"wall {self.name!r}: start and end coincide; a wall needs length > 0")
+        if self.material is not None and (self.reflectivity is not None or self.backscatter_db is not None):
+            raise ValueError(f"wall {self.name!r}: give either material (with thickness/roughness) or the "
+                             "constants reflectivity/backscatter_db, not both")
+        if self.material is None and (self.thickness is not None or self.roughness > 0):
+            raise ValueError(f"wall {self.name!r}: thickness and roughness need a material")
+        if self.material is not None:
+            from sims.materials import get_material  # validates the name with a did-you-mean
+
+            get_material(self.material)
         return self
+
+    @property
+    def alpha(self) -> float:
+        """The constant specular reflectivity α (walls without a material)."""
+        return 0.6 if self.reflectivity is None else self.reflectivity
+
+    @property
+    def sigma0_db(self) -> float:
+        """The constant normal-incidence σ⁰ [dB] (walls without a material)."""
+        return -12.0 if self.backscatter_db is None else self.backscatter_db
 
     def segment(self) -> WallSegment:
         return WallSegment(np.array(self.start, float), np.array(self.end, float), self.name)
@@ -101,13 +136,26 @@ class ObjectSpec(BaseModel):
         return p, n, np.full(len(p), self.rcs / len(p))
 
 
+class AtmosphereSpec(BaseModel):
+    """Air along the paths (ITU-R P.676 gaseous absorption, :mod:`sims.atmosphere`)."""
+
+    model_config = ConfigDict(extra="forbid")
+    pressure_hpa: float = Field(1013.25, ge=1, le=1200, description="total pressure [hPa]")
+    temperature_k: float = Field(288.15, ge=150, le=350, description="temperature [K]")
+    water_density: float = Field(7.5, ge=0, le=50, description="water-vapour density [g/m³]")
+
+
 class Scene(BaseModel):
-    """Walls and objects of one scene; frames at t = k·frame_interval move the objects."""
+    """Walls and objects of one scene; frames at t = k·frame_interval move the objects.
+
+    ``atmosphere``: None means vacuum-like air (no gaseous loss is modelled).
+    """
 
     model_config = ConfigDict(extra="forbid")
     name: str = "scene"
     walls: list[WallSpec] = Field(default_factory=list)
     objects: list[ObjectSpec] = Field(default_factory=list)
+    atmosphere: AtmosphereSpec | None = None
 
     def wall_segments(self) -> tuple[WallSegment, ...]:
         return tuple(w.segment() for w in self.walls)
