@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
 
-.PHONY: demo test test-slow bench clean
+.PHONY: demo test test-slow bench figures clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,12 @@ test-slow: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/pipeline_speed.py
+	$(PY) benchmarks/forward_components.py
+
+# Fig. 2 of the paper (path loss, specular ratio) and the antenna patterns, as PNG in figures/
+figures: $(STAMP)
+	$(PY) benchmarks/fig2.py --out figures
+	$(PY) benchmarks/antenna_report.py --out figures
 
 clean:
-	rm -rf demo-out .pytest_cache .hypothesis
+	rm -rf demo-out figures .pytest_cache .hypothesis
