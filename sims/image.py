@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from typing import Literal
 
+from xnlos_core.errors import InputError
 from xnlos_core.geometry import cartesian_to_polar, mirror_reflect, ray_segment_intersection, segments_intersect
 from xnlos_core.interfaces import ForwardModel
 from xnlos_core.radar import RadarConfig
@@ -133,12 +134,16 @@ class ImageForwardModel(ForwardModel):
             radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
         else:
             radar_syn = radar
-        segs = scene.wall_segments()
+        if scene.meshes:
+            raise InputError(f"image forward model: scene {scene.name!r} has {len(scene.meshes)} mesh(es); the "
+                             "image method handles walls and objects only (use the 'raytrace' forward model)")
+        planar = scene.planar_walls()  # curved walls as planar facets, each its own mirror
+        segs = tuple(w.segment() for w in planar)
         objs = [o.scatterers(timestamp) for o in scene.objects]  # (pos (K,2), normal (K,2), rcs (K,))
 
         # Random phases first, in a fixed order (walls, then objects), one per scatterer: the rng
         # stream then does not depend on visibility, and an object keeps its phase on every path.
-        walls = [_wall_scatterers(w) for w in scene.walls]
+        walls = [_wall_scatterers(w) for w in planar]
         sizes = [len(pts) for pts, _ in walls] + [len(o[0]) for o in objs]
         drawn = [rng.uniform(0, 2 * np.pi, n) if p.random_phase else np.zeros(n) for n in sizes]
         wall_phase, obj_phase = drawn[:len(walls)], drawn[len(walls):]
@@ -155,7 +160,7 @@ class ImageForwardModel(ForwardModel):
                 cols[k].append(v)
 
         # --- LOS: diffuse wall returns, σ = σ⁰(ψ)·Δs·h per cell --------------------------------
-        for i, (spec, seg, (pts, ds)) in enumerate(zip(scene.walls, segs, walls)):
+        for i, (spec, seg, (pts, ds)) in enumerate(zip(planar, segs, walls)):
             if seg.offset <= 0 or (spec.material is not None and not on["diffuse"]):
                 continue  # radar on the wall line (grazing), or the lobe is not modelled
             r, th = cartesian_to_polar(pts)
@@ -170,14 +175,14 @@ class ImageForwardModel(ForwardModel):
             face = _faces(nrm, pts, _ORIGIN)
             gain = np.where(_blocked(_ORIGIN, pts, segs), 0.0, 1.0)
             if on["transmission"]:
-                gain = _through_walls(scene, segs, radar, pts)
+                gain = _through_walls(planar, segs, radar, pts)
             vis = face & (gain > 0)
             r, th = cartesian_to_polar(pts[vis])
             emit(pts[vis], received_power(radar, r, th, rcs[vis] * gain[vis]), obj_phase[j][vis], 0, obj=j)
 
         # --- mNLOS: one specular bounce on each side of the object (Eq. 3, 5) ------------------
         if p.mirror_paths:
-            for i, (spec, seg) in enumerate(zip(scene.walls, segs)):
+            for i, (spec, seg) in enumerate(zip(planar, segs)):
                 if not spec.relay or seg.offset <= 0:
                     continue
                 n, b = seg.normal, seg.offset
@@ -221,11 +226,11 @@ class ImageForwardModel(ForwardModel):
         return cube, Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)
 
 
-def _through_walls(scene, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:
+def _through_walls(planar, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:
     """(K,) round-trip power factor Π|T(θ_i)|⁴ over the walls the segment radar → pts crosses
     (1 where none, 0 where an opaque wall is crossed)."""
     gain = np.ones(len(pts))
-    for spec, seg in zip(scene.walls, segs):
+    for spec, seg in zip(planar, segs):
         cross = segments_intersect(_ORIGIN, pts, seg.start, seg.end)
         if not cross.any():
             continue

@@ -59,11 +59,18 @@ class WallSpec(BaseModel):
     lobe_exponent: int = Field(4, ge=1, le=100, description="α_R of the directive lobe")
     relay: bool = Field(True, description="acts as a mirror for hidden objects")
     spacing: float = Field(0.25, gt=0.005, le=10, description="scatterer spacing along the wall [m]")
+    radius: float | None = Field(None, description="curved wall: circular arc start→end of this radius [m]; "
+                                                   "> 0 bulges to the left of start→end, < 0 to the right")
+    facet_length: float = Field(0.5, gt=0.01, le=50, description="a curved wall is cut into planar facets "
+                                                                 "of about this length [m]")
 
     @model_validator(mode="after")
     def _length(self):
         if math.dist(self.start, self.end) <= 0:
             raise ValueError(f"wall {self.name!r}: start and end coincide; a wall needs length > 0")
+        if self.radius is not None and abs(self.radius) < 0.5 * math.dist(self.start, self.end) * (1 + 1e-9):
+            raise ValueError(f"wall {self.name!r}: |radius| = {abs(self.radius)} m is below half the chord "
+                             f"({0.5 * math.dist(self.start, self.end):.3f} m); no arc joins start and end")
         if self.material is not None and (self.reflectivity is not None or self.backscatter_db is not None):
             raise ValueError(f"wall {self.name!r}: give either material (with thickness/roughness) or the "
                              "constants reflectivity/backscatter_db, not both")
@@ -88,6 +95,34 @@ class WallSpec(BaseModel):
     def segment(self) -> WallSegment:
         return WallSegment(np.array(self.start, float), np.array(self.end, float), self.name)
 
+    def vertices(self) -> np.ndarray:
+        """(K+1, 2) polyline [m]: start, end for a planar wall; the arc's facet corners for a curved one
+        (the shorter arc through start and end, bulging to the side the sign of ``radius`` gives)."""
+        a, b = np.asarray(self.start, float), np.asarray(self.end, float)
+        if self.radius is None:
+            return np.stack([a, b])
+        r = abs(self.radius)
+        chord = b - a
+        c_len = float(np.linalg.norm(chord))
+        left = np.array([-chord[1], chord[0]]) / c_len
+        h = math.sqrt(max(r * r - (c_len / 2) ** 2, 0.0))
+        side = 1.0 if self.radius > 0 else -1.0
+        centre = (a + b) / 2 - side * h * left  # the bulge points away from the centre
+        t0 = math.atan2(*(a - centre)[::-1])
+        t1 = math.atan2(*(b - centre)[::-1])
+        sweep = (t1 - t0 + math.pi) % (2 * math.pi) - math.pi  # shorter arc
+        k = max(2, int(math.ceil(abs(sweep) * r / self.facet_length)))
+        t = t0 + sweep * np.linspace(0.0, 1.0, k + 1)
+        return centre + r * np.stack([np.cos(t), np.sin(t)], axis=1)
+
+    def facets(self) -> list["WallSpec"]:
+        """Planar pieces of this wall (itself when planar), each a WallSpec with the same properties."""
+        if self.radius is None:
+            return [self]
+        v = self.vertices()
+        return [self.model_copy(update={"start": tuple(v[i]), "end": tuple(v[i + 1]), "radius": None,
+                                        "name": f"{self.name}[{i}]"}) for i in range(len(v) - 1)]
+
 
 class ObjectSpec(BaseModel):
     """A point or box-shaped (vehicle-like) scatterer, optionally moving at constant velocity."""
@@ -95,6 +130,9 @@ class ObjectSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = "object"
     shape: Literal["point", "box"] = "box"
+    kind: Literal["generic", "car", "bicycle", "pedestrian"] = Field(
+        "generic", description="object class (ground truth label; sizes and RCS come from the fields)")
+    height: float = Field(1.5, gt=0, le=50, description="height above ground [m] (3-D occlusion)")
     center: Vec2
     size: Vec2 = Field((4.5, 1.8), description="(length, width) [m] for a box")
     heading: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="[rad] from +x")
@@ -145,20 +183,59 @@ class AtmosphereSpec(BaseModel):
     water_density: float = Field(7.5, ge=0, le=50, description="water-vapour density [g/m³]")
 
 
-class Scene(BaseModel):
-    """Walls and objects of one scene; frames at t = k·frame_interval move the objects.
+class MeshSpec(BaseModel):
+    """A static user mesh (OBJ, STL, PLY, GLB, …) placed in the scene, for mesh-based forward models.
 
-    ``atmosphere``: None means vacuum-like air (no gaseous loss is modelled).
+    Electromagnetics as for walls: ``material`` for every face, or per-part ``materials``
+    (mesh part / material tag name → ITU-R P.2040 material) with ``material`` as the default for
+    untagged parts, or the constants ``reflectivity`` / ``backscatter_db``.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = "mesh"
+    file: str = Field(..., min_length=1, description="mesh file, relative to the scene file")
+    material: str | None = None
+    materials: dict[str, str] = Field(default_factory=dict)
+    reflectivity: float | None = Field(None, ge=0, le=1)
+    backscatter_db: float | None = Field(None, ge=-80, le=20)
+    roughness: float = Field(0.0, ge=0, le=0.5, description="rms surface height σ_h [m]")
+    relay: bool = True
+    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="rotation about z [rad]")
+    scale: float = Field(1.0, gt=0, le=1e4)
+
+    @model_validator(mode="after")
+    def _em(self):
+        if (self.material or self.materials) and (self.reflectivity is not None or self.backscatter_db is not None):
+            raise ValueError(f"mesh {self.name!r}: give materials or the constants reflectivity/backscatter_db, "
+                             "not both")
+        return self
+
+
+class Scene(BaseModel):
+    """Walls, static meshes and objects of one scene; frames at t = k·frame_interval move the objects.
+
+    ``atmosphere``: None means vacuum-like air (no gaseous loss is modelled). ``base_dir``: where
+    relative mesh files are looked up (set by :func:`load_scene`). ``meta``: free-form scene
+    parameters (e.g. a generator's family and draws), kept with datasets.
     """
 
     model_config = ConfigDict(extra="forbid")
     name: str = "scene"
     walls: list[WallSpec] = Field(default_factory=list)
+    meshes: list[MeshSpec] = Field(default_factory=list)
     objects: list[ObjectSpec] = Field(default_factory=list)
     atmosphere: AtmosphereSpec | None = None
+    base_dir: str = "."
+    meta: dict = Field(default_factory=dict)
+
+    def planar_walls(self) -> list[WallSpec]:
+        """Every wall as planar pieces (curved walls cut into facets), in order."""
+        return [f for w in self.walls for f in w.facets()]
 
     def wall_segments(self) -> tuple[WallSegment, ...]:
-        return tuple(w.segment() for w in self.walls)
+        """BEV segments of the planar pieces (ground-truth wall geometry)."""
+        return tuple(w.segment() for w in self.planar_walls())
 
 
 BUILTIN_DIR = Path(__file__).with_name("defaults")
@@ -181,5 +258,6 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".") -> Scene:
         return validate_model(Scene, {**load_toml(path), **table}, source=str(path), prefix="scene")
     if "file" in table:
         path = Path(base_dir) / table.pop("file")
-        return validate_model(Scene, {**load_toml(path), **table}, source=str(path), prefix="scene")
-    return validate_model(Scene, table, source=source, prefix="scene")
+        return validate_model(Scene, {"base_dir": str(path.parent), **load_toml(path), **table}, source=str(path),
+                              prefix="scene")
+    return validate_model(Scene, {"base_dir": str(base_dir), **table}, source=source, prefix="scene")
