@@ -1,9 +1,19 @@
-"""Entry point ``xnlos-hardware``: registers the recorded-frame replay backend (npz)."""
+"""Entry point ``xnlos-hardware``: registers the hardware backends.
+
+* ``npz``: frames saved with :func:`xnlos_core.io.save_frame`;
+* ``can``: a radar on any python-can interface (CAN FD, DBC + ISO-TP), with an in-process
+  device emulator for hardware-in-the-loop runs on the ``virtual`` interface;
+* ``replay``: a recorded CAN log (BLF, ASC, …) played back as frames.
+"""
 from xnlos_core import hookimpl
 
 
 @hookimpl
 def xnlos_register_components(registry):
+    from .can_backend import CANBackend
     from .npz import NPZBackend
+    from .replay import ReplayBackend
 
     registry.add("backend", "npz", NPZBackend)
+    registry.add("backend", "can", CANBackend)
+    registry.add("backend", "replay", ReplayBackend)

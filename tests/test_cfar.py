@@ -116,7 +116,7 @@ def test_detect_requires_frame():
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
     ("estimators.plugin", "wall_estimator", ["lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),
-    ("hardware.plugin", "backend", ["npz"]),
+    ("hardware.plugin", "backend", ["can", "npz", "replay"]),
 ])
 def test_plugin_modules_register(module, kind, names):
     pm = PluginManager(autoload=False)

@@ -32,6 +32,12 @@ def _params_for(kind, name, tmp_path):
             for k, f in enumerate(p.frames()):
                 save_frame(d / f"{k:03d}.npz", f)
         return {"directory": str(d)}
+    if (kind, name) == ("backend", "replay"):
+        from hardware.testing import make_recording
+        from xnlos_core.radar import RadarConfig
+
+        return {"file": str(make_recording(tmp_path / "rec.blf", RadarConfig(**small_table()["radar"]), frames=2,
+                                           seed=5))}
     return {}
 
 
@@ -45,6 +51,9 @@ def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path):
         if kind == "backend":
             t.pop("forward_model")
         t[kind] = {"name": name, "params": _params_for(kind, name, tmp_path)}
+        if (kind, name) == ("backend", "replay"):  # recorded frames carry no ground truth: give the walls
+            t["detector"] = {"name": "nlos_cfar", "params": {"wall_source": "config", "walls": [
+                [15.0, 10.0, 35.0, -10.0], [5.0, -4.0, 18.0, -4.0], [18.0, -4.0, 18.0, -30.0]]}}
         results = list(Pipeline(parse_pipeline(t, f"swap {kind}={name}")).run())
         assert len(results) == 2, (kind, name)
 

@@ -1,4 +1,4 @@
-"""Command line: ``xnlos run | sweep | demo | plugins | check`` (also ``python -m xnlos_core``)."""
+"""Command line: ``xnlos run | sweep | demo | plugins | check | emulate`` (also ``python -m xnlos_core``)."""
 from __future__ import annotations
 
 import argparse
@@ -77,6 +77,16 @@ def _cmd_plugins(args) -> int:
     return 0
 
 
+def _cmd_emulate(args) -> int:
+    from hardware.emulator import run_emulate
+
+    summary = run_emulate(interface=args.interface, channel=args.channel, sensor_id=args.sensor_id,
+                          config=args.config, frames=args.frames, duration=args.duration, record=args.record,
+                          client=args.client, payload=args.payload, pace=not args.fast, echo=print)
+    print(f"{summary['frames_sent']} frame(s) sent in {summary['seconds']:.2f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="xnlos", description="X-band radar NLOS imaging: simulate, detect, "
                                 "estimate relay walls and reconstruct hidden objects.")
@@ -114,6 +124,23 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=_cmd_plugins)
+
+    e = sub.add_parser("emulate", help="run a radar device emulator on a CAN bus (hardware in the loop)")
+    e.add_argument("--interface", default="virtual", help="python-can interface (default: virtual)")
+    e.add_argument("--channel", default="xnlos0", help="interface channel (default: xnlos0)")
+    e.add_argument("--sensor-id", type=int, default=0, help="radar sensor id 0-7 (identifier offset 0x10*id)")
+    e.add_argument("--config", type=Path, help="pipeline TOML giving radar, scene, forward model, seed, frame period")
+    e.add_argument("--frames", type=int, help="frames to stream (client) or to serve before exiting")
+    e.add_argument("--duration", type=float, help="serve this many seconds, then exit")
+    e.add_argument("--record", type=Path, help="record the bus to a python-can log (.blf, .asc)")
+    e.add_argument("--client", action=argparse.BooleanOptionalAction, default=None,
+                   help="also run a 'can' backend in this process that requests the frames "
+                        "(default: on for the virtual interface, which other processes cannot reach)")
+    e.add_argument("--payload", default="ra_complex64", choices=["ra_complex64", "adc_int16", "adc_complex64"],
+                   help="what the client asks the radar to send")
+    e.add_argument("--fast", action="store_true",
+                   help="send frames as fast as the link allows, not at the frame period")
+    e.set_defaults(func=_cmd_emulate)
     return p
 
 
