@@ -95,28 +95,7 @@ class ImageForwardModel(ForwardModel):
 
     def components(self, scene, radar: RadarConfig) -> dict[str, str]:
         """Which optional components this scene and radar need: name → "on" or "off: reason"."""
-        p = self.params
-        mat = [w for w in scene.walls if w.material is not None]
-        need = {
-            "diffuse": (any(w.roughness > 0 for w in mat), "no rough material wall"),
-            "transmission": (bool(scene.objects) and any(w.thickness is not None for w in mat),
-                             "no object and finite-thickness material wall"),
-            "coupling": (radar.has_coupling, "radar has no coupling matrix"),
-        }
-        if scene.atmosphere is None:
-            need["atmosphere"] = (False, "scene declares no atmosphere")
-        else:
-            worst = float(attenuation_db(radar.carrier_frequency, 2 * radar.max_range,
-                                         **scene.atmosphere.model_dump()))
-            need["atmosphere"] = (worst >= p.tolerance_db,
-                                  f"≤ {worst:.3g} dB over the longest round trip < tolerance {p.tolerance_db} dB")
-        out = {}
-        for name in COMPONENTS:
-            switch = getattr(p, name)
-            on, why = need[name]
-            out[name] = "on" if switch == "on" or (switch == "auto" and on) else (
-                "off: switched off" if switch == "off" else f"off: {why}")
-        return out
+        return components_needed(self.params, scene, radar)
 
     def simulate(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                  index: int = 0) -> Frame:
@@ -238,3 +217,30 @@ def _through_walls(planar, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndar
         inc = np.arccos(np.clip(np.abs(pts[cross] @ seg.normal) / r, 0.0, 1.0))
         gain[cross] *= np.abs(wall_em.transmission(spec, radar, inc)) ** 4
     return gain
+
+
+def components_needed(p, scene, radar: RadarConfig) -> dict[str, str]:
+    """Decide the optional components (module doc) from switches ``p`` (fields named as
+    COMPONENTS, each "auto"/"on"/"off", and tolerance_db): name → "on" or "off: reason"."""
+    mat = [w for w in scene.walls if w.material is not None]
+    need = {
+        "diffuse": (any(w.roughness > 0 for w in mat)
+                    or any(m.roughness > 0 and (m.material or m.materials) for m in scene.meshes),
+                    "no rough material wall"),
+        "transmission": (bool(scene.objects) and any(w.thickness is not None for w in mat),
+                         "no object and finite-thickness material wall"),
+        "coupling": (radar.has_coupling, "radar has no coupling matrix"),
+    }
+    if scene.atmosphere is None:
+        need["atmosphere"] = (False, "scene declares no atmosphere")
+    else:
+        worst = float(attenuation_db(radar.carrier_frequency, 2 * radar.max_range, **scene.atmosphere.model_dump()))
+        need["atmosphere"] = (worst >= p.tolerance_db,
+                              f"≤ {worst:.3g} dB over the longest round trip < tolerance {p.tolerance_db} dB")
+    out = {}
+    for name in COMPONENTS:
+        switch = getattr(p, name)
+        on, why = need[name]
+        out[name] = "on" if switch == "on" or (switch == "auto" and on) else (
+            "off: switched off" if switch == "off" else f"off: {why}")
+    return out

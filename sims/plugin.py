@@ -1,9 +1,11 @@
 """Registers the built-in forward models (entry point ``xnlos-sims`` of group ``xnlos.plugins``)."""
 from xnlos_core import hookimpl
 
-from .image import ImageForwardModel
-
 
 @hookimpl
 def xnlos_register_components(registry):
+    from .image import ImageForwardModel
+    from .raytrace.model import RaytraceForwardModel
+
     registry.add("forward_model", "image", ImageForwardModel)
+    registry.add("forward_model", "raytrace", RaytraceForwardModel)

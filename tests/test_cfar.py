@@ -117,6 +117,7 @@ def test_detect_requires_frame():
     ("estimators.plugin", "wall_estimator", ["lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),
     ("hardware.plugin", "backend", ["can", "npz", "replay"]),
+    ("sims.plugin", "forward_model", ["image", "raytrace"]),
 ])
 def test_plugin_modules_register(module, kind, names):
     pm = PluginManager(autoload=False)

@@ -1,0 +1,1 @@
+"""Mesh ray tracer: shooting-and-bouncing rays guide exact image paths (``raytrace`` forward model)."""

@@ -1,0 +1,243 @@
+"""Shooting and bouncing rays (SBR) over the world, and exact image paths to scattering centres.
+
+Geometry is 2.5-D: walls are vertical, rays travel in the horizontal plane at the radar height
+h_r, and a wall hit stands for the wall's whole vertical extent (as in the image model).
+
+1. **Fan.** Rays leave the radar every ``az_step`` over the field of view (plus a margin). At
+   each hit on a static surface a ray contributes a diffuse echo of the strip it covers:
+   σ = σ⁰(θ_i)·(L·Δθ/cos θ_i)·h, at its unfolded length L (ray-tube width L·Δθ behind planar
+   mirrors) and with the chain's specular reflectivities α (out and back the same way, |α|⁴ in
+   power). On a relay surface the ray then reflects (d ← d − 2(dᵀn)n) and goes on, up to
+   ``max_bounces``, and stops early once even the strongest scatterer of the scene could not
+   rise above ``min_snr_db − 10 dB`` at its unfolded length (adaptive depth).
+2. **Chains.** The ordered planes a ray reflected from, (p₁ … p_k), and the azimuth sector its rays
+   left in, are the specular chains the scene supports (beam splitting at corners and curved
+   walls show up as several chains).
+3. **Image paths.** For every chain (and the direct view, k = 0) and every object scattering
+   centre o: the virtual point o' = R_{p₁}∘…∘R_{p_k}(o) (Eq. 5/7 per plane); if its azimuth lies in
+   the chain's sector, the reflection points q_j are found by unfolding (q₁ on the segment
+   radar → o', then recursively) and every leg is checked by ray casting (the first hit must be
+   on plane p_j at q_j; nothing may block the last leg; the centre must face its last leg).
+   The round trip retraces the chain: unfolded one-way length |o' − radar|, α = Π α_j(θ_j).
+4. **Mixed paths** (optional): a centre reached by two chains a ≠ b also returns out along a and
+   back along b: round trip L_a + L_b, arrival from b, amplitude with |α_a||α_b| (bistatic
+   radar equation).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from xnlos_core.antenna import element_gain, transmit_gain
+from xnlos_core.radar import RadarConfig
+from sims import walls as wall_em
+from sims.propagation import ra_snr_db, received_power
+
+from .world import World, reflect_points
+
+START = 1e-4  # [m] a leg leaving a reflection point is cast from this far along it (not from the surface)
+
+
+@dataclass
+class Paths:
+    """Rendered paths: one entry per propagation path.
+
+    length (P,): unfolded ROUND-TRIP length [m]; azimuth (P,): arrival azimuth [rad];
+    amp (P,): complex amplitude [√W] excluding the scatterer's random phase; power (P,) [W];
+    kind (P,): 0 LOS (wall strip or object seen directly), 1 mNLOS (object via one mirror),
+    2 other multipath (walls seen in mirrors, higher orders, mixed); order (P,): bounces one way;
+    pos (P, 2): ground-truth BEV position (LOS point or virtual point o'); hidden (P, 2): o;
+    obj (P,): object index (−1 for walls); centre (P,): scattering-centre index within the
+    object (phase key), −1 for wall strips.
+    """
+
+    length: list = field(default_factory=list)
+    azimuth: list = field(default_factory=list)
+    amp: list = field(default_factory=list)
+    power: list = field(default_factory=list)
+    kind: list = field(default_factory=list)
+    order: list = field(default_factory=list)
+    pos: list = field(default_factory=list)
+    hidden: list = field(default_factory=list)
+    obj: list = field(default_factory=list)
+    centre: list = field(default_factory=list)
+
+    def add(self, **cols):
+        n = len(np.atleast_1d(cols["length"]))
+        for k in ("length", "azimuth", "amp", "power", "kind", "order", "obj", "centre"):
+            v = np.asarray(cols[k])
+            getattr(self, k).append(np.broadcast_to(v, (n,)) if v.ndim == 0 else v)
+        for k in ("pos", "hidden"):
+            getattr(self, k).append(np.asarray(cols[k], dtype=np.float64).reshape(n, 2))
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        out = {}
+        for k in ("length", "azimuth", "amp", "power", "kind", "order", "obj", "centre", "pos", "hidden"):
+            parts = getattr(self, k)
+            if parts:
+                out[k] = np.concatenate(parts)
+            else:
+                out[k] = np.zeros((0, 2)) if k in ("pos", "hidden") else np.zeros(0)
+        return out
+
+
+@dataclass
+class Trace:
+    """What the fan did, for pictures and statistics: segments (S, 2, 3) of every ray leg,
+    chains {planes: (az_min, az_max)}, rays cast, deepest bounce reached."""
+
+    segments: np.ndarray
+    chains: dict
+    rays: int
+    max_order: int
+
+
+def _angle(d: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Incidence angle [rad] between directions d (N, 3) and plane normals n (N, 3)."""
+    return np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, n)), 0.0, 1.0))
+
+
+def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndarray, *, az_step: float,
+          max_bounces: int, snr_floor_db: float, sigma_bound: float, reflection: str, diffuse: bool,
+          paths: Paths, keep_segments: bool = False) -> Trace:
+    """Step 1–2 of the module doc. Appends diffuse strip paths to ``paths``; returns the Trace.
+
+    heights (n_surfaces,): vertical extent [m] each static surface stands for.
+    """
+    margin = 2 * az_step
+    az0 = np.arange(-radar.field_of_view - margin, radar.field_of_view + margin + 1e-12, az_step)
+    n = len(az0)
+    dirs = np.stack([np.cos(az0), np.sin(az0), np.zeros(n)], axis=1)
+    org = np.repeat(origin[None, :], n, axis=0)
+    length = np.zeros(n)  # unfolded one-way length so far [m]
+    alpha = np.ones(n, dtype=np.complex128)  # chain amplitude reflectivity
+    chain = np.full((n, max_bounces), -1, dtype=np.int64)
+    alive = np.arange(n)
+    skip = np.zeros(n)  # a relaunched ray starts START along its new direction (no self-hit)
+    chains: dict[tuple, list] = {}
+    segments = []
+    deepest = 0
+    for k in range(max_bounces + 1):
+        if len(alive) == 0:
+            break
+        tri, dist = world.caster.first_hit(org[alive] + skip[alive, None] * dirs[alive], dirs[alive])
+        dist = dist + skip[alive]
+        if keep_segments:
+            far = np.where(np.isfinite(dist), dist, 2 * radar.max_range)
+            seg_end = org[alive] + far[:, None] * dirs[alive]
+            segments.append(np.stack([org[alive], seg_end], axis=1))
+        hit = tri >= 0
+        idx, tri, dist = alive[hit], tri[hit], dist[hit]
+        surf = world.tri_surface[tri]
+        static = surf >= 0
+        idx, tri, dist, surf = idx[static], tri[static], dist[static], surf[static]  # objects stop rays
+        if len(idx) == 0:
+            break
+        deepest = k
+        p = org[idx] + dist[:, None] * dirs[idx]
+        L = length[idx] + dist
+        n_tri = world.caster.normals[tri]
+        th_i = _angle(dirs[idx], n_tri)
+        a_i = np.empty(len(idx), dtype=np.complex128)
+        s0 = np.zeros(len(idx))
+        for s in np.unique(surf):
+            m = surf == s
+            spec = world.surfaces[s]
+            a_i[m] = wall_em.specular_alpha(spec, radar, th_i[m], reflection)
+            if diffuse or spec.material is None:
+                s0[m] = wall_em.backscatter_sigma0(spec, radar, th_i[m]) * heights[s]
+        cos_i = np.maximum(np.cos(th_i), 1e-3)
+        sigma = s0 * L * az_step / cos_i
+        live = sigma > 0
+        if live.any():
+            i = idx[live]
+            P = received_power(radar, L[live], az0[i], sigma[live], np.abs(alpha[i]))
+            virt = np.stack([np.cos(az0[i]), np.sin(az0[i])], axis=1) * L[live, None]
+            paths.add(length=2 * L[live], azimuth=az0[i], amp=np.sqrt(P) * alpha[i] ** 2 / np.maximum(np.abs(alpha[i]) ** 2, 1e-300),
+                      power=P, kind=0 if k == 0 else 2, order=k,
+                      pos=p[live, :2] if k == 0 else virt, hidden=p[live, :2], obj=-1, centre=-1)
+        if k == max_bounces:
+            break
+        relay = np.array([world.surfaces[s].relay for s in surf], dtype=bool)
+        # adaptive depth: the brightest scatterer at this unfolded length must stay detectable
+        bound = ra_snr_db(radar, received_power(radar, L, az0[idx], sigma_bound, np.abs(alpha[idx] * a_i)))
+        go = relay & (bound >= snr_floor_db)
+        idx, p, L, n_tri, a_i, tri = idx[go], p[go], L[go], n_tri[go], a_i[go], tri[go]
+        d_in = dirs[idx]
+        dirs[idx] = d_in - 2 * np.einsum("ij,ij->i", d_in, n_tri)[:, None] * n_tri
+        org[idx] = p
+        skip[idx] = START
+        length[idx] = L
+        alpha[idx] *= a_i
+        chain[idx, k] = world.tri_plane[tri]
+        for r in idx:
+            key = tuple(chain[r, :k + 1])
+            lo_hi = chains.setdefault(key, [az0[r], az0[r]])
+            lo_hi[0], lo_hi[1] = min(lo_hi[0], az0[r]), max(lo_hi[1], az0[r])
+        alive = idx
+    segs = np.concatenate(segments) if segments else np.zeros((0, 2, 3))
+    return Trace(segs, {k: tuple(v) for k, v in chains.items()}, world.caster.rays_cast, deepest)
+
+
+def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                planes: tuple, sector: tuple | None, az_step: float):
+    """Step 3 for one chain ``planes`` (() = direct view) and centres ``points`` (K, 3).
+
+    Returns (ok (K,) bool, virtual (K, 3) o', reflection points (K, k, 3), incidence angles (K, k)
+    [rad]). ``normals`` (K, 3): outward normals of the centres (zeros: omnidirectional).
+    """
+    K, k = len(points), len(planes)
+    virt = points.copy()
+    for pl in reversed(planes):
+        virt = reflect_points(virt, world.plane_n[pl], world.plane_d[pl])
+    rel = virt - origin
+    ok = np.ones(K, dtype=bool)
+    if sector is not None:
+        az = np.arctan2(rel[:, 1], rel[:, 0])
+        ok &= (az >= sector[0] - 2 * az_step) & (az <= sector[1] + 2 * az_step)
+    q = np.zeros((K, k, 3))
+    th = np.zeros((K, k))
+    cur = np.repeat(origin[None, :], K, axis=0)
+    target = virt.copy()
+    for j, pl in enumerate(planes):
+        n, d = world.plane_n[pl], world.plane_d[pl]
+        seg = target - cur
+        denom = seg @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -(cur @ n + d) / denom
+        ok &= np.isfinite(t) & (t > 1e-9) & (t < 1 - 1e-9)
+        t = np.where(ok, t, 0.5)
+        q[:, j] = cur + t[:, None] * seg
+        leg = q[:, j] - cur
+        dist = np.linalg.norm(leg, axis=1)
+        u = leg / np.maximum(dist, 1e-12)[:, None]
+        skip = START if j > 0 else 0.0
+        tri, hit = world.caster.first_hit(cur[ok] + skip * u[ok], u[ok])
+        hit = hit + skip
+        good = (tri >= 0) & (world.tri_plane[np.maximum(tri, 0)] == pl) & (np.abs(hit - dist[ok]) < 1e-4 + 1e-6 * dist[ok])
+        sub = np.flatnonzero(ok)
+        ok[sub[~good]] = False
+        th[:, j] = np.arccos(np.clip(np.abs(u @ n), 0.0, 1.0))
+        cur = q[:, j]
+        target = reflect_points(target, n, d)
+    # last leg: from the last reflection point (or the radar) to the centre, unobstructed, facing
+    leg = points - cur
+    dist = np.linalg.norm(leg, axis=1)
+    u = leg / np.maximum(dist, 1e-12)[:, None]
+    facing = ~np.any(normals != 0, axis=1) | (np.einsum("ij,ij->i", normals, -u) > 0)
+    ok &= facing & (dist > 1e-6)
+    if ok.any():
+        skip = START if k > 0 else 0.0
+        _, hit = world.caster.first_hit(cur[ok] + skip * u[ok], u[ok])
+        sub = np.flatnonzero(ok)
+        ok[sub[hit + skip < dist[ok] - 1e-6]] = False
+    return ok, virt, q, th
+
+
+def bistatic_power(radar: RadarConfig, la, lb, az_a, az_b, sigma) -> np.ndarray:
+    """Received power [W] out along a (one-way length la [m], departure az_a) and back along b:
+    P_t·G_tx(az_a)·G_e(az_a)·G_e(az_b)·λ²·σ / ((4π)³·la²·lb²·L_sys) — reflectivities excluded."""
+    g = element_gain(radar, az_a) * element_gain(radar, az_b) * transmit_gain(radar, az_a)
+    loss = 10.0 ** (radar.system_loss_db / 10.0)
+    return radar.transmit_power * g * radar.wavelength**2 * sigma / ((4 * np.pi) ** 3 * la**2 * lb**2 * loss)

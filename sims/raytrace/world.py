@@ -1,0 +1,159 @@
+"""A scene as one triangle mesh with per-face electromagnetics and planes (the ray tracer's world).
+
+* Walls (planar facets of :meth:`Scene.planar_walls`) become boxes: the front face on the BEV
+  segment, from the ground (z = 0) to ``height``, extruded away from the radar by the slab
+  ``thickness`` (0.3 m when none is given).
+* User meshes (:class:`xnlos_core.scene.MeshSpec`) are loaded by :func:`sims.meshes.load_user_mesh`,
+  one surface per material tag.
+* Objects are boxes (length × width × height, yawed by ``heading``) shrunk by ``OBJECT_MARGIN``
+  so that their scattering centres (:meth:`ObjectSpec.scatterers`, on the box outline) lie just
+  outside their own occluder; point objects occlude nothing.
+* Every triangle carries its surface (or object) index and a plane id: coplanar faces of one
+  surface share a plane (n, d) with nᵀx + d = 0, the mirrors of the image paths.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from xnlos_core.errors import InputError
+
+from .caster import Caster
+
+OBJECT_MARGIN = 0.05  # [m] occluder boxes are this much smaller than the scattering outline
+DEFAULT_DEPTH = 0.3  # [m] wall box depth when the wall has no slab thickness
+
+
+@dataclass(frozen=True)
+class Surface:
+    """Electromagnetic description of one static surface, duck-typed like WallSpec for :mod:`sims.walls`."""
+
+    name: str
+    material: str | None
+    thickness: float | None
+    roughness: float
+    lobe: str
+    lobe_exponent: int
+    relay: bool
+    alpha: float
+    sigma0_db: float
+
+    @classmethod
+    def from_wall(cls, w) -> "Surface":
+        return cls(w.name, w.material, w.thickness, w.roughness, w.lobe, int(w.lobe_exponent), w.relay,
+                   w.alpha, w.sigma0_db)
+
+    @classmethod
+    def from_mesh(cls, spec, material: str | None, tag: str) -> "Surface":
+        alpha = 0.6 if spec.reflectivity is None else spec.reflectivity
+        s0 = -12.0 if spec.backscatter_db is None else spec.backscatter_db
+        return cls(f"{spec.name}:{tag}" if tag else spec.name, material, None, spec.roughness if material else 0.0,
+                   "lambertian", 4, spec.relay, alpha, s0)
+
+
+def wall_box(w) -> trimesh.Trimesh:
+    """Watertight box of a planar wall facet (module doc); the front face is on the BEV segment."""
+    seg = w.segment()
+    back = -seg.normal * (w.thickness if w.thickness is not None else DEFAULT_DEPTH)  # away from the radar
+    a, b = np.asarray(w.start, float), np.asarray(w.end, float)
+    corners = [np.r_[p, z] for p in (a, b, a + back, b + back) for z in (0.0, w.height)]
+    return trimesh.convex.convex_hull(np.array(corners))
+
+
+def object_box(obj, t: float) -> trimesh.Trimesh | None:
+    """Occluder box of an object at time t [s] (None for point objects)."""
+    if obj.shape == "point":
+        return None
+    length, width = obj.size
+    dims = (max(length - 2 * OBJECT_MARGIN, 0.01), max(width - 2 * OBJECT_MARGIN, 0.01), obj.height)
+    m = trimesh.creation.box(extents=dims)
+    c = obj.center_at(t)
+    m.apply_transform(trimesh.transformations.rotation_matrix(obj.heading, (0, 0, 1)))
+    m.apply_translation((c[0], c[1], obj.height / 2))
+    return m
+
+
+@dataclass
+class World:
+    """Concatenated mesh and per-face bookkeeping (module doc).
+
+    tri_surface (F,): surface index, −1 for object faces; tri_object (F,): object index or −1;
+    tri_plane (F,): plane index; plane_n (P, 3), plane_d (P,): planes nᵀx + d = 0 with n the
+    outward face normal; plane_surface (P,): owning surface (−1 for objects).
+    """
+
+    caster: Caster
+    surfaces: list[Surface]
+    tri_surface: np.ndarray
+    tri_object: np.ndarray
+    tri_plane: np.ndarray
+    plane_n: np.ndarray
+    plane_d: np.ndarray
+    plane_surface: np.ndarray
+
+
+def build_world(scene, t: float = 0.0, backend: str = "auto") -> World:
+    """The triangle world of ``scene`` at time t [s] (walls, user meshes, object occluders)."""
+    parts: list[tuple[trimesh.Trimesh, int, int]] = []  # (mesh, surface index, object index)
+    surfaces: list[Surface] = []
+    for w in scene.planar_walls():
+        surfaces.append(Surface.from_wall(w))
+        parts.append((wall_box(w), len(surfaces) - 1, -1))
+    if scene.meshes:
+        from sims.meshes import load_user_mesh
+
+        for spec in scene.meshes:
+            for mesh, material, tag in load_user_mesh(spec, scene.base_dir):
+                surfaces.append(Surface.from_mesh(spec, material, tag))
+                parts.append((mesh, len(surfaces) - 1, -1))
+    for j, obj in enumerate(scene.objects):
+        box = object_box(obj, t)
+        if box is not None:
+            parts.append((box, -1, j))
+    if parts:
+        mesh = trimesh.util.concatenate([p[0] for p in parts])
+        counts = [len(p[0].faces) for p in parts]
+        tri_surface = np.repeat([p[1] for p in parts], counts)
+        tri_object = np.repeat([p[2] for p in parts], counts)
+    else:
+        mesh = trimesh.Trimesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
+        tri_surface = tri_object = np.zeros(0, dtype=np.int64)
+    n = np.asarray(mesh.face_normals, dtype=np.float64) if len(mesh.faces) else np.zeros((0, 3))
+    d = -np.einsum("ij,ij->i", n, np.asarray(mesh.vertices)[mesh.faces[:, 0]]) if len(mesh.faces) else np.zeros(0)
+    # plane id: same owner, normal and offset (rounded to 1e-6 / 1 µm)
+    key = np.column_stack([tri_surface, tri_object, np.round(n, 6), np.round(d, 6)])
+    uniq, tri_plane = np.unique(key, axis=0, return_inverse=True)
+    tri_plane = tri_plane.reshape(-1).astype(np.int64)
+    # exact plane of each group: the first face's own float64 normal and offset (not the rounded key)
+    first = np.zeros(len(uniq), dtype=np.int64)
+    first[tri_plane[::-1]] = np.arange(len(tri_plane))[::-1]
+    return World(caster=Caster(mesh, backend), surfaces=surfaces, tri_surface=tri_surface.astype(np.int64),
+                 tri_object=tri_object.astype(np.int64), tri_plane=tri_plane,
+                 plane_n=n[first] if len(uniq) else np.zeros((0, 3)), plane_d=d[first] if len(uniq) else np.zeros(0),
+                 plane_surface=uniq[:, 0].astype(np.int64) if len(uniq) else np.zeros(0, dtype=np.int64))
+
+
+def reflect_points(points: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
+    """Mirror image of points (…, 3) across the plane nᵀx + d = 0 (unit n): x − 2(nᵀx + d)n (Eq. 7 in 3-D)."""
+    return points - 2.0 * (points @ n + d)[..., None] * n
+
+
+def check_radar_outside(world: World, radar: np.ndarray, scene) -> None:
+    """InputError when the radar position lies inside or on a wall box, or inside a closed user mesh."""
+    for w in scene.planar_walls():
+        seg = w.segment()
+        a, b, p = seg.start, seg.end, radar[:2]
+        s = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+        on_face = np.linalg.norm(a + s * (b - a) - p) < 1e-3 and radar[2] <= w.height
+        if on_face or wall_box(w).contains(radar[None, :])[0]:
+            raise InputError(f"radar at {tuple(np.round(radar, 3))} is inside wall {w.name!r}")
+    if scene.meshes:
+        from sims.meshes import load_user_mesh
+
+        for spec in scene.meshes:
+            for mesh, _, tag in load_user_mesh(spec, scene.base_dir):
+                if mesh.is_watertight and mesh.contains(radar[None, :])[0]:
+                    raise InputError(f"radar at {tuple(np.round(radar, 3))} is inside mesh {spec.name!r}"
+                                     f"{' part ' + repr(tag) if tag else ''}")
