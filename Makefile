@@ -24,11 +24,13 @@ test-slow: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/pipeline_speed.py
 	$(PY) benchmarks/forward_components.py
+	$(PY) benchmarks/raytrace_speed.py
 
 # Fig. 2 of the paper (path loss, specular ratio) and the antenna patterns, as PNG in figures/
 figures: $(STAMP)
 	$(PY) benchmarks/fig2.py --out figures
 	$(PY) benchmarks/antenna_report.py --out figures
+	$(PY) -m sims.raytrace.picture --out figures/raytrace_corner.png
 
 clean:
 	rm -rf demo-out figures .pytest_cache .hypothesis

@@ -84,10 +84,11 @@ class Paths:
 
 @dataclass
 class Trace:
-    """What the fan did, for pictures and statistics: segments (S, 2, 3) of every ray leg,
-    chains {planes: (az_min, az_max)}, rays cast, deepest bounce reached."""
+    """What the fan did, for pictures and statistics: segments (S, 2, 3) of every ray leg and
+    their bounce order (S,), chains {planes: (az_min, az_max)}, rays cast, deepest bounce reached."""
 
     segments: np.ndarray
+    segment_order: np.ndarray
     chains: dict
     rays: int
     max_order: int
@@ -126,7 +127,7 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
         if keep_segments:
             far = np.where(np.isfinite(dist), dist, 2 * radar.max_range)
             seg_end = org[alive] + far[:, None] * dirs[alive]
-            segments.append(np.stack([org[alive], seg_end], axis=1))
+            segments.append((k, np.stack([org[alive], seg_end], axis=1)))
         hit = tri >= 0
         idx, tri, dist = alive[hit], tri[hit], dist[hit]
         surf = world.tri_surface[tri]
@@ -176,8 +177,9 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
             lo_hi = chains.setdefault(key, [az0[r], az0[r]])
             lo_hi[0], lo_hi[1] = min(lo_hi[0], az0[r]), max(lo_hi[1], az0[r])
         alive = idx
-    segs = np.concatenate(segments) if segments else np.zeros((0, 2, 3))
-    return Trace(segs, {k: tuple(v) for k, v in chains.items()}, world.caster.rays_cast, deepest)
+    segs = np.concatenate([s for _, s in segments]) if segments else np.zeros((0, 2, 3))
+    seg_order = np.concatenate([np.full(len(s), k) for k, s in segments]) if segments else np.zeros(0, dtype=int)
+    return Trace(segs, seg_order, {k: tuple(v) for k, v in chains.items()}, world.caster.rays_cast, deepest)
 
 
 def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: np.ndarray,
