@@ -164,3 +164,11 @@ def test_same_seed_same_map_and_conformance():
     b = m.simulate(scene, RADAR, np.random.default_rng(3))
     np.testing.assert_array_equal(a.ra_map.data, b.ra_map.data)
     check_component("forward_model", "raytrace")
+
+
+def test_picture_is_written(tmp_path):
+    from sims.raytrace.picture import plot_trace
+
+    out = plot_trace(load_scene({"builtin": "corner"}, "test"), RadarConfig(n_samples=256, max_range=60.0),
+                     tmp_path / "rt.png", max_rays=50)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
