@@ -30,10 +30,14 @@ def map_unordered(fn: Callable, items: Sequence[Any], *, scheduler: str | None =
             yield i, fn(item)
         return
     # spawn: workers start clean (no inherited plugin state or threads), as on a cluster.
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    try:
         futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
         for fut in as_completed(futures):
             yield futures[fut], fut.result()
+    finally:
+        # a consumer that stops early (an error, a closed generator) must not wait for the rest
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _dask(fn, items, address: str):
