@@ -153,6 +153,27 @@ def test_radar_inside_a_wall_is_refused():
     scene = Scene(walls=[WallSpec(start=(-1.0, 0.0), end=(1.0, 0.0), thickness=0.5, material="concrete")])
     with pytest.raises(InputError, match="inside wall"):
         RaytraceForwardModel().simulate(scene, RADAR, np.random.default_rng(0))
+    car_in_wall = Scene(walls=[WallSpec(start=(20.0, -5.0), end=(20.0, 5.0))],
+                        objects=[ObjectSpec(center=(20.5, 0.0), size=(2.0, 1.0))])
+    with pytest.raises(InputError, match="car|object"):
+        RaytraceForwardModel().simulate(car_in_wall, RADAR, np.random.default_rng(0))
+
+
+def test_user_meshes_are_traced(tmp_path):
+    from pathlib import Path
+
+    from xnlos_core.scene import MeshSpec
+
+    meshes = Path(__file__).parent / "data" / "meshes"
+    spec = MeshSpec(name="kiosk", file="box.stl", material="concrete", roughness=2e-3, translation=(25.0, 0.0, 0.0),
+                    scale=4.0)
+    scene = Scene(meshes=[spec], base_dir=str(meshes),
+                  objects=[ObjectSpec(shape="point", center=(10.0, 8.0), rcs=10.0)])
+    f = RaytraceForwardModel(QUIET).simulate(scene, RADAR, np.random.default_rng(0))
+    assert f.meta["faces"] >= 12 and f.meta["n_los_paths"] > 0
+    inside = scene.model_copy(update={"meshes": [spec.model_copy(update={"translation": (0.0, 0.0, 0.0)})]})
+    with pytest.raises(InputError, match="inside"):
+        RaytraceForwardModel(QUIET).simulate(inside, RADAR, np.random.default_rng(0))
 
 
 def test_same_seed_same_map_and_conformance():

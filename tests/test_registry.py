@@ -70,4 +70,4 @@ def test_disable_autoload_and_allow_list(monkeypatch):
     monkeypatch.setenv("XNLOS_DISABLE_PLUGIN_AUTOLOAD", "1")
     assert PluginManager().registry.components() == []
     monkeypatch.setenv("XNLOS_PLUGINS", "xnlos-sims")
-    assert [c.name for c in PluginManager().registry.components()] == ["image"]
+    assert [c.name for c in PluginManager().registry.components()] == ["image", "raytrace"]

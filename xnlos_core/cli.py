@@ -1,4 +1,4 @@
-"""Command line: ``xnlos run | sweep | demo | plugins | check | emulate`` (also ``python -m xnlos_core``)."""
+"""Command line: ``xnlos run | sweep | demo | plugins | check | emulate | simulate | train`` (also ``python -m xnlos_core``)."""
 from __future__ import annotations
 
 import argparse
@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import XnlosError
+from .errors import ConfigError, XnlosError
 
 DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
 
@@ -47,12 +47,60 @@ def _cmd_sweep(args) -> int:
     return 0
 
 
+def _cmd_simulate(args) -> int:
+    from sims.dataset import load_dataset_config, manifest_config, simulate_dataset, verify_dataset
+
+    config, out = args.config, args.out
+    if out is None and (args.verify or args.repair) and config is not None and config.is_dir():
+        config, out = None, config  # xnlos simulate --verify DIR | --repair DIR
+    if out is None:
+        raise ConfigError("simulate: give --out DIR (or: xnlos simulate --verify DIR | --repair DIR)")
+    if args.verify and not args.repair:
+        report = verify_dataset(out)
+        print(report.render())
+        return 0 if report.healthy else 1
+    if config is None and args.max_maps is not None:
+        raise ConfigError("simulate: --max-maps needs the CONFIG file (the dataset in --out keeps its own size)")
+    cfg = manifest_config(out) if config is None else load_dataset_config(config, n_maps=args.max_maps)
+    s = simulate_dataset(cfg, out, source=str(config or out / "manifest.json"), workers=args.workers,
+                         scheduler=args.scheduler, overwrite=args.overwrite, repair=args.repair,
+                         progress=not args.quiet)
+    print(f"{s['n_maps']} map(s) in {s['n_shards']} shard(s): {s['generated']} generated, {s['skipped']} already "
+          f"done, {len(s['repaired'])} repaired, in {s['seconds']:.1f} s; wrote {out / 'manifest.json'}")
+    return 0
+
+
+def _cmd_train(args) -> int:
+    from plugins.detectors.train import train
+    from plugins.detectors.train_config import load_train_config, parse_train_config
+
+    cfg = load_train_config(args.config)
+    table = cfg.model_dump(mode="json")
+    table.update({k: str(v) for k, v in (("out", args.out), ("device", args.device)) if v is not None})
+    if args.epochs is not None:
+        table["optim"]["epochs"] = args.epochs
+    cfg = parse_train_config(table, f"{args.config} (with command-line overrides)")
+    s = train(cfg, overwrite=args.overwrite, progress=not args.quiet, source=str(args.config))
+    v = s["val"]
+    print(f"{s['epochs_run']} epoch(s) on {s['device']} ({s['seconds_per_epoch']:.1f} s/epoch), best epoch "
+          f"{s['best_epoch']}: validation Macro-F1 {v['macro_f1']:.3f} (LOS {v['los_f1']:.3f}, mNLOS "
+          f"{v['mnlos_f1']:.3f}) at threshold {v['threshold']}; wrote {s['model']}"
+          + (f" and {s['export']}" if s.get("export") else ""))
+    return 0
+
+
 def _cmd_check(args) -> int:
     from .config import expand_sweep, load_toml, parse_pipeline
     from .pipeline import Pipeline
 
     path = Path(args.config)
     table = load_toml(path)
+    if "families" in table and "detector" not in table:  # a dataset config (xnlos simulate)
+        from sims.dataset import parse_dataset_config, resolve
+
+        cfg = resolve(parse_dataset_config(table, str(path), path.resolve().parent), str(path))
+        print(f"{path}: valid dataset config ({cfg.n_maps} maps, forward model {cfg.forward_model.name})")
+        return 0
     points = expand_sweep(table, str(path))
     for assignment, t in points:
         Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
@@ -120,6 +168,32 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="validate a config (and every sweep point) without running it")
     c.add_argument("config", type=Path)
     c.set_defaults(func=_cmd_check)
+
+    sim = sub.add_parser("simulate", help="generate a sharded RA-map dataset (resumable), or --verify / --repair one")
+    sim.add_argument("config", type=Path, nargs="?", help="dataset TOML (configs/datasets/); with --verify or "
+                     "--repair and no --out: the dataset directory")
+    sim.add_argument("--out", type=Path, help="dataset directory (rerun the same command to resume)")
+    sim.add_argument("--workers", type=int, default=None,
+                     help="local worker processes (1 = in process; default: every core)")
+    sim.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); default: local")
+    sim.add_argument("--overwrite", action="store_true", help="discard a dataset of another config in --out")
+    sim.add_argument("--verify", action="store_true",
+                     help="re-hash every shard and list corrupt or missing ones (exit status 1 if any)")
+    sim.add_argument("--repair", action="store_true", help="rebuild corrupt or missing shards")
+    sim.add_argument("--max-maps", type=int, help="override the config's n_maps (a smaller dataset with its own "
+                     "split, not a prefix of the full one)")
+    sim.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    sim.set_defaults(func=_cmd_simulate)
+
+    tr = sub.add_parser("train", help="train a learned detector (swin_unet, unet, further_than_cfar, rtn); "
+                        "rerun the same command to resume")
+    tr.add_argument("config", type=Path, help="training TOML (configs/training/)")
+    tr.add_argument("--out", type=Path, help="override the config's output directory")
+    tr.add_argument("--device", help="override the config's device (auto, cpu, cuda[:N], mps)")
+    tr.add_argument("--epochs", type=int, help="override optim.epochs")
+    tr.add_argument("--overwrite", action="store_true", help="discard a previous run in the output directory")
+    tr.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    tr.set_defaults(func=_cmd_train)
 
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
     pl.add_argument("--json", action="store_true")

@@ -141,19 +141,12 @@ def reflect_points(points: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
 
 
 def check_radar_outside(world: World, radar: np.ndarray, scene) -> None:
-    """InputError when the radar position lies inside or on a wall box, or inside a closed user mesh."""
-    for w in scene.planar_walls():
-        seg = w.segment()
-        a, b, p = seg.start, seg.end, radar[:2]
-        s = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
-        on_face = np.linalg.norm(a + s * (b - a) - p) < 1e-3 and radar[2] <= w.height
-        if on_face or wall_box(w).contains(radar[None, :])[0]:
-            raise InputError(f"radar at {tuple(np.round(radar, 3))} is inside wall {w.name!r}")
-    if scene.meshes:
-        from sims.meshes import load_user_mesh
+    """InputError when the radar stands inside a wall (its footprint or its extruded box) or a closed
+    mesh, or an object touches a wall or lies inside a mesh (:func:`sims.meshes.check_scene_geometry`)."""
+    from sims.meshes import check_scene_geometry
 
-        for spec in scene.meshes:
-            for mesh, _, tag in load_user_mesh(spec, scene.base_dir):
-                if mesh.is_watertight and mesh.contains(radar[None, :])[0]:
-                    raise InputError(f"radar at {tuple(np.round(radar, 3))} is inside mesh {spec.name!r}"
-                                     f"{' part ' + repr(tag) if tag else ''}")
+    check_scene_geometry(scene, radar_position=tuple(radar))
+    for w in scene.planar_walls():
+        if radar[2] <= w.height and wall_box(w).contains(radar[None, :])[0]:
+            raise InputError(f"scene {scene.name!r}: the radar at {tuple(np.round(radar, 3))} stands inside "
+                             f"wall {w.name!r}")

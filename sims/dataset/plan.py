@@ -1,0 +1,139 @@
+"""The dataset plan: scene seeds, families, splits and shards, all derived from the root seed.
+
+Every number comes from ``numpy.random.SeedSequence(seed)`` and its spawned children (no global
+RNG), addressed by spawn key so that any one of them is computed alone:
+
+* ``SeedSequence(seed, spawn_key=(0, k))`` — child k of child 0 of the root, i.e.
+  ``SeedSequence(seed).spawn(4)[0].spawn(k + 1)[k]`` — gives scene k's seed;
+* ``(1, k, f)`` gives the noise seed of frame f of scene k (the ``rng`` of the forward model);
+* ``(2,)`` shuffles the family assignment, ``(3,)`` the split assignment.
+
+Scene and noise seeds are 63-bit integers (they fit int64 arrays and JSON). The plan depends
+only on the (resolved) config, so a shard can be rebuilt alone and the dataset is the same
+whatever the number of workers or the order in which shards finish.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import SPLITS, DatasetConfig
+
+
+def child_seed(root: int, *key: int) -> int:
+    """A 63-bit integer drawn from ``SeedSequence(root, spawn_key=key)``."""
+    state = np.random.SeedSequence(root, spawn_key=key).generate_state(1, np.uint64)[0]
+    return int(state >> np.uint64(1))
+
+
+def scene_seed(root: int, scene: int) -> int:
+    """Seed handed to the scene generator for scene index ``scene``."""
+    return child_seed(root, 0, scene)
+
+
+def noise_seed(root: int, scene: int, frame: int) -> int:
+    """Seed of ``numpy.random.default_rng`` for frame ``frame`` of scene ``scene`` (noise, phases)."""
+    return child_seed(root, 1, scene, frame)
+
+
+def apportion(weights, total: int) -> list[int]:
+    """Integer counts ∝ ``weights`` summing to ``total`` (largest remainder; ties to the earlier)."""
+    w = np.asarray(weights, dtype=np.float64)
+    quota = w / w.sum() * total
+    counts = np.floor(quota + 1e-9).astype(int)
+    rest = total - int(counts.sum())
+    order = sorted(range(len(w)), key=lambda i: (-(quota[i] - counts[i]), i))
+    for i in order[:max(rest, 0)]:
+        counts[i] += 1
+    return [int(c) for c in counts]
+
+
+def spread_labels(counts: list[int]) -> list[int]:
+    """A sequence with exactly ``counts[j]`` labels j, each label spread evenly along it.
+
+    Position i takes the label with the largest deficit (i + 1)·n_j − S·assigned_j (ties to the
+    lower label); no label exceeds its count and the totals are exact.
+    """
+    total = sum(counts)
+    assigned = [0] * len(counts)
+    out = []
+    for i in range(total):
+        deficit = [(i + 1) * n - total * a for n, a in zip(counts, assigned)]
+        j = max(range(len(counts)), key=lambda k: (deficit[k], -k))
+        assigned[j] += 1
+        out.append(j)
+    return out
+
+
+@dataclass(frozen=True)
+class ShardSpec:
+    """One work unit: the file ``name``, its ``split`` and the global scene indices it holds."""
+
+    name: str
+    split: str
+    scenes: tuple[int, ...]
+    frames_per_scene: int
+
+    @property
+    def n_maps(self) -> int:
+        return len(self.scenes) * self.frames_per_scene
+
+
+@dataclass(frozen=True)
+class Plan:
+    """scene_seed (S,) int64, family (S,), split (S,) by scene index; shards in file order."""
+
+    scene_seed: np.ndarray
+    family: tuple[str, ...]
+    split: tuple[str, ...]
+    shards: tuple[ShardSpec, ...]
+
+    def shard(self, name: str) -> ShardSpec:
+        for s in self.shards:
+            if s.name == name:
+                return s
+        raise KeyError(name)
+
+    def split_seeds(self) -> dict[str, list[int]]:
+        """split → the scene seeds in it (each scene seed lands in exactly one split)."""
+        return {sp: [int(s) for s, x in zip(self.scene_seed, self.split) if x == sp] for sp in SPLITS}
+
+
+def make_plan(config: DatasetConfig) -> Plan:
+    """The plan of a dataset: a pure function of the config.
+
+    Families get exact counts ∝ weight (largest remainder) in a shuffled order. For the split,
+    the scenes are ordered family by family (families sorted by name, scenes shuffled within
+    each) and labelled with :func:`spread_labels`, so split sizes are exact and each split
+    takes its share of every family. A split's scenes are then cut, in index order, into shards
+    of ``shard_size // frames_per_scene`` scenes named ``{split}-{i:05d}.npz``.
+    """
+    n = config.n_scenes
+    root = config.seed
+    seeds = np.array([scene_seed(root, k) for k in range(n)], dtype=np.int64)
+    weights = config.weights()
+    fams = sorted(weights)
+    pool = [f for f, c in zip(fams, apportion([weights[f] for f in fams], n)) for _ in range(c)]
+    fam_rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(2,)))
+    family = tuple(pool[i] for i in fam_rng.permutation(n))
+
+    split_rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(3,)))
+    order = []
+    for f in fams:
+        members = np.array([k for k in range(n) if family[k] == f], dtype=np.int64)
+        order.extend(int(k) for k in split_rng.permutation(members))
+    fractions = [getattr(config.split, s) for s in SPLITS]
+    labels = spread_labels(apportion(fractions, n))
+    split = [""] * n
+    for k, lab in zip(order, labels):
+        split[k] = SPLITS[lab]
+
+    per_shard = config.shard_size // config.frames_per_scene
+    shards = []
+    for sp in SPLITS:
+        idx = [k for k in range(n) if split[k] == sp]
+        for i, start in enumerate(range(0, len(idx), per_shard)):
+            shards.append(ShardSpec(f"{sp}-{i:05d}.npz", sp, tuple(idx[start:start + per_shard]),
+                                    config.frames_per_scene))
+    return Plan(seeds, family, tuple(split), tuple(shards))

@@ -1,0 +1,237 @@
+"""User meshes in scenes (OBJ, STL, PLY, GLB/GLTF through trimesh) and geometric checks of a scene.
+
+A :class:`~xnlos_core.scene.MeshSpec` names a file, its placement (``scale``, then ``yaw`` about z,
+then ``translation``) and its electromagnetics: one ``material`` for every part, a ``materials``
+map from part tags to materials (``material`` then covers untagged parts), or neither (the
+constants ``reflectivity``/``backscatter_db``, material None). Part tags are
+
+* OBJ: the ``usemtl`` material names (trimesh splits the file by material; the ``mtllib``
+  library must sit beside the file, ``newmtl NAME`` lines suffice);
+* STL, PLY, GLB, GLTF: the geometry names of the loaded trimesh scene (glTF mesh names; the
+  file name for single-mesh formats).
+
+Loading is data-only (trimesh parsers; no pickles, no remote resources). Files are cached by
+path, modification time and size, so checking many scenes that share a mesh stays cheap.
+"""
+from __future__ import annotations
+
+import difflib
+import functools
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from xnlos_core.errors import InputError
+from xnlos_core.scene import MeshSpec, Scene
+
+from .generators import geometry as g
+
+SUPPORTED = {".obj": "obj", ".stl": "stl", ".ply": "ply", ".glb": "glb", ".gltf": "gltf"}
+RADAR_HEIGHT = 1.0  # m, default mounting height of the radar above ground for the 3-D checks
+
+
+def mesh_path(spec: MeshSpec, base_dir: str | Path = ".") -> Path:
+    """The file of ``spec`` (relative paths are taken from ``base_dir``), checked to be a readable
+    file of a supported type."""
+    path = Path(spec.file)
+    if not path.is_absolute():
+        path = Path(base_dir) / path
+    ext = path.suffix.lower()
+    if ext not in SUPPORTED:
+        raise InputError(f"mesh {spec.name!r}: unsupported file type {ext or '(none)'!r} ({path}); supported: "
+                         f"{', '.join(SUPPORTED)}")
+    if not path.is_file():
+        what = "is a directory, not a file" if path.is_dir() else "not found"
+        raise InputError(f"mesh {spec.name!r}: file {path} {what} (file = {spec.file!r}, relative to {base_dir})")
+    return path
+
+
+@functools.lru_cache(maxsize=32)
+def _read(path: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, trimesh.Trimesh], ...]:
+    """(tag, node, mesh in file coordinates) for every triangle mesh instance in the file; the key
+    includes mtime and size so an edited file is read again. Raises what trimesh raises."""
+    ext = Path(path).suffix.lower()
+    scene = trimesh.load_scene(path, file_type=SUPPORTED[ext])
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        transform, geom_name = scene.graph[node]
+        geom = scene.geometry.get(geom_name)
+        if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
+            continue
+        mesh = geom.copy()
+        mesh.apply_transform(transform)
+        material = getattr(getattr(geom.visual, "material", None), "name", None) if ext == ".obj" else None
+        parts.append((str(material or geom_name), str(node), mesh))
+    return tuple(sorted(parts, key=lambda p: (p[0], p[1])))
+
+
+def _placement(spec: MeshSpec) -> np.ndarray:
+    """(4, 4) homogeneous transform: scale, then yaw about z, then translation."""
+    c, s = math.cos(spec.yaw), math.sin(spec.yaw)
+    m = np.eye(4)
+    m[:3, :3] = spec.scale * np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    m[:3, 3] = spec.translation
+    return m
+
+
+def combine(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The meshes as one bare mesh (no visuals) with coincident vertices merged, faces in order."""
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    combined = trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]),
+                               np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]), process=False)
+    combined.merge_vertices()
+    return combined
+
+
+def edge_defects(meshes: list[trimesh.Trimesh]) -> tuple[np.ndarray, np.ndarray]:
+    """Per mesh: the number of open edges (used by one face) and of non-manifold edges (by more
+    than two), with the meshes taken together (vertices merged, so seams between parts close)."""
+    combined = combine(meshes)
+    _, inverse, counts = np.unique(combined.edges_sorted, axis=0, return_inverse=True, return_counts=True)
+    per_edge = counts[inverse.reshape(-1)]
+    owner = np.searchsorted(np.cumsum([len(m.faces) for m in meshes]), combined.edges_face, side="right")
+    n = len(meshes)
+    # each open edge appears once; each non-manifold edge is counted once over its faces
+    open_ = np.bincount(owner[per_edge == 1], minlength=n)
+    bad = per_edge > 2
+    nonmanifold = np.bincount(owner[bad], weights=1.0 / per_edge[bad], minlength=n)
+    return open_, np.round(nonmanifold).astype(int)
+
+
+def _material(spec: MeshSpec, tag: str, path: Path, tags) -> str | None:
+    from .materials import get_material
+
+    if spec.materials and tag in spec.materials:
+        name, key = spec.materials[tag], f"materials[{tag!r}]"
+    elif spec.material is not None:
+        name, key = spec.material, "material"
+    elif spec.materials:
+        raise InputError(f"mesh {spec.name!r} ({path}): part {tag!r} has no entry in materials (mapped: "
+                         f"{', '.join(sorted(spec.materials))}) and there is no default material; add "
+                         f"materials.{tag} = \"…\" or material = \"…\"{_obj_hint(path, tags)}")
+    else:
+        return None  # constant reflectivity / backscatter
+    try:
+        return get_material(name).name
+    except InputError as err:
+        raise InputError(f"mesh {spec.name!r} ({path}): {key}: {err}") from None
+
+
+def _obj_hint(path: Path, tags) -> str:
+    """For an OBJ whose usemtl names did not become part tags: say that its material library is missing."""
+    if path.suffix.lower() != ".obj":
+        return ""
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return ""
+    names = sorted(set(re.findall(r"^\s*usemtl\s+(\S+)", text, flags=re.MULTILINE)))
+    libs = re.findall(r"^\s*mtllib\s+(.+?)\s*$", text, flags=re.MULTILINE)
+    if not names or set(names) <= set(tags):
+        return ""
+    return (f" (the file uses usemtl {', '.join(names)}; these become part tags only when its material library "
+            f"{' '.join(libs) or '(no mtllib line)'} is present beside it with matching newmtl entries)")
+
+
+def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
+                   require_watertight: bool = True) -> list[tuple[trimesh.Trimesh, str | None, str]]:
+    """The parts of the mesh file of ``spec`` placed in scene coordinates [m].
+
+    Returns [(mesh, material, tag)]: a trimesh in the scene frame (after scale, yaw, translation),
+    the sims.materials name of the part (None for constant reflectivity/backscatter), and the
+    part's tag (module doc), sorted by tag. Raises InputError for a missing or unreadable file,
+    an unsupported extension, a mesh without faces, a non-watertight mesh when
+    ``require_watertight`` (naming the parts and their open edges), a ``materials`` key that is
+    no part of the file, a part without a mapping and no default ``material``, and an unknown
+    material name (with a did-you-mean).
+    """
+    path = mesh_path(spec, base_dir)
+    stat = path.stat()
+    try:
+        parts = _read(str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    except InputError:
+        raise
+    except Exception as err:  # trimesh raises many kinds on malformed data
+        raise InputError(f"mesh {spec.name!r}: cannot read {path} as {SUPPORTED[path.suffix.lower()].upper()}: "
+                         f"{type(err).__name__}: {err}") from None
+    if not parts:
+        raise InputError(f"mesh {spec.name!r}: {path} holds no triangles (empty mesh or a point cloud); a scene "
+                         "mesh needs faces")
+    tags = sorted({t for t, _, _ in parts})
+    unknown = sorted(set(spec.materials) - set(tags))
+    if unknown:
+        hints = [f"{k!r}" + (f" (did you mean {c[0]!r}?)" if (c := difflib.get_close_matches(k, tags, n=1)) else "")
+                 for k in unknown]
+        raise InputError(f"mesh {spec.name!r} ({path}): materials names part(s) {', '.join(hints)} that the file "
+                         f"does not have; its parts: {', '.join(tags)}{_obj_hint(path, tags)}")
+    if require_watertight:
+        open_, nonmanifold = edge_defects([m for _, _, m in parts])
+        if open_.sum() or nonmanifold.sum():
+            where = ", ".join(f"{t!r}: {o} open" + (f", {n} non-manifold" if n else "")
+                              for (t, _, _), o, n in zip(parts, open_, nonmanifold) if o or n)
+            raise InputError(f"mesh {spec.name!r} ({path}) is not watertight: {int(open_.sum())} open edge(s) and "
+                             f"{int(nonmanifold.sum())} non-manifold edge(s) (part {where}); the ray tracer needs "
+                             "closed surfaces to tell inside from outside. Close the holes (e.g. "
+                             "trimesh.repair.fill_holes) or load with require_watertight=False")
+    placement = _placement(spec)
+    out = []
+    for tag, _, mesh in parts:
+        placed = mesh.copy()
+        placed.apply_transform(placement)
+        out.append((placed, _material(spec, tag, path, tags), tag))
+    return out
+
+
+def check_scene_geometry(scene: Scene, radar_position=(0.0, 0.0, RADAR_HEIGHT)) -> None:
+    """Refuse scenes whose geometry cannot be simulated: InputError when the radar stands inside a
+    wall's footprint or a closed mesh, or an object (its footprint at t = 0) touches a wall's
+    footprint or lies inside a closed mesh.
+
+    A wall's footprint is its segment thickened to ``thickness`` (0.3 m without one), centred on
+    the segment; curved walls are checked facet by facet. radar_position: (x, y, z) [m]; the
+    radar is inside a wall only below the wall's height. Meshes are tested with ``contains``
+    (ray parity) when their parts together are watertight; open meshes are skipped.
+    """
+    rp = np.asarray(radar_position, dtype=np.float64)
+    if rp.shape != (3,) or not np.all(np.isfinite(rp)):
+        raise InputError(f"check_scene_geometry: radar_position must be a finite (x, y, z) in metres, got "
+                         f"{radar_position!r}")
+    planar = scene.planar_walls()
+    starts, ends, half = g.wall_arrays(scene.walls)
+    if len(planar):
+        heights = np.array([w.height for w in planar])
+        d = g.point_segment_distance(rp[:2], starts, ends)
+        inside = np.flatnonzero((d < half) & (rp[2] <= heights))
+        if len(inside):
+            w = planar[inside[0]]
+            raise InputError(f"scene {scene.name!r}: the radar at {tuple(rp.tolist())} stands inside wall {w.name!r} "
+                             f"(segment {w.start}→{w.end}, footprint {2 * half[inside[0]]:.2f} m thick); move the "
+                             "wall or the radar")
+        for o in scene.objects:
+            dist = g.polygon_segment_distance(g.footprint(o), starts, ends)
+            hit = np.flatnonzero(dist < half)
+            if len(hit):
+                names = ", ".join(repr(planar[i].name) for i in hit[:3]) + (" …" if len(hit) > 3 else "")
+                raise InputError(f"scene {scene.name!r}: object {o.name!r} at {o.center} (size {o.size} m, heading "
+                                 f"{o.heading:.3g} rad) is inside or against wall(s) {names}; objects must stand "
+                                 "clear of the wall footprints")
+    for spec in scene.meshes:
+        parts = load_user_mesh(spec, scene.base_dir, require_watertight=False)
+        meshes = [m for m, _, _ in parts]
+        open_, nonmanifold = edge_defects(meshes)
+        if open_.sum() or nonmanifold.sum():
+            continue  # an open surface has no inside
+        combined = combine(meshes)
+        if bool(combined.contains(rp[None, :])[0]):
+            raise InputError(f"scene {scene.name!r}: the radar at {tuple(rp.tolist())} is inside mesh {spec.name!r} "
+                             f"({spec.file}); move the mesh (translation) or the radar")
+        for o in scene.objects:
+            fp = g.footprint(o)
+            pts = np.concatenate([fp, fp.mean(axis=0, keepdims=True)])
+            probe = np.column_stack([pts, np.full(len(pts), o.height / 2)])
+            if np.any(combined.contains(probe)):
+                raise InputError(f"scene {scene.name!r}: object {o.name!r} at {o.center} is inside mesh "
+                                 f"{spec.name!r} ({spec.file})")
