@@ -118,10 +118,10 @@ def main(argv=None) -> int:
         t = _median_time(lambda: m.trace(corridor, radar), args.repeats)
         t_map = _median_time(lambda: m.simulate(corridor, radar, np.random.default_rng(0)), args.repeats)
         f = m.simulate(corridor, radar, np.random.default_rng(0))
-        print(f"{cap:>10} {f.meta['max_order']:>8} {f.meta['n_paths']:>6} {1e3 * t:>9.1f} {1e3 * t_map:>7.1f}")
+        print(f"{cap:>10} {f.meta['max_bounce']:>8} {f.meta['n_paths']:>6} {1e3 * t:>9.1f} {1e3 * t_map:>7.1f}")
     adaptive = RaytraceForwardModel({"max_bounces": 8, "noise": False})
     f = adaptive.simulate(corridor, radar, np.random.default_rng(0))
-    print(f"adaptive (min_snr_db 0, cap 8): stops at {f.meta['max_order']} bounces, {f.meta['n_paths']} paths")
+    print(f"adaptive (min_snr_db 0, cap 8): rays stop after {f.meta['max_bounce']} bounces, {f.meta['n_paths']} paths")
     return 0
 
 

@@ -137,8 +137,8 @@ def test_bounce_depth_adapts_to_the_noise_floor():
         scene, RADAR, np.random.default_rng(0))
     strict = RaytraceForwardModel({**QUIET, "max_bounces": 10, "min_snr_db": 30.0}).simulate(
         scene, RADAR, np.random.default_rng(0))
-    assert deep.meta["max_order"] == 10
-    assert strict.meta["max_order"] < deep.meta["max_order"]
+    assert deep.meta["max_bounce"] == 10
+    assert strict.meta["max_bounce"] < deep.meta["max_bounce"]
 
 
 def test_curved_wall_and_corner_give_several_chains():

@@ -177,7 +177,8 @@ class RaytraceForwardModel(ForwardModel):
         meta = {"scene": scene.name, "forward_model": "raytrace", "n_paths": int(live.sum()),
                 "n_los_paths": int((live & (kind == 0)).sum()), "n_mnlos_paths": int((live & (kind == 1)).sum()),
                 "n_other_paths": int((live & (kind == 2)).sum()),
-                "max_order": int(order[live].max()) if live.any() else 0, "rays": int(tr.rays),
+                "max_bounce": int(tr.max_order), "max_order": int(order[live].max()) if live.any() else 0,
+                "rays": int(tr.rays),
                 "chains": len(tr.chains), "faces": int(world.caster.n_faces), "backend": world.caster.backend,
                 "trace_s": round(t_trace, 6), "components": use}
         return cube, Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)

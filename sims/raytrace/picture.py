@@ -66,7 +66,7 @@ def plot_trace(scene, radar: RadarConfig, path: str | Path, *, seed: int = 0, pa
                     extent=[np.degrees(radar.azimuth_axis[0]), np.degrees(radar.azimuth_axis[-1]), 0, radar.max_range])
     fig.colorbar(im, ax=ax2, label="|κ|² [dB W]")
     ax2.set(xlabel="azimuth [deg]", ylabel="range [m]",
-            title=f"RA map: {frame.meta['n_paths']} paths, up to {frame.meta['max_order']} bounces")
+            title=f"RA map: {frame.meta['n_paths']} paths, rays bounced up to {frame.meta['max_bounce']} times")
     ax2.invert_xaxis()  # positive azimuth (left) on the left, like the BEV
     buf = io.BytesIO()
     fig.tight_layout()

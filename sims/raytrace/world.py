@@ -53,13 +53,54 @@ class Surface:
                    "lambertian", 4, spec.relay, alpha, s0)
 
 
+def _depth(w) -> float:
+    return w.thickness if w.thickness is not None else DEFAULT_DEPTH
+
+
 def wall_box(w) -> trimesh.Trimesh:
-    """Watertight box of a planar wall facet (module doc); the front face is on the BEV segment."""
+    """Watertight box of a planar wall facet (module doc); the front face is on the BEV segment,
+    the box extends ``thickness`` (or DEFAULT_DEPTH) away from the radar side."""
     seg = w.segment()
-    back = -seg.normal * (w.thickness if w.thickness is not None else DEFAULT_DEPTH)  # away from the radar
     a, b = np.asarray(w.start, float), np.asarray(w.end, float)
-    corners = [np.r_[p, z] for p in (a, b, a + back, b + back) for z in (0.0, w.height)]
-    return trimesh.convex.convex_hull(np.array(corners))
+    u = (b - a) / np.linalg.norm(b - a)
+    centre = (a + b) / 2 - seg.normal * _depth(w) / 2
+    tf = np.eye(4)
+    tf[:2, 0], tf[:2, 1] = u, (-u[1], u[0])  # box x along the wall, y across it (a proper rotation)
+    tf[:3, 3] = (centre[0], centre[1], w.height / 2)
+    return trimesh.creation.box(extents=(float(np.linalg.norm(b - a)), _depth(w), w.height), transform=tf)
+
+
+_UNIT_BOX = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+
+
+def wall_boxes(walls) -> trimesh.Trimesh:
+    """All walls' boxes (same geometry as :func:`wall_box`) as one mesh, built without per-wall
+    trimesh objects: the unit cube's outward faces, scaled, rotated and moved per wall.
+    Faces are wall-major, 12 per wall."""
+    v0 = np.asarray(_UNIT_BOX.vertices)
+    f0 = np.asarray(_UNIT_BOX.faces)
+    verts, faces = [], []
+    for i, w in enumerate(walls):
+        seg = w.segment()
+        a, b = np.asarray(w.start, float), np.asarray(w.end, float)
+        length = float(np.linalg.norm(b - a))
+        u = (b - a) / length
+        rot = np.array([[u[0], -u[1], 0.0], [u[1], u[0], 0.0], [0.0, 0.0, 1.0]])
+        centre = (a + b) / 2 - seg.normal * _depth(w) / 2
+        verts.append((v0 * (length, _depth(w), w.height)) @ rot.T + (centre[0], centre[1], w.height / 2))
+        faces.append(f0 + 8 * i)
+    if not verts:
+        return trimesh.Trimesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
+    return trimesh.Trimesh(vertices=np.concatenate(verts), faces=np.concatenate(faces), process=False)
+
+
+def inside_wall_box(w, point: np.ndarray) -> bool:
+    """True when ``point`` (3,) [m] lies strictly inside :func:`wall_box` of w (analytic)."""
+    seg = w.segment()
+    a, b = np.asarray(w.start, float), np.asarray(w.end, float)
+    u = (b - a) / np.linalg.norm(b - a)
+    along, behind = (point[:2] - a) @ u, -(point[:2] @ seg.normal + seg.offset)
+    return bool(0 < along < np.linalg.norm(b - a) and 0 < behind < _depth(w) and 0 < point[2] < w.height)
 
 
 def object_box(obj, t: float) -> trimesh.Trimesh | None:
@@ -98,9 +139,11 @@ def build_world(scene, t: float = 0.0, backend: str = "auto") -> World:
     """The triangle world of ``scene`` at time t [s] (walls, user meshes, object occluders)."""
     parts: list[tuple[trimesh.Trimesh, int, int]] = []  # (mesh, surface index, object index)
     surfaces: list[Surface] = []
-    for w in scene.planar_walls():
-        surfaces.append(Surface.from_wall(w))
-        parts.append((wall_box(w), len(surfaces) - 1, -1))
+    planar = scene.planar_walls()
+    if planar:
+        boxes = wall_boxes(planar)
+        surfaces.extend(Surface.from_wall(w) for w in planar)
+        parts.append((boxes, np.repeat(np.arange(len(planar)), 12), -1))
     if scene.meshes:
         from sims.meshes import load_user_mesh
 
@@ -113,10 +156,9 @@ def build_world(scene, t: float = 0.0, backend: str = "auto") -> World:
         if box is not None:
             parts.append((box, -1, j))
     if parts:
-        mesh = trimesh.util.concatenate([p[0] for p in parts])
-        counts = [len(p[0].faces) for p in parts]
-        tri_surface = np.repeat([p[1] for p in parts], counts)
-        tri_object = np.repeat([p[2] for p in parts], counts)
+        mesh = trimesh.util.concatenate([p[0] for p in parts]) if len(parts) > 1 else parts[0][0]
+        tri_surface = np.concatenate([np.broadcast_to(p[1], (len(p[0].faces),)) for p in parts])
+        tri_object = np.concatenate([np.broadcast_to(p[2], (len(p[0].faces),)) for p in parts])
     else:
         mesh = trimesh.Trimesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
         tri_surface = tri_object = np.zeros(0, dtype=np.int64)
@@ -147,6 +189,6 @@ def check_radar_outside(world: World, radar: np.ndarray, scene) -> None:
 
     check_scene_geometry(scene, radar_position=tuple(radar))
     for w in scene.planar_walls():
-        if radar[2] <= w.height and wall_box(w).contains(radar[None, :])[0]:
+        if inside_wall_box(w, radar):
             raise InputError(f"scene {scene.name!r}: the radar at {tuple(np.round(radar, 3))} stands inside "
                              f"wall {w.name!r}")
