@@ -91,24 +91,7 @@ class LSQWallEstimator(WallEstimator):
         ``detections``). If no cluster reaches min_points, the largest cluster is fitted if it has
         ≥ 2 points. Raises InsufficientDataError with < 2 LOS points or no usable cluster.
         """
-        if not isinstance(detections, Detections):
-            raise InputError(f"LSQWallEstimator.estimate: expected Detections, got {type(detections).__name__}")
-        idx = detections.of_class(LOS)
-        if len(idx) < 2:
-            raise InsufficientDataError(
-                f"LSQWallEstimator: {len(idx)} LOS detection(s) among {len(detections)} detections; "
-                "a wall line needs at least 2 LOS points")
-        pts = detections.position[idx]
-        cov = detections.position_cov()[idx]
-        labels = single_linkage(pts, self.params.cluster_distance)
-        groups = _merge_collinear(pts, labels, self.params.merge_tolerance)
-        chosen = [g for g in groups if len(g) >= self.params.min_points]
-        if not chosen:
-            if len(groups[0]) < 2:
-                raise InsufficientDataError(
-                    f"LSQWallEstimator: {len(idx)} LOS points but no two lie within cluster_distance="
-                    f"{self.params.cluster_distance} m of each other; no wall can be fitted")
-            chosen = [groups[0]]
+        idx, pts, cov, chosen = los_clusters(detections, self.params, "LSQWallEstimator")
         walls, skipped = [], []
         for members in chosen:
             try:
@@ -121,6 +104,38 @@ class LSQWallEstimator(WallEstimator):
         if not walls:
             raise InsufficientDataError("LSQWallEstimator: no cluster gave a line: " + "; ".join(skipped))
         return walls
+
+
+def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                     list[np.ndarray]]:
+    """Split the LOS detections into walls (steps 1 and merging; shared by every wall estimator).
+
+    params: any model with ``cluster_distance``, ``merge_tolerance`` and ``min_points``; ``who``
+    names the caller in errors. Returns (idx (K,): indices of the LOS rows in ``detections``,
+    points (K, 2) [m], their covariances (K, 2, 2) [m²], clusters: index arrays into points,
+    largest first, each with ≥ min_points members — or the largest cluster alone if none reaches
+    min_points but it has ≥ 2). Raises InputError for non-Detections and InsufficientDataError
+    with < 2 LOS points or no usable cluster.
+    """
+    if not isinstance(detections, Detections):
+        raise InputError(f"{who}.estimate: expected Detections, got {type(detections).__name__}")
+    idx = detections.of_class(LOS)
+    if len(idx) < 2:
+        raise InsufficientDataError(
+            f"{who}: {len(idx)} LOS detection(s) among {len(detections)} detections; "
+            "a wall line needs at least 2 LOS points")
+    pts = detections.position[idx]
+    cov = detections.position_cov()[idx]
+    labels = single_linkage(pts, params.cluster_distance)
+    groups = _merge_collinear(pts, labels, params.merge_tolerance)
+    chosen = [g for g in groups if len(g) >= params.min_points]
+    if not chosen:
+        if len(groups[0]) < 2:
+            raise InsufficientDataError(
+                f"{who}: {len(idx)} LOS points but no two lie within cluster_distance="
+                f"{params.cluster_distance} m of each other; no wall can be fitted")
+        chosen = [groups[0]]
+    return idx, pts, cov, chosen
 
 
 def _merge_collinear(pts: np.ndarray, labels: np.ndarray, tol: float) -> list[np.ndarray]:

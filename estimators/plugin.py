@@ -1,11 +1,16 @@
-"""Entry point ``xnlos-estimators``: registers the wall estimator lsq and the tracker nearest."""
+"""Entry point ``xnlos-estimators``: registers the wall estimators lsq, casadi_map and emcee and
+the tracker nearest."""
 from xnlos_core import hookimpl
 
 
 @hookimpl
 def xnlos_register_components(registry):
+    from .casadi_map import CasadiMapWallEstimator
+    from .emcee_wall import EmceeWallEstimator
     from .lsq import LSQWallEstimator
     from .nearest import NearestTracker
 
     registry.add("wall_estimator", "lsq", LSQWallEstimator)
+    registry.add("wall_estimator", "casadi_map", CasadiMapWallEstimator)
+    registry.add("wall_estimator", "emcee", EmceeWallEstimator)
     registry.add("tracker", "nearest", NearestTracker)

@@ -114,7 +114,7 @@ def test_detect_requires_frame():
 @pytest.mark.parametrize("module, kind, names", [
     ("plugins.detectors.plugin", "detector", ["cfar", "nlos_cfar"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
-    ("estimators.plugin", "wall_estimator", ["lsq"]),
+    ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),
     ("hardware.plugin", "backend", ["can", "npz", "replay"]),
     ("sims.plugin", "forward_model", ["image", "raytrace"]),

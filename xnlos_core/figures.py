@@ -1,4 +1,10 @@
-"""Figures: the RA map with detections beside the bird's-eye view of walls and hidden points."""
+"""Figures: the RA map with detections beside the bird's-eye view of walls and hidden points, and
+the corner plot of a wall posterior.
+
+Credible ellipses: for a 2-D Gaussian N(μ, Σ) the p-credible region is the ellipse
+(x − μ)ᵀΣ⁻¹(x − μ) ≤ χ²₂(p) = −2 ln(1 − p), i.e. radius √(−2 ln(1 − p)) in σ units
+(1.18σ for 50 %, 2.15σ for 90 %).
+"""
 from __future__ import annotations
 
 import io
@@ -13,6 +19,31 @@ CLASS_STYLE = {LOS: ("LOS", "tab:cyan", "o"), MNLOS: ("mNLOS", "tab:red", "x"),
                UNCLASSIFIED: ("unclassified", "gold", "s")}
 
 
+def credible_radius(p: float) -> float:
+    """√χ²₂(p): radius in σ units of the p-credible ellipse of a 2-D Gaussian."""
+    return float(np.sqrt(-2.0 * np.log1p(-p)))
+
+
+def _wall_curve(w, n: int = 64) -> np.ndarray | None:
+    """(n, 2) points along a 'line'/'arc' WallPosterior between its extent ends, or None.
+
+    An arc is drawn by arc length s from its tangent point p₀ (WallPosterior doc):
+    p(s) = p₀ + u·sin(κs)/κ − n·(1 − cos κs)/κ, written with sinc so that κ = 0 is the line.
+    """
+    if w.model not in ("line", "arc") or w.extent is None:
+        return None
+    if w.model == "line":
+        return np.asarray(w.extent)
+    nrm, kappa, p0 = w.normal, w.curvature, w.tangent_point
+    u = np.array([-nrm[1], nrm[0]])
+    t_ends = (w.extent - p0) @ u
+    s_ends = t_ends if kappa == 0 else np.arcsin(np.clip(kappa * t_ends, -1.0, 1.0)) / kappa
+    s = np.linspace(s_ends[0], s_ends[1], n)
+    along = s * np.sinc(kappa * s / np.pi)
+    across = 0.5 * kappa * s * s * np.sinc(kappa * s / (2 * np.pi)) ** 2
+    return p0 + along[:, None] * u - across[:, None] * nrm
+
+
 def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
     """Points of the nσ ellipse of a 2-D Gaussian, shape (n, 2)."""
     vals, vecs = np.linalg.eigh(0.5 * (cov + cov.T))
@@ -22,8 +53,14 @@ def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
     return mean + nsigma * (circle * np.sqrt(vals)) @ vecs.T
 
 
-def plot_frame(result, path: str | Path, title: str = "") -> Path:
-    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction."""
+def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9),
+               wall_samples: int = 30) -> Path:
+    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction.
+
+    credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
+    HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
+    draws of each sampled wall (WallPosterior.samples) are drawn as thin lines.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -65,10 +102,16 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
         for i, w in enumerate(gt.walls):
             ax_bev.plot(*bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
                         label="true walls" if i == 0 else None)
+    drawn = False
     for i, w in enumerate(result.walls):
-        if w.model == "line" and w.extent is not None:
-            ax_bev.plot(*bev(w.extent), color="tab:orange", lw=2, ls="--", zorder=4,
-                        label="estimated walls" if i == 0 else None)
+        curve = _wall_curve(w)
+        if curve is None:
+            continue
+        ax_bev.plot(*bev(curve), color="tab:orange", lw=2, ls="--", zorder=4,
+                    label=None if drawn else "estimated walls")
+        drawn = True
+        if w.samples is not None and wall_samples > 0 and w.extent is not None:
+            _plot_wall_draws(ax_bev, bev, w, wall_samples, first=i == 0)
     for lab, (name, color, marker) in CLASS_STYLE.items():
         m = det.label == lab
         if m.any():
@@ -78,9 +121,14 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
         ax_bev.scatter(*bev(gt.hidden_points), s=14, c="tab:green", marker="o", label="true hidden points")
     h = result.hidden
     if len(h):
-        ax_bev.scatter(*bev(h.mean), s=60, c="tab:purple", marker="+", linewidths=2, label="reconstructed (2σ)")
+        levels = sorted(credible)
+        pct = "/".join(f"{100 * p:g}" for p in levels)
+        ax_bev.scatter(*bev(h.mean), s=60, c="tab:purple", marker="+", linewidths=2,
+                       label=f"reconstructed ({pct} % credible)" if levels else "reconstructed")
         for mu, c in zip(h.mean, h.cov):
-            ax_bev.plot(*bev(_ellipse_xy(mu, c)), color="tab:purple", lw=0.8, alpha=0.7)
+            for p in levels:
+                ax_bev.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color="tab:purple",
+                            lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
     # Frame the scene (ground truth when known); far false alarms fall outside rather than
     # shrinking the scene to a corner of the plot.
@@ -104,6 +152,63 @@ def plot_frame(result, path: str | Path, title: str = "") -> Path:
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
+
+
+def _plot_wall_draws(ax, bev, wall, k: int, first: bool) -> None:
+    """Thin lines: ``k`` evenly spaced posterior draws of a sampled wall over its extent."""
+    from dataclasses import replace
+
+    idx = np.linspace(0, len(wall.samples) - 1, min(k, len(wall.samples))).astype(int)
+    for j, s in enumerate(wall.samples[idx]):
+        draw = replace(wall, mean=s, cov=np.zeros_like(wall.cov), samples=None, info={})
+        curve = _wall_curve(draw)
+        if curve is not None:
+            ax.plot(*bev(curve), color="tab:orange", lw=0.5, alpha=0.25, zorder=3,
+                    label="wall posterior draws" if first and j == 0 else None)
+
+
+def plot_wall_corner(posterior, path: str | Path, truth=None, n_draws: int = 4000, seed: int = 0) -> Path:
+    """Corner plot (PNG) of a WallPosterior's parameters: its samples, or — for a Laplace/Gaussian
+    posterior without samples — ``n_draws`` draws of N(mean, cov) from ``seed``. φ is shown in
+    degrees; ``truth`` (P,) in the posterior's parameters marks the true values. The title
+    carries the model and the model-selection reason when the posterior has one."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import corner
+    import matplotlib.pyplot as plt
+
+    mean = np.asarray(posterior.mean, float)
+    if posterior.samples is not None and len(posterior.samples) > len(mean):
+        draws, source = np.asarray(posterior.samples, float), "posterior samples"
+    else:
+        rng = np.random.default_rng(seed)
+        draws = rng.multivariate_normal(mean, posterior.cov, size=n_draws, method="eigh")
+        source = "Laplace Gaussian"
+    draws = draws.copy()
+    draws[:, 0] = np.degrees(mean[0] + np.angle(np.exp(1j * (draws[:, 0] - mean[0]))))
+    units = {"phi": "φ [deg]", "b": "b [m]", "kappa": "κ [1/m]"}
+    labels = [units.get(n, n) for n in posterior.param_names]
+    truths = None
+    if truth is not None:
+        truths = np.asarray(truth, float).copy()
+        truths[0] = np.degrees(mean[0] + np.angle(np.exp(1j * (truths[0] - mean[0]))))
+    span = np.ptp(draws, axis=0)
+    if np.any(span <= 0):  # corner needs a non-empty range per parameter
+        draws = draws + 1e-12 * np.maximum(np.abs(draws).max(axis=0), 1.0) * \
+            np.random.default_rng(seed).standard_normal(draws.shape)
+    fig = corner.corner(draws, labels=labels, truths=truths, quantiles=[0.05, 0.5, 0.95],
+                        show_titles=True, title_fmt=".3g", levels=(0.5, 0.9))
+    sel = posterior.info.get("model_selection", {}) if isinstance(posterior.info, dict) else {}
+    text = f"wall model '{posterior.model}' ({source}, {posterior.n_points} LOS points)"
+    if sel.get("reason"):
+        text += "\n" + sel["reason"]
+    fig.suptitle(text, fontsize=9, y=1.02)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     atomic_write_bytes(path, buf.getvalue())
     return Path(path)

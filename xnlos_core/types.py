@@ -251,11 +251,28 @@ class Detections:
 class WallPosterior:
     """Estimate of one relay wall with its uncertainty.
 
-    model: name of the wall model ("line": parameters (φ, b) with n = (cos φ, sin φ), nᵀx + b = 0);
+    model: name of the wall model, with n = (cos φ, sin φ) the unit normal and u = (−sin φ, cos φ)
+      the along-wall direction:
+
+      * "line": parameters (φ, b); the wall is nᵀx + b = 0.
+      * "arc": parameters (φ, b, κ); a circular arc of signed curvature κ [1/m] tangent to the
+        line nᵀx + b = 0 at its tangent point p₀ = a − (nᵀa + b)·n, the projection onto that line
+        of the fixed ``anchor`` point a (2,) [m] (estimators put it at the centroid of the wall's
+        LOS points, so (φ, b) describe the wall where it was seen; None means the radar at the
+        origin). Its centre is p₀ − n/κ: κ > 0 bulges towards the radar (convex seen from the
+        radar), κ < 0 is concave, κ = 0 is the line. Signed distance (Karimäki form, smooth
+        through κ = 0), v = x − p₀: δ(x) = A/(1 + √(1 + κA)), A = 2nᵀv + κ|v|²
+        (:mod:`estimators.wall_models`).
+
     mean (P,): parameter estimate; cov (P, P): its covariance (symmetric PSD);
     param_names: names of the P parameters; n_points: LOS detections used;
-    extent (2, 2): end points of the supported segment [m] (projections of the used points);
-    samples (S, P) or None: posterior draws when the estimator has them; info: diagnostics.
+    extent (2, 2): end points of the supported segment or arc [m] (projections of the used points);
+    samples (S, P) or None: posterior draws when the estimator has them (in the orientation of
+    the estimator's fit; flipping (n, b) to the canonical sign does not change the wall, so a
+    sample need not be canonical itself); info: diagnostics; anchor: the arc's anchor point (2,)
+    [m] or None (unused by a line). (φ, b) are kept canonical, b ≥ 0 (the radar side positive):
+    flipping n maps φ → φ + π, b → −b, κ → −κ (the same wall; p₀ and the anchor stay), and the
+    covariance changes sign in the flipped rows.
     """
 
     model: str
@@ -266,6 +283,7 @@ class WallPosterior:
     extent: np.ndarray | None = None
     samples: np.ndarray | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    anchor: np.ndarray | None = None
 
     def __post_init__(self):
         m = as_array("WallPosterior.mean", self.mean, ndim=1)
@@ -281,16 +299,25 @@ class WallPosterior:
             _set(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2)))
         if self.samples is not None:
             _set(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p)))
-        if self.model == "line":
-            if p != 2:
-                raise InputError(f"WallPosterior: a 'line' has 2 parameters (phi, b), got {p}")
+        if self.anchor is not None:
+            _set(self, "anchor", as_array("WallPosterior.anchor", self.anchor, shape=(2,)))
+        if self.model in ("line", "arc"):
+            want = {"line": 2, "arc": 3}[self.model]
+            if p != want:
+                names = {"line": "(phi, b)", "arc": "(phi, b, kappa)"}[self.model]
+                raise InputError(f"WallPosterior: a {self.model!r} has {want} parameters {names}, got {p}")
             n, b = canonical_line([np.cos(m[0]), np.sin(m[0])], m[1])
             if b != m[1] or not np.allclose(n, [np.cos(m[0]), np.sin(m[0])]):
-                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b: the
-                # variances stay, Cov(φ, b) changes sign.
+                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b (and for an
+                # arc κ → −κ): the variances stay, covariances with a flipped entry change sign.
                 if m[1] < 0:
-                    c = c * np.array([[1.0, -1.0], [-1.0, 1.0]])
-                m = np.array([np.arctan2(n[1], n[0]), b])
+                    sign = np.ones(p)
+                    sign[1:] = -1.0
+                    c = c * np.outer(sign, sign)
+                    if self.model == "arc":
+                        m = m.copy()
+                        m[2] = -m[2]
+                m = np.concatenate([[np.arctan2(n[1], n[0]), b], m[2:]])
         _set(self, "mean", m)
         _set(self, "cov", c)
 
@@ -301,21 +328,54 @@ class WallPosterior:
         cov = np.zeros((2, 2)) if cov is None else cov
         return cls("line", np.array([np.arctan2(n[1], n[0]), b]), cov, **kw)
 
+    @classmethod
+    def arc(cls, normal, offset: float, curvature: float, anchor=None, cov=None, **kw) -> "WallPosterior":
+        """An 'arc' posterior: tangent line (normal (2,), offset [m]) touching the arc at the
+        projection of ``anchor`` (2,) [m] (None: the radar), curvature κ [1/m]; cov over (φ, b, κ)
+        defaults to 0."""
+        n = np.asarray(normal, dtype=np.float64)
+        norm = float(np.hypot(*n)) if n.shape == (2,) else 0.0
+        if not norm > 0 or not np.isfinite(norm):
+            raise InputError(f"WallPosterior.arc: normal must be a finite non-zero 2-vector, got {n.tolist()}")
+        cov = np.zeros((3, 3)) if cov is None else cov
+        return cls("arc", np.array([np.arctan2(n[1], n[0]), float(offset) / norm, float(curvature)]), cov,
+                   param_names=("phi", "b", "kappa"), anchor=anchor, **kw)
+
     @property
     def normal(self) -> np.ndarray:
-        """Unit normal n (2,) of the (local) wall line."""
+        """Unit normal n (2,) of the wall line ('line') or of the tangent line at p₀ ('arc')."""
         self._need_line()
         return np.array([np.cos(self.mean[0]), np.sin(self.mean[0])])
 
     @property
     def offset(self) -> float:
-        """Offset b [m] of the wall line."""
+        """Offset b [m] of the wall line ('line') or of the tangent line at p₀ ('arc')."""
         self._need_line()
         return float(self.mean[1])
 
+    @property
+    def curvature(self) -> float:
+        """Signed curvature κ [1/m]: 0 for a line, mean[2] for an arc (see the class doc)."""
+        self._need_line()
+        return float(self.mean[2]) if self.model == "arc" else 0.0
+
+    @property
+    def anchor_point(self) -> np.ndarray:
+        """The anchor a (2,) [m]; the radar (origin) when None."""
+        return np.zeros(2) if self.anchor is None else self.anchor
+
+    @property
+    def tangent_point(self) -> np.ndarray:
+        """p₀ = a − (nᵀa + b)·n (2,) [m]: the projection of the anchor a onto the (tangent) line —
+        where an arc touches it; for a line without anchor the foot of the perpendicular from
+        the radar."""
+        n, a = self.normal, self.anchor_point
+        return a - (n @ a + self.offset) * n
+
     def _need_line(self):
-        if self.model != "line":
-            raise InputError(f"WallPosterior: normal/offset are defined for model 'line', this is {self.model!r}")
+        if self.model not in ("line", "arc"):
+            raise InputError(f"WallPosterior: normal/offset are defined for models 'line' and 'arc', "
+                             f"this is {self.model!r}")
 
 
 @dataclass(frozen=True, eq=False)

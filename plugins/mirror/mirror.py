@@ -9,11 +9,21 @@ with J_x = ∂o/∂o' = I − 2nnᵀ and J_w = ∂o/∂(φ, b) (:func:`xnlos_cor
 Σ_o' the detection's Cartesian covariance (Detections.position_cov) and Σ_w the wall's (φ, b)
 covariance. The detection and the wall estimate are taken as independent.
 
+Wall posteriors with samples (e.g. from the ``emcee`` estimator) and curved walls ('arc') go
+through :func:`estimators.propagate.propagate`: every posterior sample mirrors o' exactly and the
+hidden point's mean and covariance are the sample moments plus the (rotated) detection
+covariance. An arc mirrors o' across its tangent at the point q where the ray radar → o' meets
+the arc (n_q the arc's normal at q, b_q = −n_qᵀq; the tangent line at the arc's anchor if the ray
+misses the circle) — Eq. 7 with the local wall (:mod:`estimators.wall_models`). A 'line' without
+samples keeps the first-order formula above.
+
 Wall choice: the wall whose supported segment (WallPosterior.extent, lengthened by
 ``extent_margin`` at both ends; a wall without extent is an unbounded line) is crossed by the
 segment radar → o'; if several are crossed, the first one along the ray (the wall the wave hits).
-If none is crossed, ``fallback``: "nearest" takes the wall line with o' on its far side
-(nᵀo' + b < 0) that is closest to o', "drop" leaves o' unanchored. Unanchored detections are
+For an arc the crossing is the ray's hit q on the arc, inside the extent when q's coordinate
+along the tangent line lies between the extent ends' (± margin). If none is crossed,
+``fallback``: "nearest" takes the wall with o' on its far side (signed distance δ(o') < 0:
+nᵀo' + b for a line) that is closest to o', "drop" leaves o' unanchored. Unanchored detections are
 recorded in ``last_unanchored_`` (indices into the detections) and logged, never silently lost.
 """
 from __future__ import annotations
@@ -28,6 +38,9 @@ from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import mirror_jacobians, mirror_reflect, ray_segment_intersection
 from xnlos_core.interfaces import Reconstructor
 from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
+
+from estimators.propagate import propagate
+from estimators.wall_models import ray_hits, signed_distance
 
 log = logging.getLogger(__name__)
 
@@ -49,7 +62,16 @@ def crossing_parameters(points: np.ndarray, walls: list[WallPosterior], margin: 
     for j, w in enumerate(walls):
         n, b = w.normal, w.offset
         u = np.array([-n[1], n[0]])
-        if w.extent is None:
+        if w.model == "arc":
+            t = ray_hits("arc", w.mean, pts, w.anchor)[0]
+            if w.extent is None:
+                inside = np.ones(len(pts), dtype=bool)
+            else:
+                along = (w.extent - w.tangent_point) @ u
+                with np.errstate(invalid="ignore"):
+                    hit_along = (t[:, None] * pts - w.tangent_point) @ u
+                    inside = (hit_along >= along.min() - margin) & (hit_along <= along.max() + margin)
+        elif w.extent is None:
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = -b / (pts @ n)
             inside = np.ones(len(pts), dtype=bool)
@@ -77,7 +99,8 @@ class MirrorReconstructor(Reconstructor):
         t = crossing_parameters(points, walls, self.params.extent_margin)
         choice = np.where(np.isfinite(t).any(axis=1), np.argmin(t, axis=1), -1)
         if self.params.fallback == "nearest":
-            d = np.stack([points @ w.normal + w.offset for w in walls], axis=1)  # signed distance [m]
+            d = np.stack([points @ w.normal + w.offset if w.model == "line" else
+                          signed_distance(w.model, w.mean, points, w.anchor) for w in walls], axis=1)  # [m]
             far = np.where(d < 0, -d, np.inf)
             nearest = np.where(np.isfinite(far).any(axis=1), np.argmin(far, axis=1), -1)
             choice = np.where(choice >= 0, choice, nearest)
@@ -86,15 +109,15 @@ class MirrorReconstructor(Reconstructor):
     def reconstruct(self, detections: Detections, walls: list[WallPosterior]) -> HiddenPoints:
         """Hidden points for the mNLOS rows of ``detections`` (source_index into ``detections``,
         wall_index into ``walls``), in detection order. Raises InsufficientDataError when there
-        are mNLOS detections but no walls; InputError for a wall model other than 'line'."""
+        are mNLOS detections but no walls; InputError for a wall model other than 'line'/'arc'."""
         if not isinstance(detections, Detections):
             raise InputError(f"MirrorReconstructor.reconstruct: expected Detections, got {type(detections).__name__}")
         walls = list(walls)
         for j, w in enumerate(walls):
-            if not isinstance(w, WallPosterior) or w.model != "line":
+            if not isinstance(w, WallPosterior) or w.model not in ("line", "arc"):
                 got = w.model if isinstance(w, WallPosterior) else type(w).__name__
-                raise InputError(f"MirrorReconstructor: walls[{j}] must be a WallPosterior of model 'line', "
-                                 f"got {got!r}")
+                raise InputError(f"MirrorReconstructor: walls[{j}] must be a WallPosterior of model 'line' or "
+                                 f"'arc', got {got!r}")
         idx = detections.of_class(MNLOS)
         self.last_unanchored_ = np.empty(0, dtype=np.int64)
         if len(idx) == 0:
@@ -118,6 +141,9 @@ class MirrorReconstructor(Reconstructor):
         for j in np.unique(choice):
             m = choice == j
             w = walls[j]
+            if w.model != "line" or w.samples is not None:
+                mean[m], cov[m] = propagate(pts[m], pcov[m], w)
+                continue
             mean[m] = mirror_reflect(pts[m], w.normal, w.offset)
             jx, jw = mirror_jacobians(pts[m], float(w.mean[0]), float(w.mean[1]))
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)

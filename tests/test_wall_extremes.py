@@ -1,0 +1,148 @@
+"""Numerical extremes of the probabilistic wall estimators: a clear error or a finite, honest
+(wide where the data are weak) posterior."""
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from estimators.casadi_map import CasadiMapWallEstimator
+from estimators.emcee_wall import EmceeWallEstimator
+from xnlos_core import Detections, InsufficientDataError
+from xnlos_core.geometry import cartesian_to_polar
+
+FAST_EMCEE = {"n_steps": 400, "burn": 100}
+
+
+def polar_detections(points, range_std, azimuth_std, rng=None):
+    """Detections at points with stated errors; with ``rng`` the errors are also drawn."""
+    r, a = cartesian_to_polar(np.asarray(points, float))
+    k = len(r)
+    if rng is not None:
+        r = np.abs(r + range_std * rng.standard_normal(k))
+        a = a + azimuth_std * rng.standard_normal(k)
+    return Detections(r, a, np.zeros(k, np.int8), np.ones(k), np.full(k, range_std), np.full(k, azimuth_std))
+
+
+def estimators():
+    return [CasadiMapWallEstimator(), EmceeWallEstimator(FAST_EMCEE)]
+
+
+def check_finite(w, max_sd=None):
+    assert np.all(np.isfinite(w.mean)) and np.all(np.isfinite(w.cov))
+    assert np.linalg.eigvalsh(w.cov).min() >= -1e-12 * max(1.0, np.abs(w.cov).max())
+    if w.samples is not None:
+        assert np.all(np.isfinite(w.samples))
+    if max_sd is not None:
+        assert np.all(np.sqrt(np.diag(w.cov)) < max_sd)
+
+
+def run(est, det):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # short test chains
+        return est.estimate(det)
+
+
+def test_two_los_points_give_a_finite_wide_line():
+    det = polar_detections([[20.0, -1.5], [20.0, 1.5]], 0.07, 0.02)
+    for est in estimators():
+        (w,) = run(est, det)
+        assert w.model == "line" and w.n_points == 2
+        check_finite(w)
+        sd = np.sqrt(np.diag(w.cov))
+        # two points 3 m apart with 7 cm range errors: φ uncertain to a few degrees
+        assert 0.01 < sd[0] < 0.5 and 0.03 < sd[1] < 10.0, sd
+
+
+def test_coincident_points_are_a_clear_error():
+    det = polar_detections([[20.0, 1.0]] * 5, 0.07, 0.02)
+    for est in estimators():
+        with pytest.raises(InsufficientDataError, match="coincide"):
+            est.estimate(det)
+
+
+def test_one_los_point_is_a_clear_error():
+    for est in estimators():
+        with pytest.raises(InsufficientDataError, match="at least 2"):
+            est.estimate(polar_detections([[20.0, 1.0]], 0.07, 0.02))
+
+
+def test_exactly_colinear_points_keep_the_stated_noise():
+    pts = np.stack([np.full(10, 15.0), np.linspace(-4, 4, 10)], 1)  # no residual at all
+    for est in estimators():
+        (w,) = run(est, polar_detections(pts, 0.05, 0.01))
+        check_finite(w)
+        sd_b = np.sqrt(w.cov[1, 1])
+        assert sd_b > 0.005  # the stated 5 cm errors, not a zero-width posterior
+        assert w.offset == pytest.approx(15.0, abs=0.2 * sd_b)  # (emcee: Monte-Carlo error)
+
+
+def test_wall_seen_edge_on():
+    # Every point on one ray from the radar: the wall line passes through the radar (b ≈ 0),
+    # its position across the ray rests on the azimuth errors only.
+    pts = np.stack([np.linspace(10, 30, 12), np.zeros(12)], 1)
+    det = polar_detections(pts, 0.07, 0.02, np.random.default_rng(4))
+    for est in estimators():
+        (w,) = run(est, det)
+        check_finite(w)
+        assert abs(abs(w.normal[1]) - 1) < 0.05 and w.offset < 1.0
+        assert np.sqrt(w.cov[1, 1]) > 0.05  # honest: cross-range errors are r·σ_θ ≈ 0.2–0.6 m
+
+
+def test_wall_one_kilometre_away():
+    rng = np.random.default_rng(0)
+    y = np.linspace(-20, 20, 21)
+    pts = np.stack([1000.0 + 0.05 * y, y], 1)
+    r, a = cartesian_to_polar(pts)
+    det = Detections(r + rng.normal(0, 0.07, 21), a + rng.normal(0, 0.002, 21), np.zeros(21, np.int8),
+                     np.ones(21), np.full(21, 0.07), np.full(21, 0.002))
+    for est in estimators():
+        (w,) = run(est, det)
+        check_finite(w)
+        n_true = np.array([-1.0, 0.05]) / np.hypot(1.0, 0.05)
+        assert np.degrees(np.arccos(min(1.0, w.normal @ n_true))) < 3 * np.degrees(np.sqrt(w.cov[0, 0])) + 0.05
+        assert w.offset == pytest.approx(-n_true @ pts[10], abs=max(0.5, 4 * np.sqrt(w.cov[1, 1])))
+
+
+@pytest.mark.parametrize("roughness", [0.02, 0.0])
+def test_micrometre_noise(roughness):
+    rng = np.random.default_rng(1)
+    pts = np.stack([np.full(12, 25.0), np.linspace(-5, 5, 12)], 1) + rng.normal(0, 1e-6, (12, 2))
+    det = polar_detections(pts, 1e-6, 1e-6 / 25.0)
+    for est in (CasadiMapWallEstimator({"wall_roughness": roughness}),
+                EmceeWallEstimator({**FAST_EMCEE, "wall_roughness": roughness})):
+        (w,) = run(est, det)
+        check_finite(w)
+        sd_b = np.sqrt(w.cov[1, 1])
+        if roughness:  # the wall's own 2 cm roughness, not the detector's 1 µm, limits the fit
+            assert 1e-3 < sd_b < 0.05
+        else:
+            assert 1e-8 < sd_b < 1e-5 and abs(w.offset - 25.0) < 1e-5
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(dist=st.floats(0.5, 2000.0), incidence=st.floats(-1.4, 1.4), azimuth=st.floats(-1.0, 1.0),
+       n=st.integers(2, 25), length=st.floats(0.01, 30.0), range_std=st.floats(1e-6, 1.0),
+       azimuth_std=st.floats(1e-6, 0.1), seed=st.integers(0, 2**16))
+def test_random_geometry_is_finite_or_a_clear_error(dist, incidence, azimuth, n, length, range_std,
+                                                    azimuth_std, seed):
+    rng = np.random.default_rng(seed)
+    p0 = dist * np.array([np.cos(azimuth), np.sin(azimuth)])
+    c, s = np.cos(incidence), np.sin(incidence)
+    to_radar = -p0 / dist
+    nrm = np.array([c * to_radar[0] - s * to_radar[1], s * to_radar[0] + c * to_radar[1]])
+    u = np.array([-nrm[1], nrm[0]])
+    pts = p0 + np.linspace(-length / 2, length / 2, n)[:, None] * u
+    r, a = cartesian_to_polar(pts)
+    r = np.abs(r + range_std * rng.standard_normal(n))
+    a = np.angle(np.exp(1j * (a + azimuth_std * rng.standard_normal(n))))
+    det = Detections(r, a, np.zeros(n, np.int8), np.ones(n), np.full(n, range_std), np.full(n, azimuth_std))
+    try:
+        walls = CasadiMapWallEstimator({"cluster_distance": 1e3}).estimate(det)
+    except InsufficientDataError as exc:
+        assert "coincide" in str(exc) or "at least 2" in str(exc)
+        return
+    for w in walls:
+        check_finite(w)
+        assert w.info["solver_status"]
