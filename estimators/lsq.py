@@ -28,13 +28,19 @@ from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import LOS, Detections, WallPosterior
 
 
-class LSQParams(BaseModel):
+class ClusterParams(BaseModel):
+    """How LOS points are split into walls; shared by every wall estimator."""
+
     model_config = ConfigDict(extra="forbid")
     cluster_distance: float = Field(4.0, gt=0, le=1e3, description="single-linkage cut: LOS points closer "
                                                                    "than this [m] chain into one wall")
     min_points: int = Field(3, ge=2, le=100_000, description="LOS points a cluster needs to become a wall")
     merge_tolerance: float = Field(0.75, ge=0, le=100, description="clusters (or single points) lying within "
                                    "this distance [m] of a larger cluster's line join it (one wall seen in pieces)")
+
+
+class LSQParams(ClusterParams):
+    """Parameters of lsq: the clustering only."""
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:

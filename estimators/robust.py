@@ -22,13 +22,13 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from xnlos_core.errors import InsufficientDataError
 from xnlos_core.types import Detections, WallPosterior
 
 from .likelihood import LikelihoodConfig, WallLikelihood, param_names
-from .lsq import fit_line, los_clusters
+from .lsq import ClusterParams, fit_line, los_clusters
 from .map_solver import MapFit, solve_map
 from .selection import select_model
 from .wall_models import MODEL_PARAMS, nearest_points
@@ -36,15 +36,9 @@ from .wall_models import MODEL_PARAMS, nearest_points
 MAX_PAIRS = 1000
 
 
-class RobustWallParams(BaseModel):
-    """Parameters shared by the probabilistic wall estimators."""
+class RobustWallParams(ClusterParams):
+    """Parameters shared by the probabilistic wall estimators (clustering as lsq, plus the model)."""
 
-    model_config = ConfigDict(extra="forbid")
-    cluster_distance: float = Field(4.0, gt=0, le=1e3, description="single-linkage cut: LOS points closer "
-                                                                   "than this [m] chain into one wall")
-    min_points: int = Field(3, ge=2, le=100_000, description="LOS points a cluster needs to become a wall")
-    merge_tolerance: float = Field(0.75, ge=0, le=100, description="clusters within this distance [m] of a "
-                                   "larger cluster's line join it (one wall seen in pieces)")
     models: tuple[Literal["line", "arc"], ...] = Field(("line", "arc"), description="wall models to "
                                                        "consider, chosen per wall by `selection`")
     selection: Literal["evidence", "bic"] = Field("evidence", description="model-order criterion: Laplace "
