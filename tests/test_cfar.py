@@ -112,7 +112,7 @@ def test_detect_requires_frame():
 
 
 @pytest.mark.parametrize("module, kind, names", [
-    ("plugins.detectors.plugin", "detector", ["cfar", "nlos_cfar"]),
+    ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "rtn", "swin_unet", "unet"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),

@@ -101,6 +101,12 @@ def _cmd_check(args) -> int:
         cfg = resolve(parse_dataset_config(table, str(path), path.resolve().parent), str(path))
         print(f"{path}: valid dataset config ({cfg.n_maps} maps, forward model {cfg.forward_model.name})")
         return 0
+    if "data" in table and "model" in table and "detector" not in table:  # a training config (xnlos train)
+        from plugins.detectors.train_config import parse_train_config
+
+        tcfg = parse_train_config(table, str(path))
+        print(f"{path}: valid training config (model {tcfg.model.name}, {tcfg.optim.epochs} epochs)")
+        return 0
     points = expand_sweep(table, str(path))
     for assignment, t in points:
         Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))

@@ -1,0 +1,122 @@
+"""Detector checkpoints: a ``state_dict`` plus a JSON metadata record, in one torch file.
+
+File content (``torch.save`` of a plain dict, read back with ``torch.load(weights_only=True)``,
+so no pickled code is ever executed)::
+
+    {"format": "xnlos-detector", "version": 1, "metadata_json": "<JSON text>", "state_dict": {...}}
+
+The metadata names the architecture and its hyper-parameters, the output head, the input
+features, decoding defaults (threshold, window, calibrated standard deviations), how the model was
+trained (config, dataset manifest hash, metrics) and ``weights_sha256``, a hash over every
+tensor, checked on load so a corrupted file is refused rather than silently used. A copy of the
+metadata is written beside the checkpoint as ``NAME.json`` for people (the embedded one is
+authoritative). Writes are atomic (temporary file, fsync, rename).
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import pickle
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+
+from xnlos_core.errors import InputError
+from xnlos_core.io import atomic_write_bytes, atomic_write_text
+
+FORMAT, VERSION = "xnlos-detector", 1
+
+
+def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
+    """sha256 over (name, dtype, shape, bytes) of every tensor, in key order."""
+    h = hashlib.sha256()
+    for name in sorted(state_dict):
+        t = state_dict[name].detach().cpu().contiguous()
+        h.update(f"{name}|{t.dtype}|{tuple(t.shape)}|".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+    return h.hexdigest()
+
+
+def save_checkpoint(path: str | Path, model: nn.Module | dict, metadata: dict[str, Any], extra: dict | None = None,
+                    sidecar: bool = True) -> None:
+    """Write ``model``'s state_dict (or a state_dict) with ``metadata`` to ``path`` atomically.
+
+    extra: further weights-only-safe entries (e.g. optimizer state for resuming).
+    """
+    sd = model.state_dict() if isinstance(model, nn.Module) else model
+    sd = {k: v.detach().cpu() for k, v in sd.items()}
+    meta = dict(metadata, format=FORMAT, version=VERSION, weights_sha256=weights_digest(sd))
+    text = json.dumps(meta, indent=2, sort_keys=True, default=str)
+    buf = io.BytesIO()
+    torch.save({"format": FORMAT, "version": VERSION, "metadata_json": text, "state_dict": sd, **(extra or {})}, buf)
+    atomic_write_bytes(path, buf.getvalue())
+    if sidecar:
+        atomic_write_text(Path(path).with_suffix(".json"), text + "\n")
+
+
+def load_checkpoint(path: str | Path, architecture: str | None = None,
+                    map_location: str | torch.device = "cpu") -> tuple[dict[str, torch.Tensor], dict[str, Any], dict]:
+    """(state_dict, metadata, payload) of the checkpoint at ``path``.
+
+    Raises InputError (naming the file) when it is missing, not a readable torch file, not an
+    xnlos detector checkpoint, corrupted (weights hash mismatch), or made for another
+    ``architecture`` than the one asked for.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"checkpoint {str(path)!r}: no such file")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except (RuntimeError, pickle.UnpicklingError, EOFError, OSError, ValueError, zipfile.BadZipFile,
+            AttributeError, TypeError, KeyError, IndexError) as exc:
+        raise InputError(f"checkpoint {str(path)!r}: not a readable torch checkpoint (corrupted or not a "
+                         f"checkpoint): {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from None
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
+        raise InputError(f"checkpoint {str(path)!r}: not an xnlos detector checkpoint (expected format {FORMAT!r}, "
+                         "written by xnlos train)")
+    if payload.get("version") != VERSION:
+        raise InputError(f"checkpoint {str(path)!r}: format version {payload.get('version')!r}, this xnlos reads "
+                         f"version {VERSION}")
+    try:
+        meta = json.loads(payload["metadata_json"])
+        sd = payload["state_dict"]
+    except (KeyError, TypeError, json.JSONDecodeError) as exc:
+        raise InputError(f"checkpoint {str(path)!r}: metadata record is unreadable ({exc})") from None
+    got = weights_digest(sd)
+    if got != meta.get("weights_sha256"):
+        raise InputError(f"checkpoint {str(path)!r}: corrupted — weights hash {got[:12]}… does not match the "
+                         f"recorded {str(meta.get('weights_sha256'))[:12]}…")
+    if architecture is not None and meta.get("architecture") != architecture:
+        raise InputError(f"checkpoint {str(path)!r}: holds a {meta.get('architecture')!r} model, but detector "
+                         f"{architecture!r} needs a {architecture!r} checkpoint (train one with xnlos train, "
+                         f"model.name = {architecture!r})")
+    return sd, meta, payload
+
+
+def build_model(metadata: dict[str, Any], state_dict: dict[str, torch.Tensor] | None = None,
+                source: str = "checkpoint") -> nn.Module:
+    """The network described by ``metadata`` (architecture + hparams), with ``state_dict`` loaded."""
+    from .nets import architectures
+
+    archs = architectures()
+    name = metadata.get("architecture")
+    if name not in archs:
+        raise InputError(f"{source}: unknown architecture {name!r}; known: {', '.join(archs)}")
+    arch = archs[name]
+    try:
+        hp = arch.HParams.model_validate(metadata.get("hparams", {}))
+    except ValueError as exc:
+        raise InputError(f"{source}: invalid hyper-parameters for {name!r}: {exc}") from None
+    model = arch.module(hp)
+    if state_dict is not None:
+        try:
+            model.load_state_dict(state_dict, strict=True)
+        except RuntimeError as exc:
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            raise InputError(f"{source}: weights do not fit a {name!r} network with hparams "
+                             f"{hp.model_dump()} ({first})") from None
+    return model

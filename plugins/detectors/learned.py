@@ -1,0 +1,238 @@
+"""Learned detectors (Sec. 4.1): a network maps RA-map features to LOS / mNLOS confidences, and
+peaks of those become Detections. Swin-UNet (the paper's), UNet (its ablation), "See Further
+Than CFAR" and RTN (the learned baselines of Table 2) share this plugin base and differ only in
+the network and output head stored in their checkpoint.
+
+Pipeline per frame: features (:mod:`.features`: log power over the map's median in 10 dB
+units, cos/sin of the phase) → zero-padded to the network's multiple → network → cropped back →
+peaks with sub-bin refinement (:mod:`.decode`) → range / azimuth by interpolating the fractional
+cells on the map's axes. Standard deviations: the refinement residuals measured on the validation
+split when the model was trained (checkpoint metadata ``decode.calibration``, in cells; 1/√12
+cell without one), times the local bin spacing.
+
+The network is built from the checkpoint on the first ``detect`` and cached (``__init__`` only
+stores parameters). ``checkpoint = "default"`` loads the model shipped in
+``plugins/detectors/models/<name>.pt``; ``"none"`` builds an untrained network with default
+hyper-parameters from ``seed`` (deterministic, but it detects nothing meaningful: for tests of the
+plumbing only).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from xnlos_core.errors import InputError
+from xnlos_core.interfaces import Detector
+from xnlos_core.types import Detections, Frame, RAMap
+
+MODELS_DIR = Path(__file__).with_name("models")
+UNIFORM_STD = 1.0 / np.sqrt(12.0)  # cells: the error of a position uniform within one cell
+
+
+class LearnedParams(BaseModel):
+    """Parameters shared by the learned detectors."""
+
+    model_config = ConfigDict(extra="forbid")
+    checkpoint: str = Field("default", description="checkpoint file from `xnlos train`; 'default': the model "
+                                                   "shipped with xnlos; 'none': untrained (tests only)")
+    device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$",
+                        description="torch device: auto (cuda when available, else cpu), cpu, cuda[:N], mps")
+    threshold: float | tuple[float, float] | None = Field(
+        None, description="confidence threshold in (0, 1), or (LOS, mNLOS) thresholds; None: the per-class "
+                          "values tuned on the validation split (checkpoint)")
+    window: tuple[int, int] | None = Field(None, description="peak neighbourhood (range, azimuth) [cells], odd; "
+                                                            "None: the checkpoint's")
+    class_nms: bool = Field(True, description="suppress a weaker peak of the other class within the window")
+    max_detections: int = Field(1000, ge=1, le=100_000, description="keep at most this many peaks")
+    seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
+    threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads during inference, restored "
+                                                                 "afterwards (None: leave torch's setting)")
+
+    @field_validator("threshold")
+    @classmethod
+    def _unit(cls, v):
+        vals = [v] if isinstance(v, float | int) else list(v or [])
+        if any(not 0 < t < 1 for t in vals):
+            raise ValueError(f"threshold {v}: must lie in (0, 1)")
+        return v
+
+    @field_validator("window")
+    @classmethod
+    def _odd(cls, v):
+        if v is not None and any(s < 1 or s > 31 or s % 2 == 0 for s in v):
+            raise ValueError(f"window {v}: each size must be odd and in 1…31 cells")
+        return v
+
+
+def resolve_device(name: str):
+    """torch.device for 'auto' | 'cpu' | 'cuda[:N]' | 'mps'; a missing accelerator is an InputError."""
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError(f"device {name!r}: CUDA is not available here; use device = 'cpu' or 'auto'")
+    if name == "mps" and not (hasattr(torch.backends, "mps") and torch.backends.mps.is_available()):
+        raise InputError("device 'mps': not available here; use device = 'cpu' or 'auto'")
+    return torch.device(name)
+
+
+def run_network(net, features: np.ndarray, device, threads: int | None = None) -> np.ndarray:
+    """Raw network output for features (4, H, W) (padded, not cropped back: see the head) as float32.
+
+    threads: torch CPU threads for this call (restored afterwards); on a busy machine with few
+    cores one thread avoids OpenMP threads waiting for each other."""
+    import torch
+
+    from .features import pad_to_multiple
+
+    x = torch.from_numpy(np.ascontiguousarray(features))[None].to(device)
+    x, _ = pad_to_multiple(x, net.multiple)
+    before = torch.get_num_threads()
+    if threads:
+        torch.set_num_threads(threads)
+    try:
+        with torch.inference_mode():
+            out = net(x)[0]
+    finally:
+        if threads:
+            torch.set_num_threads(before)
+    return out.float().cpu().numpy()
+
+
+def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, window: tuple[int, int],
+                           class_nms: bool, max_detections: int, calibration: dict[str, float] | None = None
+                           ) -> Detections:
+    """Detections of one raw network output (see :mod:`.tasks`) on the grid of ``ra_map``.
+
+    threshold: one confidence threshold, or (LOS, mNLOS) thresholds (peaks are found at the lower
+    one, then each class keeps those reaching its own)."""
+    thr = (float(threshold),) * 2 if np.ndim(threshold) == 0 else (float(threshold[0]), float(threshold[1]))
+    h, w = ra_map.shape
+    if out.ndim != 3:
+        raise InputError(f"network output: expected (channels, H, W), got shape {out.shape}")
+    if head.describe()["kind"] == "dense":
+        out = out[:, :h, :w]
+    fr, fc, k, conf = head.peaks(out, min(thr), tuple(window), class_nms, max_detections)
+    inside = (fr > -0.5) & (fr < h - 0.5) & (fc > -0.5) & (fc < w - 0.5) & (conf > np.asarray(thr)[k])
+    fr, fc, k, conf = np.clip(fr[inside], 0, h - 1), np.clip(fc[inside], 0, w - 1), k[inside], conf[inside]
+    ir, ia = np.arange(h), np.arange(w)
+    rng = np.interp(fr, ir, ra_map.range_axis)
+    az = np.interp(fc, ia, ra_map.azimuth_axis)
+    cal = calibration or {}
+    dr = np.interp(fr, ir, np.gradient(ra_map.range_axis))
+    da = np.interp(fc, ia, np.gradient(ra_map.azimuth_axis))
+    rs = cal.get("range_cells", UNIFORM_STD) * dr
+    azs = cal.get("azimuth_cells", UNIFORM_STD) * da
+    return Detections(rng, az, k.astype(np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+
+
+class LearnedDetector(Detector):
+    """Base of the learned detectors: network from a checkpoint, peaks of its confidence maps."""
+
+    Params = LearnedParams
+    architecture: ClassVar[str] = ""
+
+    def _load(self) -> None:
+        if getattr(self, "_net", None) is not None:
+            return
+        from .checkpoint import build_model, load_checkpoint
+        from .tasks import default_head, make_head
+
+        p = self.params
+        device = resolve_device(p.device)
+        if p.checkpoint == "none":
+            import torch
+
+            from .nets import architectures
+
+            arch = architectures()[self.architecture]
+            with torch.random.fork_rng(devices=[]):
+                torch.manual_seed(p.seed)
+                net = arch.module(arch.HParams())
+            meta: dict[str, Any] = {"architecture": self.architecture, "hparams": net.hp.model_dump(),
+                                    "head": default_head(self.architecture, net.hp).describe()}
+        else:
+            path = MODELS_DIR / f"{self.architecture}.pt" if p.checkpoint == "default" else Path(p.checkpoint)
+            if p.checkpoint == "default" and not path.is_file():
+                raise InputError(f"{type(self).__name__}: no shipped checkpoint {path}; train one with "
+                                 f"`xnlos train configs/training/{self.architecture}.toml` and set "
+                                 "params.checkpoint to its path")
+            sd, meta, _ = load_checkpoint(path, self.architecture)
+            net = build_model(meta, sd, source=f"checkpoint {str(path)!r}")
+        self._meta = meta
+        self._head = make_head(meta["head"])
+        self._device = device
+        self._net = net.to(device).eval()
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        """The checkpoint's metadata record (loads the network if needed)."""
+        self._load()
+        return self._meta
+
+    def _decode_defaults(self) -> tuple[tuple[float, float], tuple[int, int], dict]:
+        dec = self._meta.get("decode", {})
+        thr = self.params.threshold if self.params.threshold is not None else dec.get("threshold", 0.3)
+        thr = (float(thr),) * 2 if np.ndim(thr) == 0 else (float(thr[0]), float(thr[1]))
+        win = self.params.window if self.params.window is not None else tuple(dec.get("window", (1, 3)))
+        return thr, tuple(win), dec.get("calibration", {})
+
+    def _output(self, frame: Frame) -> np.ndarray:
+        from .features import ra_features
+
+        if not isinstance(frame, Frame):
+            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
+        self._load()
+        feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
+                            name=f"frame {frame.index}: RAMap.data")
+        out = run_network(self._net, feats, self._device, self.params.threads)
+        if not np.all(np.isfinite(out)):
+            raise InputError(f"{type(self).__name__}: the network produced non-finite outputs on frame "
+                             f"{frame.index} (the checkpoint's weights are broken)")
+        return out
+
+    def heatmap(self, frame: Frame) -> np.ndarray:
+        """Confidence maps (2, H', W') in [0, 1] (LOS, mNLOS); map resolution for dense heads, the
+        head's grid for a grid head."""
+        out = self._output(frame)
+        h, w = frame.ra_map.shape
+        z = out[:2, :h, :w] if self._head.describe()["kind"] == "dense" else out[:2]
+        return (1.0 / (1.0 + np.exp(-z.astype(np.float64)))).astype(np.float32)
+
+    def detect(self, frame: Frame) -> Detections:
+        """Detections of ``frame``, ordered by descending confidence (an empty map may give none)."""
+        out = self._output(frame)
+        thr, win, cal = self._decode_defaults()
+        return detections_from_output(out, self._head, frame.ra_map, thr, win, self.params.class_nms,
+                                      self.params.max_detections, cal)
+
+
+class SwinUNetDetector(LearnedDetector):
+    """Swin-UNet dense LOS/mNLOS confidence maps + sub-bin peaks (the paper's detector, Sec. 4.1)."""
+
+    architecture = "swin_unet"
+
+
+class UNetDetector(LearnedDetector):
+    """Convolutional UNet with the Swin-UNet's head and Eq. 8 loss (the paper's UNet ablation)."""
+
+    architecture = "unet"
+
+
+class FurtherThanCFARDetector(LearnedDetector):
+    """Conv encoder–decoder with per-cell binary focal loss ("See Further Than CFAR" baseline)."""
+
+    architecture = "further_than_cfar"
+
+
+class RTNDetector(LearnedDetector):
+    """Radar-tensor detection network on a coarse grid, adapted to LOS/mNLOS points (RTN baseline)."""
+
+    architecture = "rtn"
+
+
+LEARNED = {c.architecture: c for c in (SwinUNetDetector, UNetDetector, FurtherThanCFARDetector, RTNDetector)}

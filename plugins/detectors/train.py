@@ -1,0 +1,272 @@
+"""``xnlos train CONFIG``: train a learned detector (Sec. 4.2, Eq. 8) with validation, early
+stopping, checkpoints and resume.
+
+Reproducibility: the data order and crops of epoch e come from ``numpy.random.default_rng([seed,
+e])``; the initial weights from ``torch.manual_seed(seed)``, called once here at the start of a
+run — the only place xnlos seeds torch's global generator (nn.init draws from it). A resumed run
+continues from the last finished epoch and gives the same result as an uninterrupted one.
+
+Files in ``out``: ``run.json`` (config and its digest), ``metrics.jsonl`` (one fsync'd record per
+epoch: train loss, validation loss and Macro-F1 over the decoding grid, seconds), ``last.pt``
+(weights + optimizer + schedule + progress, for resuming), ``best.pt`` (best validation
+Macro-F1) and ``model.pt`` (the final model: best weights with tuned decoding and calibrated
+standard deviations; ``export`` copies it). All written atomically.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from xnlos_core.errors import ConfigError
+from xnlos_core.io import append_jsonl, atomic_write_text, read_jsonl
+
+from .train_config import TrainConfig
+
+log = logging.getLogger(__name__)
+FEATURES = {"version": 2, "channels": ["log_power_10db_over_median", "cos_phase", "sin_phase", "occlusion"],
+            "dynamic_range_db": 200.0}
+
+
+def _lr_lambda(warmup: int, total: int):
+    def f(step: int) -> float:
+        if step < warmup:
+            return (step + 1) / warmup
+        t = min(1.0, (step - warmup) / max(1, total - warmup))
+        return 0.02 + 0.98 * 0.5 * (1.0 + math.cos(math.pi * t))
+    return f
+
+
+def _round_up(n: int, m: int) -> int:
+    return -(-n // m) * m
+
+
+class Batcher:
+    """Training batches of (features, targets) with seeded order and crops (aligned to the
+    network's multiple so the patch grid sits as at inference)."""
+
+    def __init__(self, maps, head, multiple: tuple[int, int], crop: tuple[int, int] | None, batch_size: int):
+        self.maps, self.head, self.multiple, self.batch_size = maps, head, multiple, batch_size
+        h, w = maps.features.shape[-2:]
+        self.full = (_round_up(h, multiple[0]), _round_up(w, multiple[1]))
+        if crop is None:
+            self.crop = self.full
+        else:
+            self.crop = (min(_round_up(crop[0], multiple[0]), self.full[0]),
+                         min(_round_up(crop[1], multiple[1]), self.full[1]))
+
+    def n_batches(self) -> int:
+        return -(-len(self.maps) // self.batch_size)
+
+    def padded(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Features and targets of map i, zero-padded to the network's multiple."""
+        f = self.maps.features[i].astype(np.float32)
+        fh, fw = self.full
+        x = np.zeros((f.shape[0], fh, fw), np.float32)
+        x[:, : f.shape[1], : f.shape[2]] = f
+        return x, self.head.targets(self.maps.peaks[i], (fh, fw))
+
+    def epoch(self, seed: int, epoch: int):
+        """Yield (features (B, 4, h, w), targets (B, C, h', w')) numpy batches of one epoch."""
+        rng = np.random.default_rng([seed, epoch])
+        order = rng.permutation(len(self.maps))
+        ch, cw = self.crop
+        fh, fw = self.full
+        mh, mw = self.multiple
+        for b in range(self.n_batches()):
+            xs, ys = [], []
+            for i in order[b * self.batch_size:(b + 1) * self.batch_size]:
+                x, y = self.padded(int(i))
+                r0 = int(rng.integers(0, (fh - ch) // mh + 1)) * mh
+                a0 = int(rng.integers(0, (fw - cw) // mw + 1)) * mw
+                xs.append(x[:, r0:r0 + ch, a0:a0 + cw])
+                sr, sa = fh // y.shape[-2], fw // y.shape[-1]  # 1 for dense targets, the stride for a grid
+                ys.append(y[:, r0 // sr:(r0 + ch) // sr, a0 // sa:(a0 + cw) // sa])
+            yield np.stack(xs), np.stack(ys)
+
+
+def _prepare_out(out: Path, cfg: TrainConfig, overwrite: bool) -> bool:
+    """Create ``out``; True when a run of the same config can be resumed from it."""
+    run = out / "run.json"
+    if run.exists():
+        try:
+            old = json.loads(run.read_text())
+        except ValueError:
+            old = {}
+        if old.get("config_sha256") != cfg.digest():
+            if not overwrite:
+                raise ConfigError(f"{out}: holds a training run of another config; use another out directory or "
+                                  "--overwrite to discard it")
+            for name in ("run.json", "metrics.jsonl", "last.pt", "best.pt", "best.json", "model.pt", "model.json",
+                         "summary.json"):
+                (out / name).unlink(missing_ok=True)
+        elif overwrite:
+            for name in ("metrics.jsonl", "last.pt", "best.pt", "best.json", "model.pt", "model.json"):
+                (out / name).unlink(missing_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run, json.dumps({"config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest()},
+                                      indent=2, sort_keys=True) + "\n")
+    return (out / "last.pt").is_file()
+
+
+def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
+    """Validation loss and the decoding sweep; returns (loss, outputs, sweep)."""
+    import torch
+
+    from .evaluate import sweep_decoding
+
+    net.eval()
+    outputs, losses = [], []
+    batcher = Batcher(val, head, net.multiple, None, batch_size)
+    with torch.inference_mode():
+        for s in range(0, len(val), batch_size):
+            pairs = [batcher.padded(i) for i in range(s, min(s + batch_size, len(val)))]
+            x = torch.from_numpy(np.stack([p[0] for p in pairs])).to(device)
+            y = torch.from_numpy(np.stack([p[1] for p in pairs])).to(device)
+            out = net(x)
+            losses.append(float(head.loss(out, y)) * len(pairs))
+            outputs.extend(o for o in out.float().cpu().numpy())
+    sweep = sweep_decoding(outputs, head, val.maps, val.truths, cfg.eval.thresholds,
+                           [tuple(w) for w in cfg.eval.windows], cfg.data.match_radius)
+    return sum(losses) / len(val), outputs, sweep
+
+
+def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, source: str = "<config>",
+          base_dir: str | Path = ".") -> dict[str, Any]:
+    """Train ``cfg.model`` and write the files of the module doc to ``cfg.out``; returns a summary."""
+    import torch
+    from tqdm import tqdm
+
+    from .checkpoint import load_checkpoint, save_checkpoint
+    from .data import dataset_record, load_split
+    from .learned import resolve_device
+    from .nets import architectures
+    from .tasks import default_head
+
+    out = Path(cfg.out)
+    resume = _prepare_out(out, cfg, overwrite)
+    if cfg.threads:
+        torch.set_num_threads(cfg.threads)
+    device = resolve_device(cfg.device)
+    hp = cfg.hparams()
+    arch = architectures()[cfg.model.name]
+    head = default_head(cfg.model.name, hp, tuple(cfg.model.sigma))
+    train_set = load_split(cfg.data, cfg.seed, "train", False, cfg.data.max_train_maps, progress, base_dir)
+    val_set = load_split(cfg.data, cfg.seed, "val", True, cfg.data.max_val_maps, progress, base_dir)
+    data_rec = dataset_record(cfg.data)
+
+    torch.manual_seed(cfg.seed)  # the documented global seed: nn.init of the new network
+    net = arch.module(hp).to(device)
+    batcher = Batcher(train_set, head, net.multiple, cfg.data.crop, cfg.optim.batch_size)
+    steps = min(batcher.n_batches(), cfg.optim.steps_per_epoch or batcher.n_batches())
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(cfg.optim.warmup_steps, steps * cfg.optim.epochs))
+    state = {"epoch": 0, "best_f1": -1.0, "best_epoch": -1, "bad_epochs": 0}
+    if resume:
+        sd, meta, payload = load_checkpoint(out / "last.pt", cfg.model.name, map_location=device)
+        net.load_state_dict(sd)
+        opt.load_state_dict(payload["optimizer"])
+        sched.load_state_dict(payload["scheduler"])
+        state = {k: payload["progress"][k] for k in state}
+        log.info("resuming %s after epoch %d", out, state["epoch"])
+    base_meta = {"architecture": cfg.model.name, "hparams": hp.model_dump(mode="json"), "head": head.describe(),
+                 "features": FEATURES}
+    history = [r for r in read_jsonl(out / "metrics.jsonl") if r.get("epoch", 0) <= state["epoch"]]
+    stopped = state["bad_epochs"] >= cfg.optim.patience
+    epoch = state["epoch"]
+    while epoch < cfg.optim.epochs and not stopped:
+        epoch += 1
+        t0 = time.perf_counter()
+        net.train()
+        total, n = 0.0, 0
+        bar = tqdm(batcher.epoch(cfg.seed, epoch), total=steps, desc=f"epoch {epoch}/{cfg.optim.epochs}",
+                   unit="batch", disable=not progress, leave=False)
+        for b, (x, y) in enumerate(bar):
+            if b >= steps:
+                break
+            x, y = torch.from_numpy(x).to(device), torch.from_numpy(y).to(device)
+            loss = head.loss(net(x), y)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.optim.grad_clip)
+            opt.step()
+            sched.step()
+            total, n = total + loss.detach().item(), n + 1
+            bar.set_postfix(loss=f"{total / n:.4f}")
+        bar.close()
+        train_s = time.perf_counter() - t0
+        rec: dict[str, Any] = {"epoch": epoch, "train_loss": total / max(n, 1), "train_seconds": train_s,
+                               "lr": sched.get_last_lr()[0]}
+        if epoch % cfg.eval.every == 0 or epoch == cfg.optim.epochs:
+            val_loss, _, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
+            best = sweep["best"]
+            rec.update(val_loss=val_loss, val=best, val_seconds=time.perf_counter() - t0 - train_s)
+            if best["macro_f1"] > state["best_f1"]:
+                state.update(best_f1=best["macro_f1"], best_epoch=epoch, bad_epochs=0)
+                dec = {"threshold": best["threshold"], "window": best["window"]}
+                save_checkpoint(out / "best.pt", net, {**base_meta, "decode": dec,
+                                                       "training": {"epoch": epoch, "val": best}})
+            else:
+                state["bad_epochs"] += 1
+            stopped = state["bad_epochs"] >= cfg.optim.patience
+        state["epoch"] = epoch
+        save_checkpoint(out / "last.pt", net, {**base_meta, "training": {"epoch": epoch}}, sidecar=False,
+                        extra={"optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                               "progress": dict(state)})
+        append_jsonl(out / "metrics.jsonl", rec)
+        history.append(rec)
+        if progress:
+            msg = f"epoch {epoch}: train loss {rec['train_loss']:.4f}"
+            if "val" in rec:
+                msg += (f", val loss {rec['val_loss']:.4f}, Macro-F1 {rec['val']['macro_f1']:.3f} "
+                        f"(LOS {rec['val']['los_f1']:.3f}, mNLOS {rec['val']['mnlos_f1']:.3f})")
+            tqdm.write(msg)
+    data_rec = {**data_rec, "n_train_maps": len(train_set), "n_val_maps": len(val_set)}
+    return _finish(cfg, out, base_meta, head, val_set, device, history, data_rec, source)
+
+
+def _finish(cfg, out: Path, base_meta, head, val_set, device, history, data_rec, source) -> dict[str, Any]:
+    """Best weights → calibrated, documented final model (model.pt, export) and summary.json."""
+    import torch
+
+    from .checkpoint import build_model, load_checkpoint, save_checkpoint
+    from .evaluate import calibrate
+
+    sd, meta, _ = load_checkpoint(out / "best.pt", cfg.model.name, map_location="cpu")
+    net = build_model(meta, sd).to(device)
+    val_loss, outputs, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
+    best = sweep["best"]
+    win = tuple(best["window"])
+    cal = calibrate(outputs, head, val_set.maps, val_set.truths, best["threshold"], win, cfg.data.match_radius)
+    epochs = [r for r in history if "train_seconds" in r]
+    training = {
+        "config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest(), "config_file": source,
+        "command": f"xnlos train {source}", "dataset": data_rec, "best_epoch": meta["training"]["epoch"],
+        "epochs_run": len(epochs), "device": str(device), "torch": torch.__version__,
+        "seconds_per_epoch": float(np.mean([r["train_seconds"] for r in epochs])) if epochs else None,
+        "metrics": {"val": best, "val_loss": val_loss, "match_radius_m": cfg.data.match_radius},
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+    n_params = sum(p.numel() for p in net.parameters())
+    final = {**base_meta, "n_parameters": n_params, "training": training,
+             "decode": {"threshold": best["threshold"], "window": list(win), "calibration": cal}}
+    save_checkpoint(out / "model.pt", net, final)
+    if cfg.export:
+        dest = Path(cfg.export)
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(out / "model.pt", dest.with_suffix(".tmp"))
+        dest.with_suffix(".tmp").replace(dest)
+        shutil.copyfile(out / "model.json", dest.with_suffix(".json.tmp"))
+        dest.with_suffix(".json.tmp").replace(dest.with_suffix(".json"))
+    summary = {"out": str(out), "model": str(out / "model.pt"), "export": cfg.export, "best_epoch": training["best_epoch"],
+               "epochs_run": len(epochs), "val": best, "calibration": cal, "n_parameters": n_params,
+               "seconds_per_epoch": training["seconds_per_epoch"], "device": str(device),
+               "stopped_early": len(epochs) < cfg.optim.epochs}
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str) + "\n")
+    return summary

@@ -1,0 +1,211 @@
+"""Learned detectors (swin_unet, unet, further_than_cfar, rtn): conformance, odd sizes, bad input,
+features, checkpoints (round trip, wrong architecture, corruption) and the device parameter."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+from plugins.detectors.features import ra_features
+from plugins.detectors.learned import LEARNED, MODELS_DIR
+from plugins.detectors.nets import architectures
+from plugins.detectors.tasks import default_head
+from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.radar import RadarConfig
+from xnlos_core.registry import get_registry
+from xnlos_core.testing import check_component, synthetic_frame
+from xnlos_core.types import Detections, Frame, RAMap
+
+NAMES = sorted(LEARNED)
+TINY = {"swin_unet": dict(embed_dim=8, depths=(2, 2), heads=(2, 2), window=(4, 4), patch=(2, 2), stem_channels=4,
+                          head_channels=8),
+        "unet": dict(base_channels=4, levels=2), "further_than_cfar": dict(base_channels=4, levels=1),
+        "rtn": dict(base_channels=4)}
+SMALL = RadarConfig(n_samples=128, max_range=30.0, n_azimuth_bins=31)
+
+
+@pytest.fixture(scope="module")
+def detectors():
+    return {n: get_registry().create("detector", n, {"device": "cpu"}) for n in NAMES}
+
+
+def _frame(data, radar=None) -> Frame:
+    data = np.asarray(data, np.complex64)
+    h, w = data.shape
+    r = np.linspace(0.0, 0.25 * (h - 1), h)
+    a = np.linspace(-1.0, 1.0, w)
+    return Frame(RAMap(data, r, a, radar or SMALL))
+
+
+def _tiny_checkpoint(path, name, seed=0, extra_meta=None):
+    arch = architectures()[name]
+    hp = arch.HParams(**TINY[name])
+    torch.manual_seed(seed)
+    net = arch.module(hp)
+    meta = {"architecture": name, "hparams": hp.model_dump(mode="json"),
+            "head": default_head(name, hp, (0.7, 1.0)).describe(), "decode": {"threshold": 0.5, "window": [1, 3]},
+            **(extra_meta or {})}
+    save_checkpoint(path, net, meta)
+    return net
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_shipped_models_exist_are_small_and_documented(name):
+    path = MODELS_DIR / f"{name}.pt"
+    assert path.is_file() and path.stat().st_size < 10 * 2**20
+    sd, meta, _ = load_checkpoint(path, name)
+    assert meta["architecture"] == name and meta["training"]["command"].startswith("xnlos train ")
+    assert meta["training"]["dataset"]["sha256"] and "val" in meta["training"]["metrics"]
+    assert (MODELS_DIR / f"{name}.json").is_file()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_conformance_kit_with_cpu_device(name):
+    check_component("detector", name, {"device": "cpu"})
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (7, 5), (121, 31), (33, 130)])
+@pytest.mark.parametrize("name", NAMES)
+def test_odd_sizes(detectors, name, shape):
+    rng = np.random.default_rng(0)
+    data = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
+    data[shape[0] // 2, shape[1] // 2] = 3e3
+    frame = _frame(data)
+    det = detectors[name].detect(frame)
+    assert isinstance(det, Detections)
+    if len(det):
+        assert det.range.min() >= 0 and det.range.max() <= frame.ra_map.range_axis[-1] + 1e-9
+        assert np.abs(det.azimuth).max() <= 1.0 + 1e-9
+    heat = detectors[name].heatmap(frame)
+    assert np.all(np.isfinite(heat)) and heat.min() >= 0 and heat.max() <= 1
+    if name != "rtn":
+        assert heat.shape == (2,) + shape
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_maps_are_refused_with_a_clear_error(detectors, bad):
+    frame = _frame(np.ones((121, 31)))
+    frame.ra_map.data[3, 4] = bad  # corrupt after construction (RAMap itself refuses NaN)
+    for name in NAMES:
+        with pytest.raises(InputError, match="NaN or infinite"):
+            detectors[name].detect(frame)
+
+
+def test_zero_and_huge_dynamic_range_maps_give_finite_heatmaps(detectors):
+    zero = _frame(np.zeros((121, 31)))
+    rng = np.random.default_rng(1)
+    huge = rng.standard_normal((121, 31)) * 1e-6 + 0j
+    huge[60, 15] = 1e6  # 1e12 in amplitude, 240 dB in power
+    for name in NAMES:
+        for frame in (zero, _frame(huge)):
+            heat = detectors[name].heatmap(frame)
+            assert np.all(np.isfinite(heat))
+            det = detectors[name].detect(frame)
+            assert np.all(np.isfinite(det.range)) and np.all(np.isfinite(det.confidence))
+
+
+def test_features_documented_properties():
+    rng = np.random.default_rng(2)
+    k = (rng.standard_normal((40, 9)) + 1j * rng.standard_normal((40, 9))).astype(np.complex64)
+    f = ra_features(k)
+    assert f.shape == (4, 40, 9) and f.dtype == np.float32
+    np.testing.assert_array_equal(f[3, 1:], np.maximum.accumulate(f[0, :-1], axis=0))  # occlusion channel
+    np.testing.assert_allclose(ra_features(k * np.complex64(1e6)), f, atol=1e-5)  # scale invariant
+    np.testing.assert_allclose(f[1] ** 2 + f[2] ** 2, 1.0, atol=1e-5)
+    assert np.all(ra_features(np.zeros((5, 5))) == 0)
+    big = np.ones((5, 5), np.complex64)
+    big[2, 2] = 1e30
+    fb = ra_features(big)
+    assert np.all(np.isfinite(fb)) and fb[0].max() == 10.0 and fb[0].min() >= -3.0
+    with pytest.raises(InputError, match="NaN or infinite"):
+        ra_features(np.array([[1.0, np.nan]]))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_checkpoint_round_trip(tmp_path, name):
+    net = _tiny_checkpoint(tmp_path / "m.pt", name, extra_meta={"training": {"note": "round trip"}})
+    sd, meta, _ = load_checkpoint(tmp_path / "m.pt", name)
+    assert meta["training"] == {"note": "round trip"} and meta["hparams"] == net.hp.model_dump(mode="json")
+    for key, value in net.state_dict().items():
+        assert torch.equal(sd[key], value)
+    det = get_registry().create("detector", name, {"checkpoint": str(tmp_path / "m.pt"), "device": "cpu"})
+    frame = synthetic_frame(SMALL)
+    out = det._output(frame)
+    from plugins.detectors.learned import run_network
+    net.eval()
+    np.testing.assert_array_equal(out, run_network(net, ra_features(frame.ra_map.data), torch.device("cpu")))
+    assert isinstance(det.detect(frame), Detections)
+
+
+def test_checkpoint_of_another_architecture_is_refused(tmp_path):
+    _tiny_checkpoint(tmp_path / "unet.pt", "unet")
+    det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "unet.pt")})
+    with pytest.raises(InputError, match="holds a 'unet' model, but detector 'swin_unet' needs"):
+        det.detect(synthetic_frame(SMALL))
+
+
+def test_corrupted_and_foreign_checkpoints_are_refused(tmp_path):
+    _tiny_checkpoint(tmp_path / "good.pt", "rtn")
+    raw = (tmp_path / "good.pt").read_bytes()
+    (tmp_path / "truncated.pt").write_bytes(raw[: len(raw) // 2])
+    (tmp_path / "garbage.pt").write_bytes(np.random.default_rng(0).bytes(4096))
+    torch.save({"weights": torch.zeros(3)}, tmp_path / "foreign.pt")
+    sd, meta, payload = load_checkpoint(tmp_path / "good.pt")
+    sd = {k: v.clone() for k, v in sd.items()}
+    first = next(k for k, v in sd.items() if v.is_floating_point())
+    sd[first].view(-1)[0] += 1.0  # one weight changed behind the metadata's back
+    payload = {**payload, "state_dict": sd}
+    torch.save(payload, tmp_path / "tampered.pt")
+    cases = {"truncated.pt": "not a readable torch checkpoint", "garbage.pt": "not a readable torch checkpoint",
+             "foreign.pt": "not an xnlos detector checkpoint", "tampered.pt": "corrupted",
+             "missing.pt": "no such file"}
+    for fname, msg in cases.items():
+        with pytest.raises(InputError, match=msg):
+            get_registry().create("detector", "rtn", {"checkpoint": str(tmp_path / fname)}).detect(synthetic_frame(SMALL))
+
+
+def test_weights_that_do_not_fit_the_hparams_are_refused(tmp_path):
+    _tiny_checkpoint(tmp_path / "a.pt", "unet")
+    sd, meta, _ = load_checkpoint(tmp_path / "a.pt")
+    meta["hparams"]["base_channels"] = 6
+    save_checkpoint(tmp_path / "b.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
+    with pytest.raises(InputError, match="weights do not fit a 'unet' network"):
+        get_registry().create("detector", "unet", {"checkpoint": str(tmp_path / "b.pt")}).detect(synthetic_frame(SMALL))
+
+
+def test_untrained_network_is_deterministic_by_seed():
+    frame = synthetic_frame(SMALL)
+    a = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3})._output(frame)
+    b = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3})._output(frame)
+    c = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 4})._output(frame)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_params_are_validated():
+    with pytest.raises(ConfigError, match="device"):
+        get_registry().create("detector", "swin_unet", {"device": "gpu0"})
+    with pytest.raises(ConfigError, match="window"):
+        get_registry().create("detector", "swin_unet", {"window": [2, 3]})
+    with pytest.raises(ConfigError, match="threshold"):
+        get_registry().create("detector", "swin_unet", {"threshold": 1.5})
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the error on a machine without CUDA")
+def test_cuda_device_without_cuda_is_a_clear_error():
+    det = get_registry().create("detector", "swin_unet", {"device": "cuda"})
+    with pytest.raises(InputError, match="CUDA is not available"):
+        det.detect(synthetic_frame(SMALL))
+
+
+def test_shipped_swin_unet_finds_the_corner_scene_echoes(detectors):
+    from xnlos_core.metrics import dense_metrics, thin_to_resolution
+    from xnlos_core.scene import load_scene
+
+    radar = RadarConfig(n_samples=256, max_range=60.0, n_azimuth_bins=121)
+    frame = get_registry().create("forward_model", "image", {}).simulate(
+        load_scene({"builtin": "corner"}, "test"), radar, np.random.default_rng(0))
+    det = detectors["swin_unet"].detect(frame)
+    m = dense_metrics(det, thin_to_resolution(frame.ground_truth, radar), 1.0)
+    assert m["los"]["f1"] > 0.3
