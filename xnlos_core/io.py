@@ -42,7 +42,7 @@ def append_jsonl(path: str | Path, record: dict) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("a", encoding="utf-8") as fh:
-        fh.write(json.dumps(record, sort_keys=True, default=_json_default) + "\n")
+        fh.write(json.dumps(record, sort_keys=True, default=json_default) + "\n")
         fh.flush()
         os.fsync(fh.fileno())
 
@@ -66,7 +66,7 @@ def read_jsonl(path: str | Path) -> list[dict]:
     return out
 
 
-def _json_default(o):
+def json_default(o):
     if isinstance(o, np.generic):
         return o.item()
     if isinstance(o, np.ndarray):
@@ -87,7 +87,7 @@ def save_frame(path: str | Path, frame: Frame) -> None:
         "radar_json": np.array(frame.ra_map.radar.model_dump_json()),
         "timestamp": np.array(frame.timestamp),
         "index": np.array(frame.index),
-        "meta_json": np.array(json.dumps(frame.meta, default=_json_default)),
+        "meta_json": np.array(json.dumps(frame.meta, default=json_default)),
         "has_gt": np.array(gt is not None),
     }
     if gt is not None:

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from xnlos_core.errors import XnlosError
+from xnlos_core.io import json_default
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
 
@@ -196,17 +197,9 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
         "walls": cat(walls, (0, 2, 2)),
         "wall_names": np.array([s.name for g in gts for s in g.walls], dtype=str),
         "wall_offsets": _offsets([len(g.walls) for g in gts]),
-        "frame_meta_json": np.array(json.dumps([fr.meta for fr in frames], sort_keys=True, default=_json)),
+        "frame_meta_json": np.array(json.dumps([fr.meta for fr in frames], sort_keys=True, default=json_default)),
     }
     return out
-
-
-def _json(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
 
 
 def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Frame]:
