@@ -196,7 +196,15 @@ def test_first_frame_announcing_an_absurd_size_is_refused_without_allocation():
         rogue = open_bus(BusSpec(channel=channel))
         try:
             ff = bytes([0x10, 0x00, 0xFF, 0xFF, 0xFF, 0xFF]) + b"\0" * 58  # ISO-TP FF, length 4 GiB - 1
-            rogue.send(can.Message(arbitration_id=0x400, data=ff, is_fd=True, is_extended_id=False))
+            rogue.send(can.Message(arbitration_id=Protocol.load().data_id, data=ff, is_fd=True,
+                                   is_extended_id=False))
+            # Stream only once the host has refused the rogue transfer (its overflow flow control is
+            # on the bus): a refusal that reached the radar mid-transfer would rightly abort frame 0.
+            t_end, refused = time.monotonic() + 5.0, False
+            while not refused and time.monotonic() < t_end:
+                msg = rogue.recv(timeout=0.1)
+                refused = msg is not None and msg.arbitration_id == Protocol.load().flow_id
+            assert refused, "the host never answered the oversized first frame with flow control"
             frames = list(backend.frames(2))
         finally:
             rogue.shutdown()
