@@ -34,8 +34,8 @@ class NearestParams(BaseModel):
     gate: float = Field(3.0, gt=0, le=1e3, description="largest predicted-to-measured distance [m] of a match")
     max_misses: int = Field(3, ge=1, le=10_000, description="a track is deleted after this many consecutive "
                                                            "frames without a match")
-    cluster_distance: float = Field(2.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one "
-                                                                   "frame's hidden points into objects")
+    cluster_distance: float = Field(3.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one "
+                                                                   "frame's hidden points into objects (a car seen in part spans ≈ 4 m)")
     alpha: float = Field(0.5, gt=0, le=1, description="α–β filter position gain")
     beta: float = Field(0.17, ge=0, le=2, description="α–β filter velocity gain (Kalata's optimal pair "
                                                       "for α = 0.5: β = 2(2 − α) − 4√(1 − α) ≈ 0.17)")

@@ -39,7 +39,7 @@ from xnlos_core.types import Frame, GroundTruth
 
 from . import walls as wall_em
 from .atmosphere import attenuation_db
-from .propagation import ra_snr_db, received_power
+from .propagation import DETECTABLE_SNR_DB, ra_snr_db, received_power
 
 _ORIGIN = np.zeros(2)
 Switch = Literal["auto", "on", "off"]
@@ -81,8 +81,9 @@ class ImageForwardModel(ForwardModel):
         model_config = ConfigDict(extra="forbid")
         noise: bool = Field(True, description="add receiver thermal noise (radar.noise_power per sample)")
         random_phase: bool = Field(True, description="uniform random phase per scatterer (speckle)")
-        min_snr_db: float = Field(0.0, ge=-100, le=200,
-                                  description="ground truth lists a path only above this RA-map SNR [dB]")
+        min_snr_db: float = Field(DETECTABLE_SNR_DB, ge=-100, le=200,
+                                  description="ground truth lists a path only above this RA-map SNR [dB] "
+                                              "(default: detectable at pd 0.5, pfa 1e-5)")
         mirror_paths: bool = Field(True, description="model relay-wall (mNLOS) mirror paths")
         reflection: Literal["analytic", "fdtd"] = Field(
             "analytic", description="wall reflection coefficients from the slab formula or the cached FDTD solver")
@@ -198,7 +199,7 @@ class ImageForwardModel(ForwardModel):
         los, mn = seen & (kind == 0), seen & (kind == 1)
         gt = GroundTruth(los_points=pos[los], mnlos_points=pos[mn], hidden_points=hidden[mn],
                          mnlos_object=gt_obj[mn], object_names=tuple(o.name for o in scene.objects),
-                         walls=segs)
+                         walls=segs, los_snr_db=snr_db[los], mnlos_snr_db=snr_db[mn])
         meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (kind == 0)).sum()),
                 "n_mnlos_paths": int((live & (kind == 1)).sum()), "forward_model": "image",
                 "components": use}

@@ -193,24 +193,33 @@ def _group_mean(points: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return out / np.bincount(groups, minlength=n)[:, None]
 
 
+def _group_max(values: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """Per-group maximum of ``values`` (NaN only where every member is NaN)."""
+    out = np.full(groups.max() + 1 if len(groups) else 0, np.nan)
+    np.fmax.at(out, groups, values)
+    return out
+
+
 def thin_to_resolution(ground_truth: GroundTruth, radar: RadarConfig) -> GroundTruth:
     """Ground truth at the density a radar can resolve: one point (the mean) per resolution cell.
 
     Simulators list scatterers every few centimetres; scoring detections against all of them
     would make recall meaningless. LOS points are grouped by their (range, azimuth) cell;
     mNLOS points by their cell and object, with their hidden points averaged alike (Eq. 7 is
-    affine, so the mean hidden point is the mirror of the mean virtual point).
+    affine, so the mean hidden point is the mirror of the mean virtual point). A cell's SNR is
+    the largest of its points'.
     """
     cell = resolution_cell(radar)
     gt = ground_truth
-    los = gt.los_points
+    los, los_snr = gt.los_points, gt.los_snr_db
     if len(los):
-        los = _group_mean(los, _cell_groups(los, cell))
-    m, h, obj = gt.mnlos_points, gt.hidden_points, gt.mnlos_object
+        g = _cell_groups(los, cell)
+        los, los_snr = _group_mean(los, g), _group_max(los_snr, g)
+    m, h, obj, m_snr = gt.mnlos_points, gt.hidden_points, gt.mnlos_object, gt.mnlos_snr_db
     if len(m):
         g = _cell_groups(m, cell, obj)
-        m, h = _group_mean(m, g), _group_mean(h, g)
+        m, h, m_snr = _group_mean(m, g), _group_mean(h, g), _group_max(m_snr, g)
         first = np.zeros(g.max() + 1, dtype=np.int64)
         first[g[::-1]] = np.arange(len(g))[::-1]
         obj = obj[first]
-    return GroundTruth(los, m, h, obj, gt.object_names, gt.walls)
+    return GroundTruth(los, m, h, obj, gt.object_names, gt.walls, los_snr, m_snr)

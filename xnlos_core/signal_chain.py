@@ -4,7 +4,7 @@ Scaling (documented once, used everywhere):
 
 * The ADC cube holds complex baseband samples in √W: a path of received power P_r [W] per
   virtual channel has amplitude |a| = √P_r; thermal noise has power σ² = ``radar.noise_power``
-  per complex sample.
+  per complex sample (k·T·f_s·NF over the ``n_chirps`` chirps averaged into the cube).
 * :func:`range_fft` divides by the coherent gain Σw_r of the range window, and :func:`beamform`
   by Σw_a of the azimuth window. Hence a path centred on a range bin and on an azimuth grid angle
   shows |κ|² = P_r at its RA cell: **the RA-map peak amplitude is the received amplitude per

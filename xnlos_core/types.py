@@ -118,7 +118,10 @@ class GroundTruth:
     mnlos_points (M, 2): virtual scatterers o' = R_Π(o) whose mirror path is open [m];
     hidden_points (M, 2): the true positions o behind the corner, row-aligned with mnlos_points;
     mnlos_object (M,) int: index into ``object_names`` of the object each hidden point belongs to;
-    walls: the relay walls of the scene.
+    walls: the relay walls of the scene;
+    los_snr_db (N,), mnlos_snr_db (M,): the expected RA-map SNR [dB] of each point's return (its
+    resolution cell's power over the noise power per RA cell); NaN where the simulator did not
+    record it. Simulators list points above a detectability threshold (``min_snr_db``).
     """
 
     los_points: np.ndarray = None
@@ -127,6 +130,8 @@ class GroundTruth:
     mnlos_object: np.ndarray = None
     object_names: tuple[str, ...] = ()
     walls: tuple[WallSegment, ...] = ()
+    los_snr_db: np.ndarray = None
+    mnlos_snr_db: np.ndarray = None
 
     def __post_init__(self):
         _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
@@ -142,6 +147,18 @@ class GroundTruth:
         _set(self, "mnlos_object", obj)
         _set(self, "object_names", tuple(self.object_names))
         _set(self, "walls", tuple(self.walls))
+        for name, n in (("los_snr_db", len(self.los_points)), ("mnlos_snr_db", len(m))):
+            v = getattr(self, name)
+            v = np.full(n, np.nan) if v is None else as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False)
+            _set(self, name, v)
+
+    def above_snr(self, min_snr_db: float) -> "GroundTruth":
+        """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
+        keep_l = ~(self.los_snr_db < min_snr_db)
+        keep_m = ~(self.mnlos_snr_db < min_snr_db)
+        return GroundTruth(self.los_points[keep_l], self.mnlos_points[keep_m], self.hidden_points[keep_m],
+                           self.mnlos_object[keep_m], self.object_names, self.walls, self.los_snr_db[keep_l],
+                           self.mnlos_snr_db[keep_m])
 
 
 @dataclass(frozen=True, eq=False)

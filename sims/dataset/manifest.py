@@ -19,7 +19,7 @@ from xnlos_core.io import atomic_write_text, read_jsonl
 
 from .config import DatasetConfig
 from .plan import Plan
-from .shard import SCHEMA_VERSION, DatasetError
+from .shard import READABLE_VERSIONS, SCHEMA_VERSION, DatasetError
 
 MANIFEST, LOG, SHARD_DIR = "manifest.json", "completed.jsonl", "shards"
 FORMAT = "xnlos-dataset"
@@ -92,9 +92,10 @@ def read_manifest(out: str | Path) -> dict[str, Any]:
         raise DatasetError(f"{path}: unreadable manifest ({exc})") from None
     if man.get("format") != FORMAT:
         raise DatasetError(f"{path}: not an xnlos dataset manifest (format {man.get('format')!r})")
-    if man.get("schema_version") != SCHEMA_VERSION:
+    if man.get("schema_version") not in READABLE_VERSIONS:
         raise DatasetError(f"{path}: dataset schema version {man.get('schema_version')}; this xnlos reads "
-                           f"version {SCHEMA_VERSION} (regenerate it with this version's xnlos simulate)")
+                           f"versions {', '.join(map(str, READABLE_VERSIONS))} (regenerate it with this "
+                           "version's xnlos simulate)")
     return man
 
 

@@ -19,10 +19,12 @@ family                  str (N,)         scene family
 timestamp               float64 (N,)     t = frame·frame_interval [s]
 los_points              float64 (L, 2)   ground truth of map i: rows los_offsets[i]:[i+1] [m]
 los_offsets             int64 (N+1,)
+los_snr_db              float32 (L,)     expected RA-map SNR of each LOS point [dB] (version ≥ 2)
 mnlos_points            float64 (M, 2)   virtual points o′ [m]; rows mnlos_offsets[i]:[i+1]
 hidden_points           float64 (M, 2)   true hidden points o, row-aligned with mnlos_points [m]
 mnlos_object            int64 (M,)       index into map i's object names
 mnlos_offsets           int64 (N+1,)
+mnlos_snr_db            float32 (M,)     expected RA-map SNR of each mNLOS point [dB] (version ≥ 2)
 object_names            str (O,)         rows object_offsets[i]:[i+1]
 object_offsets          int64 (N+1,)
 walls                   float64 (K, 2, 2) ground-truth wall segments (start, end) [m]
@@ -57,7 +59,8 @@ from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
 from .config import DatasetConfig, import_generator
 from .plan import noise_seed
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # version 1: no per-point SNR (read as NaN)
 _ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
 
@@ -88,8 +91,9 @@ def decode_npz(data: bytes, name: str) -> dict[str, np.ndarray]:
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise DatasetError(f"shard {name}: not a readable .npz ({type(exc).__name__}: {exc})") from None
     version = int(out.get("schema_version", -1))
-    if version != SCHEMA_VERSION:
-        raise DatasetError(f"shard {name}: schema version {version}; this xnlos reads version {SCHEMA_VERSION}")
+    if version not in READABLE_VERSIONS:
+        raise DatasetError(f"shard {name}: schema version {version}; this xnlos reads versions "
+                           f"{', '.join(map(str, READABLE_VERSIONS))}")
     return out
 
 
@@ -188,6 +192,8 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
         "timestamp": np.array(rows["timestamp"], dtype=np.float64),
         "los_points": cat([g.los_points for g in gts], (0, 2)),
         "los_offsets": _offsets([len(g.los_points) for g in gts]),
+        "los_snr_db": cat([g.los_snr_db for g in gts], (0,)).astype(np.float32),
+        "mnlos_snr_db": cat([g.mnlos_snr_db for g in gts], (0,)).astype(np.float32),
         "mnlos_points": cat([g.mnlos_points for g in gts], (0, 2)),
         "hidden_points": cat([g.hidden_points for g in gts], (0, 2)),
         "mnlos_object": cat([g.mnlos_object for g in gts], (0,)).astype(np.int64),
@@ -214,7 +220,9 @@ def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Fra
                                                                      z["wall_names"][sl["wall"]]))
         gt = GroundTruth(z["los_points"][sl["los"]], z["mnlos_points"][sl["mnlos"]],
                          z["hidden_points"][sl["mnlos"]], z["mnlos_object"][sl["mnlos"]],
-                         tuple(str(n) for n in z["object_names"][sl["object"]]), walls)
+                         tuple(str(n) for n in z["object_names"][sl["object"]]), walls,
+                         z["los_snr_db"][sl["los"]] if "los_snr_db" in z else None,  # shards before SNR was kept
+                         z["mnlos_snr_db"][sl["mnlos"]] if "mnlos_snr_db" in z else None)
         ra = RAMap(z["ra"][i], z["range_axis"], z["azimuth_axis"], radar)
         meta = {**metas[i], "shard": name, "split": split, "scene_index": int(z["scene_index"][i]),
                 "frame_in_scene": int(z["frame"][i]), "scene_seed": int(z["scene_seed"][i]),

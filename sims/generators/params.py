@@ -13,6 +13,7 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
 from xnlos_core.radar import RadarConfig
+from sims.propagation import DETECTABLE_SNR_DB
 
 Kind = Literal["car", "bicycle", "pedestrian"]
 
@@ -88,8 +89,9 @@ class BaseParams(BaseModel):
     size_jitter: float = Field(0.1, ge=0, le=0.5, description="relative spread of object sizes")
     moving_probability: float = Field(0.0, ge=0, le=1, description="chance that an object moves along its "
                                                                    "heading at its class's speed")
-    min_snr_db: float | None = Field(0.0, ge=-50, le=100, description="a hidden object's best mirror path must "
-                                                                      "reach this RA-map SNR [dB] (None: any)")
+    min_snr_db: float | None = Field(DETECTABLE_SNR_DB, ge=-50, le=100,
+                                     description="a hidden object's best mirror path must reach this RA-map SNR "
+                                                 "[dB] (default: detectable at pd 0.5, pfa 1e-5; None: any)")
     radar: dict[str, Any] = Field(default_factory=dict, description="RadarConfig fields of the radar whose field "
                                   "of view, range and SNR the mirror check uses ({}: the default radar; a "
                                   "carrier_frequency must equal carrier_hz)")

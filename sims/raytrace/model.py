@@ -29,7 +29,7 @@ from xnlos_core.types import Frame, GroundTruth
 
 from sims.atmosphere import attenuation_db
 from sims.image import Switch, components_needed
-from sims.propagation import ra_snr_db, received_power
+from sims.propagation import DETECTABLE_SNR_DB, ra_snr_db, received_power
 from sims import walls as wall_em
 
 from .tracer import Paths, Trace, bistatic_power, image_paths, shoot
@@ -40,7 +40,9 @@ class RaytraceParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
     noise: bool = Field(True, description="add receiver thermal noise")
     random_phase: bool = Field(True, description="uniform random phase per scatterer and wall strip (speckle)")
-    min_snr_db: float = Field(0.0, ge=-100, le=200, description="ground truth lists a path above this RA SNR [dB]")
+    min_snr_db: float = Field(DETECTABLE_SNR_DB, ge=-100, le=200,
+                              description="ground truth lists a path whose resolution cell reaches this RA SNR [dB] "
+                                          "(default: detectable at pd 0.5, pfa 1e-5)")
     az_step: float = Field(math.radians(0.2), gt=1e-5, le=0.1, description="ray fan spacing [rad]")
     max_bounces: int = Field(3, ge=0, le=10, description="specular bounces one way (cap; depth adapts)")
     depth_margin_db: float = Field(10.0, ge=0, le=100, description="a ray stops bouncing when the brightest "
@@ -172,7 +174,7 @@ class RaytraceForwardModel(ForwardModel):
         los, mn = seen & (kind == 0), seen & (kind == 1)
         gt = GroundTruth(los_points=a["pos"][los], mnlos_points=a["pos"][mn], hidden_points=a["hidden"][mn],
                          mnlos_object=obj[mn], object_names=tuple(o.name for o in scene.objects),
-                         walls=scene.wall_segments())
+                         walls=scene.wall_segments(), los_snr_db=snr[los], mnlos_snr_db=snr[mn])
         order = a["order"].astype(int)
         meta = {"scene": scene.name, "forward_model": "raytrace", "n_paths": int(live.sum()),
                 "n_los_paths": int((live & (kind == 0)).sum()), "n_mnlos_paths": int((live & (kind == 1)).sum()),
