@@ -67,11 +67,20 @@ def test_specular_points_match_the_analytic_image_method():
     t, _ = ray_segment_intersection(img, facade.start, facade.end)
     np.testing.assert_allclose(virt[ok, :2], img, atol=1e-9)
     np.testing.assert_allclose(q[ok, 0, :2], t[:, None] * img, atol=1e-6)  # specular point w = t·o'
-    # and the same set of hidden points as the image model
+    # and the same set of the car's hidden points as the image model (the ray tracer also lists
+    # wall strips seen in one mirror, owned by "wall:<name>" entries after the scene's objects)
     f = model.simulate(scene, RADAR, np.random.default_rng(0))
     g = ImageForwardModel(QUIET).simulate(scene, RADAR, np.random.default_rng(0))
-    assert {tuple(p) for p in np.round(f.ground_truth.hidden_points, 6)} == \
+    car = f.ground_truth.mnlos_object < len(scene.objects)
+    assert {tuple(p) for p in np.round(f.ground_truth.hidden_points[car], 6)} == \
         {tuple(p) for p in np.round(g.ground_truth.hidden_points, 6)}
+    walls = f.ground_truth.object_names[len(scene.objects):]
+    assert walls and all(n.startswith("wall:") for n in walls)
+    strip = ~car  # a wall strip seen in the facade: o' is its hit point o mirrored across the facade
+    via_facade = np.abs(f.ground_truth.hidden_points[strip] @ facade.normal + facade.offset) > 1e-6
+    o = f.ground_truth.hidden_points[strip][via_facade]
+    np.testing.assert_allclose(f.ground_truth.mnlos_points[strip][via_facade],
+                               mirror_reflect(o, facade.normal, facade.offset), atol=1e-6)
 
 
 def _corner(distance_behind: float, carrier: float = 10e9, roughness: float = 1e-3):
@@ -98,10 +107,11 @@ def test_hidden_car_40m_behind_a_concrete_corner_is_above_the_noise_floor():
         f = model.simulate(scene, radar, np.random.default_rng(seed))
         empty = model.simulate(scene.model_copy(update={"objects": []}), radar, np.random.default_rng(seed))
         gt = f.ground_truth
-        assert len(gt.mnlos_points) > 0 and len(gt.los_points) > 0
-        assert np.all(gt.hidden_points[:, 1] < -40.0)  # really behind the corner
+        mine = gt.mnlos_object == 0  # the car (walls seen in the mirror follow the objects)
+        assert mine.any() and len(gt.los_points) > 0
+        assert np.all(gt.hidden_points[mine, 1] < -40.0)  # really behind the corner
         car = np.abs(f.ra_map.data - empty.ra_map.data) ** 2
-        i, j = _cell(radar, gt.mnlos_points.mean(axis=0))
+        i, j = _cell(radar, gt.mnlos_points[mine].mean(axis=0))
         snr.append(10 * math.log10(car[i - 3:i + 4, j - 2:j + 3].max() / noise_floor(radar)))
     lin = 10 ** (np.array(snr) / 10)
     assert np.mean(lin) > 1.4 and np.median(snr) > 0.0
@@ -114,7 +124,7 @@ def test_77ghz_with_5mm_roughness_relays_much_less_than_10ghz():
         model = RaytraceForwardModel({"noise": False, "random_phase": False, "min_snr_db": -100.0})
         world, paths, _, _ = model.trace(scene, radar)
         a = paths.arrays()
-        peak[f_c] = float(a["power"][a["kind"] == 1].sum())
+        peak[f_c] = float(a["power"][(a["kind"] == 1) & (a["obj"] >= 0)].sum())  # the car via the relay
     assert peak[10e9] > 0 and peak[77e9] < 1e-3 * peak[10e9]
 
 

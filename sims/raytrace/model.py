@@ -172,8 +172,9 @@ class RaytraceForwardModel(ForwardModel):
         seen = live & (snr >= p.min_snr_db) & (np.abs(a["azimuth"]) <= radar.field_of_view) & (r_one <= radar.max_range)
         kind, obj = a["kind"].astype(int), a["obj"].astype(int)
         los, mn = seen & (kind == 0), seen & (kind == 1)
+        names, owner = _mnlos_owners(scene, world, obj[mn])
         gt = GroundTruth(los_points=a["pos"][los], mnlos_points=a["pos"][mn], hidden_points=a["hidden"][mn],
-                         mnlos_object=obj[mn], object_names=tuple(o.name for o in scene.objects),
+                         mnlos_object=owner, object_names=names,
                          walls=scene.wall_segments(), los_snr_db=snr[los], mnlos_snr_db=snr[mn])
         order = a["order"].astype(int)
         meta = {"scene": scene.name, "forward_model": "raytrace", "n_paths": int(live.sum()),
@@ -184,6 +185,18 @@ class RaytraceForwardModel(ForwardModel):
                 "chains": len(tr.chains), "faces": int(world.caster.n_faces), "backend": world.caster.backend,
                 "trace_s": round(t_trace, 6), "components": use}
         return cube, Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)
+
+
+def _mnlos_owners(scene, world, obj: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """(object_names, (M,) owner index) for mNLOS paths of ``obj`` (object index ≥ 0, or −1 − s for a
+    strip of surface s): the scene's objects, then ``"wall:<surface>"`` for each surface seen in a mirror."""
+    names = [o.name for o in scene.objects]
+    surfaces = np.unique(-1 - obj[obj < 0])
+    owner = obj.copy()
+    for k, s in enumerate(surfaces):
+        owner[obj == -1 - s] = len(names) + k
+    names += [f"wall:{world.surfaces[s].name}" for s in surfaces]
+    return tuple(names), owner
 
 
 def _cell_power(radar: RadarConfig, a: dict, power: np.ndarray) -> np.ndarray:

@@ -45,11 +45,12 @@ class Paths:
 
     length (P,): unfolded ROUND-TRIP length [m]; azimuth (P,): arrival azimuth [rad];
     amp (P,): complex amplitude [√W] excluding the scatterer's random phase; power (P,) [W];
-    kind (P,): 0 LOS (wall strip or object seen directly), 1 mNLOS (object via one mirror),
-    2 other multipath (walls seen in mirrors, higher orders, mixed); order (P,): bounces one way;
-    pos (P, 2): ground-truth BEV position (LOS point or virtual point o'); hidden (P, 2): o;
-    obj (P,): object index (−1 for walls); centre (P,): scattering-centre index within the
-    object (phase key), −1 for wall strips.
+    kind (P,): 0 LOS (wall strip or object seen directly), 1 mNLOS (object or wall strip seen via
+    one mirror: Eq. 7 maps its virtual point back), 2 other multipath (two or more mirrors, mixed
+    out/back legs); order (P,): bounces one way; pos (P, 2): ground-truth BEV position (LOS point
+    or virtual point o'); hidden (P, 2): o; obj (P,): object index ≥ 0, or −1 − s for a strip of
+    static surface s (World.surfaces); centre (P,): scattering-centre index within the object
+    (phase key), −1 for wall strips.
     """
 
     length: list = field(default_factory=list)
@@ -156,8 +157,8 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
             P = received_power(radar, L[live], az0[i], sigma[live], np.abs(alpha[i]))
             virt = np.stack([np.cos(az0[i]), np.sin(az0[i])], axis=1) * L[live, None]
             paths.add(length=2 * L[live], azimuth=az0[i], amp=np.sqrt(P) * alpha[i] ** 2 / np.maximum(np.abs(alpha[i]) ** 2, 1e-300),
-                      power=P, kind=0 if k == 0 else 2, order=k,
-                      pos=p[live, :2] if k == 0 else virt, hidden=p[live, :2], obj=-1, centre=-1)
+                      power=P, kind=min(k, 2), order=k,
+                      pos=p[live, :2] if k == 0 else virt, hidden=p[live, :2], obj=-1 - surf[live], centre=-1)
         if k == max_bounces:
             break
         relay = np.array([world.surfaces[s].relay for s in surf], dtype=bool)
