@@ -226,6 +226,8 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
             g, h = f.ground_truth, want.ground_truth
             for a in ("los_points", "mnlos_points", "hidden_points", "mnlos_object"):
                 assert np.array_equal(getattr(g, a), getattr(h, a)), a
+            for a in ("los_snr_db", "mnlos_snr_db"):  # stored as float32 [dB]
+                assert np.array_equal(getattr(g, a), getattr(h, a).astype(np.float32)) and np.isfinite(getattr(g, a)).all()
             assert g.object_names == h.object_names
             assert [(w.name, w.start.tolist(), w.end.tolist()) for w in g.walls] == \
                    [(w.name, w.start.tolist(), w.end.tolist()) for w in h.walls]

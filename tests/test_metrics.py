@@ -109,3 +109,38 @@ def test_reconstruction_metrics_and_object_error_m():
     assert empty["f1"] == 0.0 and empty["cd"] == math.inf
     assert all(math.isnan(v) for v in empty["object_error_m"].values())
     assert reconstruction_metrics(pred[:2], gt, 0.5)["object_error_m"]["car"] == pytest.approx(0.2)
+
+
+def test_ground_truth_keeps_point_snr_through_thinning_and_selection():
+    from xnlos_core.metrics import thin_to_resolution
+    from xnlos_core.radar import RadarConfig
+
+    radar = RadarConfig()
+    gt = GroundTruth(los_points=[[10.0, 0.0], [10.01, 0.0], [20.0, 5.0]], mnlos_points=[[30.0, 5.0], [30.01, 5.0]],
+                     hidden_points=[[20.0, 5.0], [20.0, 5.01]], los_snr_db=[12.0, 30.0, 5.0],
+                     mnlos_snr_db=[float("nan"), 15.0])
+    thin = thin_to_resolution(gt, radar)
+    assert len(thin.los_points) == 2 and sorted(thin.los_snr_db.tolist()) == [5.0, 30.0]  # a cell keeps its max
+    assert thin.mnlos_snr_db.tolist() == [15.0]  # NaN (unknown) does not mask a known value
+    sel = gt.above_snr(10.4)
+    assert len(sel.los_points) == 2 and len(sel.mnlos_points) == 2  # unknown SNR (NaN) is kept
+    assert len(GroundTruth(los_points=[[1.0, 0.0]]).los_snr_db) == 1  # absent → NaN per point
+    with pytest.raises(InputError, match="GroundTruth.mnlos_snr_db"):
+        GroundTruth(mnlos_points=[[1.0, 0.0]], hidden_points=[[0.0, 1.0]], mnlos_snr_db=[1.0, 2.0])
+
+
+def test_scene_metrics_score_the_complete_reflected_cloud():
+    from xnlos_core.metrics import scene_metrics
+
+    gt = GroundTruth(los_points=[[10.0, 0.0], [12.0, 0.0]], mnlos_points=[[30.0, 5.0]], hidden_points=[[20.0, -5.0]])
+    det = Detections.from_points(np.array([[10.2, 0.0], [30.0, 5.0]]), np.array([LOS, MNLOS]))
+    hidden = HiddenPoints(np.array([[20.0, -4.0]]), np.zeros((1, 2, 2)), np.array([1]), np.array([0]))
+    m = scene_metrics(det, hidden, gt, radius=0.5)
+    # prediction {(10.2, 0), (20, -4)} vs truth {(10, 0), (12, 0), (20, -5)}: one match within 0.5 m
+    assert (m["tp"], m["fp"], m["fn"]) == (1, 1, 2)
+    assert m["f1"] == pytest.approx(2 * 0.5 * (1 / 3) / (0.5 + 1 / 3))
+    # Chamfer: pred→gt mean of 0.04 and 1; gt→pred mean of 0.04, 3.24, 1 (squared distances)
+    assert m["cd"] == pytest.approx((0.04 + 1.0) / 2 + (0.04 + 3.24 + 1.0) / 3)
+    empty = scene_metrics(Detections.empty(), np.empty((0, 2)),
+                          GroundTruth(), radius=1.0)
+    assert empty["f1"] == 1.0 and empty["cd"] == 0.0

@@ -118,3 +118,21 @@ def test_ra_map_is_linear_across_200_db(log_amp, r):
     assert np.all(np.isfinite(m1))
     k = np.unravel_index(np.argmax(np.abs(m0)), m0.shape)
     assert abs(m1[k]) == pytest.approx(a * abs(m0[k]), rel=1e-5)
+
+
+def test_detectability_threshold_is_albersheim():
+    from sims.propagation import DETECTABLE_SNR_DB, detectable_snr_db
+
+    # Textbook values (Richards, Fundamentals of Radar Signal Processing, Albersheim's equation):
+    # pd 0.9, pfa 1e-6 → 13.1 dB; pd 0.5, pfa 1e-6 → 11.25 dB.
+    a = math.log(0.62 / 1e-6)
+    b = math.log(0.9 / 0.1)
+    assert detectable_snr_db(0.9, 1e-6) == pytest.approx(10 * math.log10(a + 0.12 * a * b + 1.7 * b), abs=1e-9)
+    assert detectable_snr_db(0.9, 1e-6) == pytest.approx(13.1, abs=0.1)
+    assert detectable_snr_db(0.5, 1e-6) == pytest.approx(10 * math.log10(a), abs=1e-9)
+    assert DETECTABLE_SNR_DB == pytest.approx(10 * math.log10(math.log(0.62e5)), abs=0.05)
+    assert detectable_snr_db(0.9, 1e-5) > detectable_snr_db(0.5, 1e-5) > detectable_snr_db(0.5, 1e-4)
+    with pytest.raises(InputError, match="pfa"):
+        detectable_snr_db(0.5, 0.1)
+    with pytest.raises(InputError, match="pd"):
+        detectable_snr_db(0.99, 1e-5)

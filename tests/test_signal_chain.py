@@ -146,3 +146,17 @@ def test_linear_in_amplitude_and_unaliased(log_amp, R, theta):
     ref = ra_map_from_cube(_single(RADAR, R, theta, 1.0), RADAR)
     peak = np.abs(ref.data).max()
     np.testing.assert_allclose(np.abs(ra.data) / a, np.abs(ref.data), rtol=1e-4, atol=1e-6 * peak)
+
+
+def test_averaging_chirps_divides_the_noise_power_explicitly():
+    """noise_power with n_chirps = N equals the measured noise of the mean of N single-chirp cubes."""
+    one = RADAR.model_copy(update={"n_chirps": 1})
+    eight = RADAR.model_copy(update={"n_chirps": 8})
+    assert eight.noise_power == pytest.approx(one.noise_power / 8, rel=1e-12)
+    zero = np.zeros((1024, 32), complex)
+    rng = np.random.default_rng(3)
+    mean = np.mean([add_noise(zero, one, rng) for _ in range(8)], axis=0)  # 8 chirps averaged
+    assert np.mean(np.abs(mean) ** 2) == pytest.approx(eight.noise_power, rel=0.03)
+    # kT·f_s·NF for one chirp, independent of the code under test
+    assert one.noise_power == pytest.approx(1.380649e-23 * one.temperature * one.n_samples / one.chirp_duration
+                                            * 10 ** (one.noise_figure_db / 10), rel=1e-9)

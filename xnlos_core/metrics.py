@@ -171,6 +171,25 @@ def reconstruction_metrics(hidden_points, ground_truth: GroundTruth, radius: flo
     return out
 
 
+def scene_metrics(detections: Detections, hidden_points, ground_truth: GroundTruth, radius: float) -> dict:
+    """Reconstruction of the whole scene (Table 2, right block): the complete point cloud after
+    the mNLOS points are reflected to where they are.
+
+    Prediction: the LOS detections' positions plus the reconstructed hidden points
+    (HiddenPoints or (K, 2) [m]); ground truth: ``los_points`` plus ``hidden_points``. Returns
+    {precision, recall, f1, tp, fp, fn, cd [m²]} with the conventions of :func:`f1_score` and
+    :func:`chamfer_distance` (both clouds empty: F1 1, CD 0; one empty: F1 0, CD inf).
+    """
+    if not isinstance(detections, Detections):
+        raise InputError(f"scene_metrics: detections must be Detections, got {type(detections).__name__}")
+    if not isinstance(ground_truth, GroundTruth):
+        raise InputError(f"scene_metrics: ground_truth must be GroundTruth, got {type(ground_truth).__name__}")
+    hidden = hidden_points.mean if isinstance(hidden_points, HiddenPoints) else _cloud("hidden_points", hidden_points, 2)
+    pred = np.concatenate([detections.position[detections.label == LOS], hidden])
+    gt = np.concatenate([ground_truth.los_points, ground_truth.hidden_points])
+    return _scores(pred, gt, radius)
+
+
 @lru_cache(maxsize=32)
 def resolution_cell(radar: RadarConfig) -> tuple[float, float]:
     """(range [m], azimuth [rad]) extent of one resolution cell: c/2B and the −3 dB beamwidth."""

@@ -176,9 +176,10 @@ class Pipeline:
             # F1/CD against what the radar can resolve; the object error against the full surface.
             r = self.config.run.match_radius
             resolved = metrics.thin_to_resolution(frame.ground_truth, frame.ra_map.radar)
-            recon = metrics.reconstruction_metrics(hidden, resolved, r)
+            recon = metrics.scene_metrics(det, hidden, resolved, r)
             recon["object_error_m"] = metrics.reconstruction_metrics(hidden, frame.ground_truth, r)["object_error_m"]
-            res.metrics = {"dense": metrics.dense_metrics(det, resolved, r), "reconstruction": recon}
+            res.metrics = {"dense": metrics.dense_metrics(det, resolved, r), "reconstruction": recon,
+                           "hidden": metrics.reconstruction_metrics(hidden, resolved, r)}
         return res
 
     def run(self, start: int = 0) -> Iterator[FrameResult]:

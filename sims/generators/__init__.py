@@ -10,9 +10,11 @@ on a relay wall makes visible (a mirrored "mNLOS" echo inside the field of view)
 
 The same seed and parameters give the same :class:`~xnlos_core.scene.Scene`; its ``meta`` records
 the family, the seed, the parameters and every drawn value. By default a hidden object counts only
-when its best mirror path reaches 0 dB RA-map SNR with the default radar (1.6 mW per transmitter),
-which concrete and brick facades allow to about 20 m behind the corner; deeper objects need
-stronger relays (metal, glass), a stronger ``radar`` or ``min_snr_db=None`` (geometry only).
+when its best mirror path reaches the detectability threshold (``min_snr_db``, default
+:data:`sims.propagation.DETECTABLE_SNR_DB` = 10.4 dB RA-map SNR) with the default radar (1.6 mW
+per transmitter, 64 chirps averaged): concrete and brick facades allow cars 40 m behind the
+corner. A weaker ``radar`` (e.g. ``n_chirps = 1``, 18 dB less) needs stronger relays (metal,
+glass), closer objects or ``min_snr_db=None`` (geometry only).
 """
 from __future__ import annotations
 
