@@ -114,9 +114,11 @@ def test_detect_requires_frame():
 @pytest.mark.parametrize("module, kind, names", [
     ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "rtn", "swin_unet", "unet"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
+    ("plugins.residual_mirror.plugin", "reconstructor", ["residual_mirror"]),
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),
     ("hardware.plugin", "backend", ["can", "npz", "replay"]),
+    ("plugins.dataset_backend.plugin", "backend", ["dataset"]),
     ("sims.plugin", "forward_model", ["image", "raytrace"]),
 ])
 def test_plugin_modules_register(module, kind, names):

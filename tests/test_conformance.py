@@ -22,6 +22,12 @@ def test_builtin_conforms(kind, name, tmp_path):
         from hardware.testing import make_recording
 
         params = {"file": str(make_recording(tmp_path / "rec.blf"))}
+    if (kind, name) == ("backend", "dataset"):
+        from sims.dataset import parse_dataset_config, simulate_dataset
+        from tests.test_dataset import table
+
+        simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), tmp_path, workers=1, progress=False)
+        params = {"path": str(tmp_path), "split": "all"}
     check_component(kind, name, params)
 
 

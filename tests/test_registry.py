@@ -5,7 +5,7 @@ from xnlos_core import Detector, Detections, PluginError, hookimpl
 from xnlos_core.registry import PluginManager, get_registry
 
 BUILTINS = {("forward_model", "image"), ("detector", "cfar"), ("detector", "nlos_cfar"),
-            ("wall_estimator", "lsq"), ("reconstructor", "mirror"), ("tracker", "nearest"), ("backend", "npz")}
+            ("wall_estimator", "lsq"), ("reconstructor", "mirror"), ("reconstructor", "residual_mirror"), ("tracker", "nearest"), ("backend", "npz")}
 
 
 def test_builtins_register_through_entry_points():

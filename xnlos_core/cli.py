@@ -1,4 +1,4 @@
-"""Command line: ``xnlos run | sweep | demo | plugins | check | emulate | simulate | train`` (also ``python -m xnlos_core``)."""
+"""Command line: ``xnlos run | sweep | eval | demo | plugins | check | emulate | simulate | train`` (also ``python -m xnlos_core``)."""
 from __future__ import annotations
 
 import argparse
@@ -47,6 +47,20 @@ def _cmd_sweep(args) -> int:
     return 0
 
 
+def _cmd_eval(args) -> int:
+    from .evaluation import run_eval
+
+    args.out = args.out or Path("out/eval") / args.config.stem
+    res = run_eval(args.config, args.out, dataset=args.dataset, split=args.split, limit=args.limit,
+                   start=args.start, figures=0 if args.no_figures else args.figures, progress=not args.quiet,
+                   overwrite=args.overwrite)
+    out = args.out
+    print((out / "eval.md").read_text())
+    print(f"{len(res['runs'])} run(s) on {sum(r['overall']['maps'] for r in res['runs'])} map(s); wrote "
+          f"{out / 'eval.md'} and {out / 'eval.json'}")
+    return 0
+
+
 def _cmd_simulate(args) -> int:
     from sims.dataset import load_dataset_config, manifest_config, simulate_dataset, verify_dataset
 
@@ -71,6 +85,12 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_train(args) -> int:
+    from plugins.residual_mirror.train import cli_train, is_residual_config
+
+    from .config import load_toml
+
+    if is_residual_config(load_toml(args.config)):  # [model] name = "residual_mirror": the Eq. 9 trainer
+        return cli_train(args)
     from plugins.detectors.train import train
     from plugins.detectors.train_config import load_train_config, parse_train_config
 
@@ -102,6 +122,11 @@ def _cmd_check(args) -> int:
         print(f"{path}: valid dataset config ({cfg.n_maps} maps, forward model {cfg.forward_model.name})")
         return 0
     if "data" in table and "model" in table and "detector" not in table:  # a training config (xnlos train)
+        from plugins.residual_mirror.train import check_config, is_residual_config
+
+        if is_residual_config(table):
+            print(check_config(table, path))
+            return 0
         from plugins.detectors.train_config import parse_train_config
 
         tcfg = parse_train_config(table, str(path))
@@ -170,6 +195,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--workers", type=int, default=None, help="local worker processes (1 = in process)")
     s.add_argument("-q", "--quiet", action="store_true")
     s.set_defaults(func=_cmd_sweep)
+
+    ev = sub.add_parser("eval", help="score a pipeline config (or each point of its sweep) on a dataset split: "
+                        "F1 / Chamfer per class and family, stage times, Fig. 6-style figures (resumable)")
+    ev.add_argument("config", type=Path, help="pipeline TOML, e.g. configs/ablations/table2.toml")
+    ev.add_argument("--out", type=Path, help="output directory (default: out/eval/<config file stem>; rerun the "
+                    "same command to resume)")
+    ev.add_argument("--dataset", help="dataset directory (default: the config's dataset backend, else "
+                    "out/data/default)")
+    ev.add_argument("--split", choices=["train", "val", "test", "all"], help="split to score (default: the "
+                    "config's, else test)")
+    ev.add_argument("--limit", type=int, help="score at most this many maps of the split")
+    ev.add_argument("--start", type=int, help="skip this many maps of the split first")
+    ev.add_argument("--figures", type=int, default=2, help="Fig. 6-style PNGs of the first N maps per run (default 2)")
+    ev.add_argument("--no-figures", action="store_true", help="write no figures")
+    ev.add_argument("--overwrite", action="store_true", help="discard an evaluation of another config in --out")
+    ev.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    ev.set_defaults(func=_cmd_eval)
 
     c = sub.add_parser("check", help="validate a config (and every sweep point) without running it")
     c.add_argument("config", type=Path)

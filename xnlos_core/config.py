@@ -20,6 +20,12 @@ A pipeline file names one plugin per kind::
     frames = 1
     [sweep]                     # optional grid: dotted key → list of values
     "detector.name" = ["cfar", "nlos_cfar"]
+    [[sweep.cases]]             # optional list of cases: dotted key → one value each
+    name = "rtn"
+    "detector.name" = "rtn"
+
+Sweep points are the listed cases (rows that are not a Cartesian product, e.g. Table 2) times
+the grid of the remaining ``[sweep]`` keys; see :func:`expand_sweep`.
 """
 from __future__ import annotations
 
@@ -181,35 +187,64 @@ def _set_dotted(table: dict[str, Any], key: str, value: Any, source: str) -> Non
     node[parts[-1]] = value
 
 
+def _check_root(key: str, source: str, where: str) -> None:
+    root = key.split(".")[0]
+    if root not in PipelineConfig.model_fields or root in ("sweep", "base_dir"):
+        raise ConfigError(f"{source}: {where} {key!r}: {root!r} is not a pipeline key; "
+                          f"allowed roots: {', '.join(f for f in PipelineConfig.model_fields if f not in ('sweep', 'base_dir'))}")
+
+
+def sweep_cases(sweep: dict[str, Any], source: str) -> list[dict[str, Any]]:
+    """The validated ``[[sweep.cases]]`` list: each case a non-empty table {dotted key: value}."""
+    cases = sweep.get("cases")
+    if cases is None:
+        return []
+    if not isinstance(cases, list) or not cases or not all(isinstance(c, dict) for c in cases):
+        raise ConfigError(f"{source}: [sweep] cases must be a non-empty list of tables ([[sweep.cases]] with "
+                          f"dotted key = value lines), got {cases!r}")
+    for i, case in enumerate(cases):
+        if not case:
+            raise ConfigError(f"{source}: [[sweep.cases]] #{i}: an empty case; give at least one dotted key = value")
+        for k in case:
+            _check_root(k, source, f"[[sweep.cases]] #{i} key")
+    return [dict(c) for c in cases]
+
+
 def expand_sweep(table: dict[str, Any], source: str = "<config>") -> list[tuple[dict[str, Any], dict[str, Any]]]:
-    """Expand the ``[sweep]`` grid: returns [(assignment {dotted key: value}, full table)].
+    """Expand the ``[sweep]`` table: returns [(assignment {dotted key: value}, full table)].
 
     Keys are dotted paths into the pipeline table ("detector.name", "detector.params.pfa",
-    "seed"); the grid is the Cartesian product in the file's key order. Without a sweep the
-    single table is returned with an empty assignment.
+    "seed"). Grid keys map to lists of values and give their Cartesian product in the file's key
+    order. ``cases`` (``[[sweep.cases]]``) lists assignments one by one, {dotted key: value}; the
+    points are then every case combined with every grid point (cases vary slowest). A key may
+    not be both a grid key and a case key. Without a sweep the single table is returned with an
+    empty assignment. Setting ``<stage>.name`` to another plugin without ``<stage>.params``
+    starts that stage's params from {} (another plugin takes other parameters).
     """
     sweep = table.get("sweep") or {}
     if not isinstance(sweep, dict):
         raise ConfigError(f"{source}: [sweep] must be a table of dotted keys → lists")
-    keys = list(sweep)
+    cases = sweep_cases(sweep, source)
+    keys = [k for k in sweep if k != "cases"]
     for k in keys:
         if not isinstance(sweep[k], list) or not sweep[k]:
             raise ConfigError(f"{source}: [sweep] {k!r} must be a non-empty list of values, got {sweep[k]!r}")
-        root = k.split(".")[0]
-        if root not in PipelineConfig.model_fields or root == "sweep":
-            raise ConfigError(f"{source}: [sweep] {k!r}: {root!r} is not a pipeline key; "
-                              f"allowed roots: {', '.join(f for f in PipelineConfig.model_fields if f not in ('sweep', 'base_dir'))}")
+        _check_root(k, source, "[sweep]")
+        clash = [i for i, c in enumerate(cases) if k in c]
+        if clash:
+            raise ConfigError(f"{source}: [sweep] {k!r} is both a grid key and a key of [[sweep.cases]] "
+                              f"#{clash[0]}; give it in one place")
     out = []
-    for values in itertools.product(*(sweep[k] for k in keys)):
-        t = copy.deepcopy({k: v for k, v in table.items() if k != "sweep"})
-        assignment = dict(zip(keys, values))
-        for k, v in assignment.items():
-            stage = k.rsplit(".", 1)[0]
-            if k.endswith(".name") and isinstance(table.get(stage), dict) and v != table[stage].get("name") \
-                    and not any(a.startswith(stage + ".params") for a in assignment):
-                # Another plugin takes other parameters: the base file's params do not carry over.
-                _set_dotted(t, stage + ".params", {}, source)
-            _set_dotted(t, k, v, source)
-        out.append((assignment, t))
+    for case in cases or [{}]:
+        for values in itertools.product(*(sweep[k] for k in keys)):
+            t = copy.deepcopy({k: v for k, v in table.items() if k != "sweep"})
+            assignment = {**case, **dict(zip(keys, values))}
+            for k, v in assignment.items():
+                stage = k.rsplit(".", 1)[0]
+                if k.endswith(".name") and isinstance(table.get(stage), dict) and v != table[stage].get("name") \
+                        and not any(a.startswith(stage + ".params") for a in assignment):
+                    # Another plugin takes other parameters: the base file's params do not carry over.
+                    _set_dotted(t, stage + ".params", {}, source)
+                _set_dotted(t, k, copy.deepcopy(v), source)
+            out.append((assignment, t))
     return out
-

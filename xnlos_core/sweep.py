@@ -1,4 +1,4 @@
-"""``xnlos sweep``: a `[sweep]` grid of pipelines (config-driven ablations), one run per point.
+"""``xnlos sweep``: a `[sweep]` grid and/or `[[sweep.cases]]` of pipelines (config-driven ablations), one run per point.
 
 Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
 per finished point, so a killed sweep resumes with the points still missing. ``sweep.md``
@@ -67,14 +67,14 @@ def render_table(records: list[dict[str, Any]], name: str) -> str:
     """Markdown table: one row per grid point, assignment columns then metrics and time."""
     if not records:
         raise ConfigError(f"sweep {name}: no points were run")
-    keys = list(records[0]["assignment"])
+    keys = list(dict.fromkeys(k for r in records for k in r["assignment"]))  # cases may set different keys
     head = ["point"] + keys + [c for _, c in COLUMNS] + ["ms/frame"]
     lines = [f"# Sweep: {name}", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in records:
         m = r["summary"]["metrics"]
         t = r["summary"]["time_ms"]
         proc = sum(v for k, v in t.items() if k != "source")
-        vals = [str(r["point"])] + [str(r["assignment"][k]) for k in keys]
+        vals = [str(r["point"])] + [str(r["assignment"].get(k, "")) for k in keys]
         vals += ["n/a" if m.get(k) is None else f"{m[k]:.3g}" for k, _ in COLUMNS]
         vals.append(f"{proc:.1f}")
         lines.append("| " + " | ".join(vals) + " |")

@@ -1,0 +1,1 @@
+"""Backend plugin: the maps of an `xnlos simulate` dataset split, with ground truth, as frames."""

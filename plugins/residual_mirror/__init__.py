@@ -1,0 +1,1 @@
+"""Residual mirror reconstructor (Eq. 7 with the learned residual Δo_θ, trained with Eq. 9)."""

@@ -1,0 +1,170 @@
+"""Fig. 6-style panels of one frame: RA map, the detector's LOS / mNLOS heatmaps, detections, fitted walls
+and the bird's-eye reconstruction (written by ``xnlos eval`` for its first maps).
+
+Panels (2 × 3): (a) RA map, power above the map's median [dB] over azimuth [deg] × range [m];
+(b), (c) LOS and mNLOS confidence heatmaps in [0, 1] (a learned detector's ``heatmap(frame)``;
+classical detectors have none and the panel says so); (d) detections on the RA map (LOS ○,
+mNLOS ×) with the thinned ground truth as small dots; (e) bird's-eye view of the LOS detections,
+the fitted relay walls and the true walls; (f) bird's-eye reconstruction: LOS detections, fitted
+walls, reconstructed hidden points with their 90 % credible ellipses (HiddenPoints.cov) and the
+true hidden points. Bird's-eye axes as in :mod:`xnlos_core.figures`: x forward (up), y left.
+"""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .figures import CLASS_STYLE, _ellipse_xy, _wall_curve, credible_radius
+from .geometry import cartesian_to_polar
+from .io import atomic_write_bytes
+from .types import LOS, MNLOS
+
+
+def _bev(points):
+    p = np.asarray(points, float).reshape(-1, 2)
+    return -p[:, 1], p[:, 0]
+
+
+def _ra_extent(ra):
+    az = np.degrees(ra.azimuth_axis)
+    return [az[0], az[-1], ra.range_axis[0], ra.range_axis[-1]]
+
+
+def _polar_deg(points):
+    r, a = cartesian_to_polar(np.asarray(points, float).reshape(-1, 2))
+    return np.degrees(a), r
+
+
+def _detections_bev(ax, det, classes=(LOS, MNLOS)):
+    for lab in classes:
+        name, color, marker = CLASS_STYLE[lab]
+        m = det.label == lab
+        if m.any():
+            label = "mNLOS detections (virtual o')" if lab == MNLOS else f"{name} detections"
+            ax.scatter(*_bev(det.position[m]), s=12, c=color, marker=marker, label=label, alpha=0.8)
+
+
+def _walls_bev(ax, result, gt):
+    if gt is not None:
+        for i, w in enumerate(gt.walls):
+            ax.plot(*_bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
+                    label="true walls" if i == 0 else None)
+    first = True
+    for w in result.walls:
+        curve = _wall_curve(w)
+        if curve is not None:
+            ax.plot(*_bev(curve), color="tab:orange", lw=2, ls="--", zorder=4,
+                    label="fitted walls" if first else None)
+            first = False
+
+
+def _frame_bev(ax, result, gt):
+    pts = [np.zeros((1, 2))]
+    if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
+        pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
+    else:
+        pts += [result.detections.position, result.hidden.mean]
+    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+    lo, hi = allp.min(0) - 5, allp.max(0) + 5
+    ax.set_xlim(-hi[1], -lo[1])
+    ax.set_ylim(min(lo[0], -2), hi[0])
+    ax.set_aspect("equal")
+    ax.scatter([0], [0], marker="^", s=60, c="k", label="radar", zorder=5)
+    ax.set_xlabel("−y [m] (right →)")
+    ax.set_ylabel("x [m] (forward)")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=6, framealpha=0.85)
+
+
+def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = None, title: str = "",
+                      detector: str = "", credible: float = 0.9) -> Path:
+    """Write the six-panel PNG (module doc) of one FrameResult to ``path``; returns the path.
+
+    heatmaps: (2, H', W') LOS / mNLOS confidences in [0, 1] over the RA map's extent (any grid),
+    or None; detector: its name, for the panel titles; credible: level of the hidden points'
+    ellipses (radius √χ²₂(p) σ)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    frame, det = result.frame, result.detections
+    ra, gt = frame.ra_map, frame.ground_truth
+    if heatmaps is not None:
+        heatmaps = np.asarray(heatmaps)
+        if heatmaps.ndim != 3 or heatmaps.shape[0] < 2:
+            raise InputError(f"heatmaps: expected shape (2, H, W) (LOS, mNLOS confidences), got {heatmaps.shape}")
+    fig, axes = plt.subplots(2, 3, figsize=(17, 10.5))
+    p_db = ra.power_db()
+    rel = p_db - np.median(p_db)
+    vmax = max(30.0, float(np.percentile(rel, 99.9)))
+    ext = _ra_extent(ra)
+
+    ax = axes[0, 0]
+    im = ax.imshow(rel, origin="lower", aspect="auto", cmap="viridis", vmin=0, vmax=vmax, extent=ext)
+    fig.colorbar(im, ax=ax, label="power above median [dB]")
+    ax.set_title("(a) RA map")
+    for k, (ax, cls) in enumerate(zip(axes[0, 1:], ("LOS", "mNLOS"))):
+        ax.set_title(f"({'bc'[k]}) {cls} heatmap" + (f" ({detector})" if detector else ""))
+        if heatmaps is None:
+            ax.imshow(np.zeros((2, 2)), origin="lower", aspect="auto", cmap="magma", vmin=0, vmax=1, extent=ext)
+            ax.text(0.5, 0.5, f"no heatmap:\n{detector or 'this detector'} is not a learned detector",
+                    ha="center", va="center", transform=ax.transAxes, color="w", fontsize=10)
+        else:
+            im = ax.imshow(heatmaps[k], origin="lower", aspect="auto", cmap="magma", vmin=0, vmax=1, extent=ext)
+            fig.colorbar(im, ax=ax, label="confidence")
+    for ax in axes[0]:
+        ax.set_xlabel("azimuth θ [deg] (positive = left)")
+        ax.set_ylabel("range [m]")
+
+    ax = axes[1, 0]
+    ax.imshow(rel, origin="lower", aspect="auto", cmap="gray", vmin=0, vmax=vmax, extent=ext)
+    if gt is not None:
+        for pts, color, label in ((gt.los_points, "tab:cyan", "true LOS"), (gt.mnlos_points, "tab:red", "true mNLOS")):
+            if len(pts):
+                ax.scatter(*_polar_deg(pts), s=4, c=color, alpha=0.5, label=label)
+    for lab, (name, color, marker) in CLASS_STYLE.items():
+        m = det.label == lab
+        if m.any():
+            style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
+            ax.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker, linewidths=1.2,
+                       label=f"{name} ({m.sum()})", **style)
+    ax.set_xlim(ext[0], ext[1])
+    ax.set_ylim(ext[2], ext[3])
+    ax.set_title("(d) detections")
+    ax.set_xlabel("azimuth θ [deg] (positive = left)")
+    ax.set_ylabel("range [m]")
+    ax.legend(loc="upper right", fontsize=7)
+
+    ax = axes[1, 1]
+    _walls_bev(ax, result, gt)
+    _detections_bev(ax, det, (LOS,))
+    ax.set_title(f"(e) fitted walls ({len(result.walls)})")
+    _frame_bev(ax, result, gt)
+
+    ax = axes[1, 2]
+    _walls_bev(ax, result, gt)
+    _detections_bev(ax, det, (LOS,))
+    if gt is not None and len(gt.hidden_points):
+        ax.scatter(*_bev(gt.hidden_points), s=10, c="tab:green", marker="o", label="true hidden points")
+    h = result.hidden
+    if len(h):
+        ax.scatter(*_bev(h.mean), s=50, c="tab:purple", marker="+", linewidths=1.5,
+                   label=f"reconstructed ({100 * credible:g} % credible)")
+        for mu, c in zip(h.mean, h.cov):
+            ax.plot(*_bev(_ellipse_xy(mu, c, credible_radius(credible))), color="tab:purple", lw=0.8, alpha=0.7)
+    ax.set_title(f"(f) reconstruction ({len(h)} hidden points)")
+    _frame_bev(ax, result, gt)
+
+    fam = frame.meta.get("family")
+    head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")
+    fig.suptitle(head)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
