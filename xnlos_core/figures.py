@@ -149,9 +149,16 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
     ax_bev.grid(alpha=0.3)
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
+    return save_png(fig, path, dpi=110)
+
+
+def save_png(fig, path: str | Path, dpi: int = 110) -> Path:
+    """Lay out ``fig``, write it to ``path`` as PNG atomically and close it; returns the path."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
     atomic_write_bytes(path, buf.getvalue())
     return Path(path)

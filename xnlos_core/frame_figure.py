@@ -11,15 +11,13 @@ true hidden points. Bird's-eye axes as in :mod:`xnlos_core.figures`: x forward (
 """
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
-from .figures import CLASS_STYLE, _ellipse_xy, _wall_curve, credible_radius
+from .figures import CLASS_STYLE, _ellipse_xy, _wall_curve, credible_radius, save_png
 from .geometry import cartesian_to_polar
-from .io import atomic_write_bytes
 from .types import LOS, MNLOS
 
 
@@ -162,9 +160,4 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
     fam = frame.meta.get("family")
     head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")
     fig.suptitle(head)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
-    return Path(path)
+    return save_png(fig, path, dpi=90)
