@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
 
-.PHONY: demo test test-slow bench figures clean
+.PHONY: demo test test-slow bench dataset table2 figures clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -25,6 +25,17 @@ bench: $(STAMP)
 	$(PY) benchmarks/pipeline_speed.py
 	$(PY) benchmarks/forward_components.py
 	$(PY) benchmarks/raytrace_speed.py
+	$(MAKE) dataset
+	$(PY) benchmarks/detectors.py
+	$(PY) benchmarks/residual_mirror.py
+
+# The default simulated dataset (2,160 ray-traced maps, ≈ 2 min on 2 cores; resumes, no-op when complete)
+dataset: $(STAMP)
+	$(VENV)/bin/xnlos simulate configs/datasets/default.toml --out out/data/default --workers 2
+
+# Table 2 of the paper: every row on the test split → out/eval/table2/eval.md (+ Fig. 6-style panels)
+table2: dataset
+	$(VENV)/bin/xnlos eval configs/ablations/table2.toml --out out/eval/table2
 
 # Fig. 2 of the paper (path loss, specular ratio) and the antenna patterns, as PNG in figures/
 figures: $(STAMP)

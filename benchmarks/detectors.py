@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/detectors.py [--dataset out/data/default] [--split test]
         [--max-maps 216] [--threads 2] [--repeats 15] [--out benchmarks/detectors.md]
+        [--figure benchmarks/detectors_recall_snr.png]
 
 Latency: median / p90 ms of ``detect`` on one 401 × 121 RA map of the split (default radar)
 with ``torch.set_num_threads(threads)``, after two warm-up calls, plus the whole fast pipeline
@@ -10,7 +11,9 @@ over the maps of F1 (match radius 1 m) and Chamfer distance [m²] per class agai
 truth thinned to the radar's resolution (:func:`xnlos_core.metrics.thin_to_resolution`), as the
 pipeline scores them; CD is averaged over maps where it is finite (both sets non-empty). Plain
 CFAR cannot classify, so like the paper ('-') its Macro row uses the class-agnostic F1 / CD.
-Training time per epoch comes from each shipped checkpoint's metadata.
+Training time per epoch comes from each shipped checkpoint's metadata. Recall per ground-truth
+SNR bin (each point's expected RA-map SNR is kept in the dataset) shows where detection fails:
+at the noise floor or on strong echoes it misclassifies.
 """
 from __future__ import annotations
 
@@ -73,18 +76,73 @@ def pipeline_latency(frames, repeats: int) -> tuple[float, float, dict]:
             {s: 1e3 * float(np.median(v)) for s, v in stages.items()})
 
 
+SNR_EDGES = np.array([10.4, 13.0, 16.0, 20.0, 25.0, 30.0, 40.0, np.inf])  # [dB], from the GT threshold
+
+
 def metrics(det, frames, radius: float) -> dict:
-    from xnlos_core.metrics import dense_metrics, thin_to_resolution
+    """Mean F1 / CD per class, and per ground-truth SNR bin the recall (``recall_snr``: class →
+    (hits, totals) over SNR_EDGES; a detector that cannot classify is matched class-agnostically)."""
+    from xnlos_core.metrics import dense_metrics, match_points, thin_to_resolution
+    from xnlos_core.types import LOS, MNLOS
 
     rows = []
+    counts = {c: (np.zeros(len(SNR_EDGES) - 1), np.zeros(len(SNR_EDGES) - 1)) for c in ("los", "mnlos")}
     for f in frames:
-        m = dense_metrics(det.detect(f), thin_to_resolution(f.ground_truth, f.ra_map.radar), radius)
+        d = det.detect(f)
+        g = thin_to_resolution(f.ground_truth, f.ra_map.radar)
+        m = dense_metrics(d, g, radius)
         rows.append(m)
-    out = {}
+        for c, label, pts, snr in (("los", LOS, g.los_points, g.los_snr_db),
+                                   ("mnlos", MNLOS, g.mnlos_points, g.mnlos_snr_db)):
+            pred = d.position[d.label == label] if m["classified"] else d.position
+            hit = np.zeros(len(pts), dtype=bool)
+            hit[match_points(pred, pts, radius)[1]] = True
+            counts[c][0][:] += np.histogram(snr[hit], SNR_EDGES)[0]
+            counts[c][1][:] += np.histogram(snr, SNR_EDGES)[0]
+    out = {"recall_snr": counts}
     for key in ("los", "mnlos", "macro", "all"):
         out[f"{key}_f1"] = float(np.mean([m[key]["f1"] for m in rows]))
         out[f"{key}_cd"] = _finite_mean([m[key]["cd"] for m in rows])
     out["classified"] = all(m["classified"] for m in rows)
+    return out
+
+
+def recall_section(names, res, figure: str | None, link: str | None = None) -> list[str]:
+    """Markdown table (and a PNG at ``figure``) of recall versus ground-truth SNR per detector."""
+    bins = [f"{lo:g}–{hi:g}" if np.isfinite(hi) else f"≥ {lo:g}" for lo, hi in zip(SNR_EDGES[:-1], SNR_EDGES[1:])]
+    out = ["", "## Recall versus ground-truth SNR", "",
+           "Share of ground-truth points (thinned to resolution cells) matched by a detection of their class, "
+           "by the cell's expected RA-map SNR [dB] (10.4 dB: the detectability threshold of the ground truth).", "",
+           "| detector | class | " + " | ".join(bins) + " |", "|---|---|" + "---|" * len(bins)]
+    for name in names:
+        for c in ("los", "mnlos"):
+            hits, tot = res[name]["recall_snr"][c]
+            cells = [f"{h / t:.2f}" if t else "-" for h, t in zip(hits, tot)]
+            out.append(f"| {name} | {c} | " + " | ".join(cells) + " |")
+    totals = res[names[0]]["recall_snr"]
+    out.append("| points | los / mnlos | " + " | ".join(f"{int(a)} / {int(b)}" for a, b in
+                                                        zip(totals["los"][1], totals["mnlos"][1])) + " |")
+    if figure:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        from xnlos_core.figures import save_png
+
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+        mid = np.append(0.5 * (SNR_EDGES[:-2] + SNR_EDGES[1:-1]), SNR_EDGES[-2] + 5)
+        for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
+            for name in names:
+                hits, tot = res[name]["recall_snr"][c]
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    ax.plot(mid, np.where(tot > 0, hits / tot, np.nan), "o-", label=name)
+            ax.set(title=f"{title} recall", xlabel="ground-truth RA-map SNR [dB]", ylim=(0, 1.02))
+            ax.grid(alpha=0.3)
+        axes[0].set_ylabel("recall at the match radius")
+        axes[1].legend(fontsize=8)
+        save_png(fig, figure, dpi=110)
+        out += ["", f"![recall versus SNR]({link or figure})"]
     return out
 
 
@@ -111,6 +169,8 @@ def main() -> None:
     ap.add_argument("--radius", type=float, default=1.0)
     ap.add_argument("--detectors", default=",".join(DETECTORS))
     ap.add_argument("--out", default=None, help="also write the Markdown report here")
+    ap.add_argument("--figure", default="figures/detector_recall_snr.png",
+                    help="PNG of recall versus ground-truth SNR ('' for none)")
     args = ap.parse_args()
 
     import torch
@@ -176,6 +236,8 @@ def main() -> None:
         for mode, label in (("none", "raw grid (cell centres)"), ("gaussian", "refined (Gaussian log-ratio)")):
             cal = refinement_error(reg.create("detector", "swin_unet", {"device": "cpu"}), frames, mode, args.radius)
             lines.append(f"| {label} | {cal['range_cells']:.3f} | {cal['azimuth_cells']:.3f} | {cal['n_matches']} |")
+    link = os.path.relpath(args.figure, Path(args.out).parent) if args.figure and args.out else args.figure
+    lines += recall_section(names, res, args.figure, link)
     text = "\n".join(lines)
     print(text)
     if args.out:
