@@ -38,6 +38,14 @@ def _params_for(kind, name, tmp_path):
 
         return {"file": str(make_recording(tmp_path / "rec.blf", RadarConfig(**small_table()["radar"]), frames=2,
                                            seed=5))}
+    if (kind, name) == ("backend", "dataset"):  # a tiny simulated dataset (its default path needs `make dataset`)
+        from sims.dataset import parse_dataset_config, simulate_dataset
+        from tests.test_dataset import table
+
+        d = tmp_path / "dataset"
+        if not d.exists():
+            simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), d, workers=1, progress=False)
+        return {"path": str(d), "split": "all"}
     return {}
 
 
