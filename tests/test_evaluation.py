@@ -178,25 +178,10 @@ def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys):
     assert "another configuration" in capsys.readouterr().err
 
 
-def _table2_without(missing: set[str], tmp_path: Path) -> Path:
-    """configs/ablations/table2.toml without the cases that need an unregistered reconstructor."""
-    text = (ROOT / "configs/ablations/table2.toml").read_text()
-    head, *cases = text.split("[[sweep.cases]]")
-    keep = [c for c in cases if not any(f'"{m}"' in c for m in missing)]
-    p = tmp_path / "table2.toml"
-    p.write_text(head + "".join("[[sweep.cases]]" + c for c in keep))
-    return p
-
-
 def test_table2_sweep_end_to_end_on_a_tiny_dataset(tiny_dataset, tmp_path):
-    registered = set(get_registry().names("reconstructor"))
-    missing = {"residual_mirror"} - registered  # the residual reconstructor may not be installed yet
-    cfg = _table2_without(missing, tmp_path)
-    res = run_eval(cfg, tmp_path / "out", dataset=str(tiny_dataset), split="test", limit=2, figures=1,
-                   progress=False)
-    names = [r["name"] for r in res["runs"]]
-    expected = [n for n in PAPER_TABLE2 if not missing or n not in ("Proposed + UNet", "Proposed")]
-    assert names == expected
+    res = run_eval(ROOT / "configs/ablations/table2.toml", tmp_path / "out", dataset=str(tiny_dataset),
+                   split="test", limit=2, figures=1, progress=False)
+    assert [r["name"] for r in res["runs"]] == list(PAPER_TABLE2)  # every row, residual_mirror included
     md = (tmp_path / "out" / "eval.md").read_text()
     assert "| 0 | NLOS-CFAR | nlos_cfar → mirror | 2 | " in md and "(0.23)" in md and "(29.7)" in md
     for r in res["runs"]:
@@ -204,7 +189,5 @@ def test_table2_sweep_end_to_end_on_a_tiny_dataset(tiny_dataset, tmp_path):
         assert (tmp_path / "out" / r["dir"] / r["figures"][0]).read_bytes()[:8] == PNG
 
 
-def test_table2_rows_with_the_residual_reconstructor_are_checked():
-    if "residual_mirror" not in get_registry().names("reconstructor"):
-        pytest.skip("residual_mirror is not registered yet: Table 2 rows 'Proposed + UNet' and 'Proposed' skipped")
+def test_table2_config_checks():
     assert main(["check", str(ROOT / "configs/ablations/table2.toml")]) == 0
