@@ -11,8 +11,8 @@ Per map (Pipeline.process, ground truth thinned to the radar's resolution, match
 ``run.match_radius`` [m]): dense-prediction F1 and Chamfer distance CD [m²] per class (LOS, mNLOS),
 their macro mean and the class-agnostic "all", reconstruction F1 / CD of the complete reflected
 cloud (LOS detections plus reconstructed hidden points against LOS plus hidden ground truth,
-:func:`xnlos_core.metrics.scene_metrics`), and the wall time of every stage. Aggregation over maps (AGGREGATION below) is the one of
-benchmarks/detectors.py.
+:func:`xnlos_core.metrics.scene_metrics`), and the wall time of every stage. Aggregation over
+maps (AGGREGATION below) is the one of benchmarks/detectors.py.
 
 Output (``OUT``): ``run-NNN/frames.jsonl`` (one fsync'd line per map: a killed eval rerun with the
 same command resumes after the last complete map; a larger ``limit`` extends a finished one),
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 from typing import Any
 
@@ -216,7 +215,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
 
     Resumes from ``out/frames.jsonl`` when ``out/run.json`` holds the same configuration (up to the
     backend's limit); another configuration is a ConfigError unless ``overwrite``."""
-    from .pipeline import Pipeline
+    from .pipeline import Pipeline, timed_frames
 
     cfg: PipelineConfig = run["config"]
     out = Path(out)
@@ -248,15 +247,8 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     bar = _progress(total, len(have), progress, f"eval {cfg.name}")
     backend.open(pipe.radar)
     try:
-        it = iter(backend.frames())
         position = 0
-        while True:
-            t0 = time.perf_counter()
-            try:
-                frame = next(it)
-            except StopIteration:
-                break
-            src = time.perf_counter() - t0
+        for frame, src in timed_frames(backend.frames()):
             if position not in have:
                 if frame.ground_truth is None:
                     raise InputError(f"{run['source']}: map {frame.index} has no ground truth; eval needs a "

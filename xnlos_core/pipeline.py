@@ -6,7 +6,7 @@ Every random draw derives from ``config.seed``: frame k is simulated with a gene
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,6 +65,18 @@ def _no_nan(x):
     if isinstance(x, list):
         return [_no_nan(v) for v in x]
     return x
+
+
+def timed_frames(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float]]:
+    """(frame, seconds the source took to deliver it) for each frame of ``frames``."""
+    it = iter(frames)
+    while True:
+        t0 = time.perf_counter()
+        try:
+            frame = next(it)
+        except StopIteration:
+            return
+        yield frame, time.perf_counter() - t0
 
 
 def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
@@ -192,14 +204,7 @@ class Pipeline:
         if "tracker" in self.stages:
             self.stages["tracker"].reset()
             start, skip = 0, start
-        it = self.frames(start)
-        while True:
-            t0 = time.perf_counter()
-            try:
-                frame = next(it)
-            except StopIteration:
-                return
-            src = time.perf_counter() - t0
+        for frame, src in timed_frames(self.frames(start)):
             res = self.process(frame)
             res.timings = {"source": src, **res.timings}
             if frame.index >= skip:
