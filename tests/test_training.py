@@ -128,3 +128,31 @@ def test_every_shipped_training_config_is_valid():
             continue
         cfg = load_train_config(path)
         assert cfg.model.name in architectures()
+
+
+def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network(tmp_path, one_thread):
+    from plugins.detectors.train import train
+    from xnlos_core.errors import InputError
+
+    base = load_train_config(TINY_TOML).model_dump(mode="json")
+    first = parse_train_config({**base, "out": str(tmp_path / "a"), "optim": {**base["optim"], "epochs": 1}})
+    train(first, progress=False)
+    sd_a, meta_a, _ = load_checkpoint(tmp_path / "a" / "model.pt", "swin_unet")
+    # whole maps (no crop), a learning rate too small to move anything: the weights stay those of init
+    tune = {**base, "out": str(tmp_path / "b"), "init": str(tmp_path / "a" / "model.pt"),
+            "data": {**base["data"], "crop": None}, "optim": {**base["optim"], "epochs": 1, "lr": 1e-12}}
+    train(parse_train_config(tune), progress=False)
+    sd_b, meta_b, _ = load_checkpoint(tmp_path / "b" / "model.pt", "swin_unet")
+    for key in sd_a:  # batch-norm running statistics follow the data whatever the learning rate
+        if "running_" not in key and "num_batches" not in key:
+            torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=1e-6, msg=key)
+    init = meta_b["training"]["dataset"]["init"]
+    assert init["weights_sha256"] == meta_a["weights_sha256"] and init["command"] == meta_a["training"]["command"]
+
+    other = {**tune, "out": str(tmp_path / "c"),
+             "model": {**base["model"], "params": {**base["model"]["params"], "embed_dim": 8}}}
+    with pytest.raises(InputError, match=r"init .*hyper-parameters"):
+        train(parse_train_config(other), progress=False)
+    with pytest.raises(InputError, match="missing.pt"):
+        train(parse_train_config({**tune, "out": str(tmp_path / "d"), "init": str(tmp_path / "missing.pt")}),
+              progress=False)

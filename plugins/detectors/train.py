@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from xnlos_core.errors import ConfigError
+from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.io import append_jsonl, atomic_write_text, read_jsonl
 
 from .train_config import TrainConfig
@@ -115,6 +115,25 @@ def _prepare_out(out: Path, cfg: TrainConfig, overwrite: bool) -> bool:
     return (out / "last.pt").is_file()
 
 
+def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
+    """Load ``cfg.init`` into ``net`` (same architecture and hyper-parameters, else InputError);
+    returns its provenance {path, weights_sha256, its own training record} for the metadata."""
+    from .checkpoint import load_checkpoint
+
+    path = Path(cfg.init)
+    if not path.is_absolute():
+        path = Path(base_dir) / path
+    sd, meta, _ = load_checkpoint(path, cfg.model.name, map_location="cpu")
+    if meta.get("hparams") != hp.model_dump(mode="json"):
+        raise InputError(f"init {str(path)!r}: its hyper-parameters {meta.get('hparams')} differ from model.params "
+                         f"{hp.model_dump(mode='json')}; fine-tuning needs the same network")
+    net.load_state_dict(sd)
+    parent = meta.get("training", {})
+    return {"path": str(cfg.init), "weights_sha256": meta.get("weights_sha256"),
+            "command": parent.get("command"), "config_sha256": parent.get("config_sha256"),
+            "val": parent.get("metrics", {}).get("val")}
+
+
 def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
     """Validation loss and the decoding sweep; returns (loss, outputs, sweep)."""
     import torch
@@ -168,6 +187,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(cfg.optim.warmup_steps, steps * cfg.optim.epochs))
     state = {"epoch": 0, "best_f1": -1.0, "best_epoch": -1, "bad_epochs": 0}
+    init = _initial_weights(cfg, net, hp, base_dir) if cfg.init else None
     if resume:
         sd, meta, payload = load_checkpoint(out / "last.pt", cfg.model.name, map_location=device)
         net.load_state_dict(sd)
@@ -228,6 +248,8 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
                         f"(LOS {rec['val']['los_f1']:.3f}, mNLOS {rec['val']['mnlos_f1']:.3f})")
             tqdm.write(msg)
     data_rec = {**data_rec, "n_train_maps": len(train_set), "n_val_maps": len(val_set)}
+    if init is not None:
+        data_rec = {**data_rec, "init": init}
     return _finish(cfg, out, base_meta, head, val_set, device, history, data_rec, source)
 
 

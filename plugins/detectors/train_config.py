@@ -151,6 +151,8 @@ class TrainConfig(BaseModel):
     export: str | None = Field(None, description="also write the final model to this path")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$")
     threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads (None: torch's default)")
+    init: str | None = Field(None, description="start from the weights of this checkpoint (same architecture "
+                             "and hyper-parameters): fine-tuning, e.g. on whole maps after training on crops")
     data: DataConfig
     model: ModelConfig = Field(default_factory=ModelConfig)
     optim: OptimConfig = Field(default_factory=OptimConfig)
