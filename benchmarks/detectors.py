@@ -153,10 +153,10 @@ def refinement_error(det, frames, mode: str, radius: float) -> dict:
 
     det._load()
     det._head.refine = mode
-    thr, win, _ = det._decode_defaults()
+    thr, win, _, cells = det._decode_defaults()
     outs = [det._output(f) for f in frames]
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
-    return calibrate(outs, det._head, [f.ra_map for f in frames], truths, thr, win, radius)
+    return calibrate(outs, det._head, [f.ra_map for f in frames], truths, thr, win, radius, cells)
 
 
 def main() -> None:

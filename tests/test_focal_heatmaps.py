@@ -103,3 +103,37 @@ def test_binary_and_grid_targets_round_trip_through_the_grid_decoder():
     fr, fc, k, conf = grid_peaks(np.concatenate([out, pos]), (2, 2), 0.5, True, 10)
     order = np.argsort(k)
     np.testing.assert_allclose(np.stack([fr[order], fc[order]], 1), peaks[:, :2], atol=1e-6)
+
+
+def test_window_one_keeps_every_cell_above_threshold_one_class_per_cell():
+    z = np.random.default_rng(0).normal(0.0, 2.0, (2, 12, 10))
+    fr, fc, k, conf = dense_peaks(z, 0.7, (1, 1), False, 10_000, "none", (1, 1))
+    assert len(k) == int((z > np.log(0.7 / 0.3)).sum()) and np.all(np.diff(conf) <= 0)
+    fr, fc, k, conf = dense_peaks(z, 0.7, (1, 1), True, 10_000, "none", (1, 1))
+    r, a = fr.astype(int), fc.astype(int)
+    assert len(set(zip(r, a))) == len(k) == int((z.max(0) > np.log(0.7 / 0.3)).sum())
+    assert np.all(z[k, r, a] == z.max(0)[r, a])
+
+
+def test_resolution_cell_suppression_keeps_the_strongest_peak_of_each_cell():
+    from plugins.detectors.learned import detections_from_output
+    from plugins.detectors.tasks import make_head
+    from xnlos_core.metrics import resolution_cell, resolution_groups
+
+    radar = RadarConfig()
+    ra = RAMap(np.zeros((40, 41), np.complex64), 10.0 + 0.25 * np.arange(40), np.radians(np.linspace(-20, 20, 41)), radar)
+    z = np.full((2, 40, 41), -10.0)
+    z[0, 20, 5:36] = np.linspace(0.5, 3.0, 31)            # an LOS ridge along azimuth (a wall face-on)
+    z[1, 30, 18:21] = [1.0, 2.0, 1.5]                      # one mNLOS blob
+    head = make_head({"kind": "dense", "target": "gaussian", "sigma": [0.7, 1.0]})
+    every = detections_from_output(z, head, ra, 0.5, (1, 1), True, 1000)
+    one = detections_from_output(z, head, ra, 0.5, (1, 1), True, 1000, cells=True)
+    assert len(every) == 34 and np.all(np.diff(one.confidence) <= 0)
+    g_every = resolution_groups(every.position, radar)
+    g_one = resolution_groups(one.position, radar)
+    assert len(np.unique(g_one)) == len(one) == len(np.unique(g_every)) < len(every)
+    for g, c in zip(g_one, one.confidence):   # the kept peak is the most confident of its cell
+        assert c == every.confidence[g_every == g].max()
+    _, daz = resolution_cell(radar)
+    assert np.ptp(one.azimuth[one.label == 0]) > 5 * daz   # the whole ridge, one point per cell along it
+    assert (one.label == 1).sum() == 1

@@ -104,7 +104,8 @@ def _cmd_train(args) -> int:
     v = s["val"]
     print(f"{s['epochs_run']} epoch(s) on {s['device']} ({s['seconds_per_epoch']:.1f} s/epoch), best epoch "
           f"{s['best_epoch']}: validation Macro-F1 {v['macro_f1']:.3f} (LOS {v['los_f1']:.3f}, mNLOS "
-          f"{v['mnlos_f1']:.3f}) at threshold {v['threshold']}; wrote {s['model']}"
+          f"{v['mnlos_f1']:.3f}) at threshold {v['threshold']}, window {v['window']}"
+          f"{', one peak per resolution cell' if v.get('cells') else ''}; wrote {s['model']}"
           + (f" and {s['export']}" if s.get("export") else ""))
     return 0
 

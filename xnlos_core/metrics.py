@@ -205,6 +205,16 @@ def _cell_groups(points: np.ndarray, cell: tuple[float, float], extra: np.ndarra
     return np.unique(keys, axis=0, return_inverse=True)[1].ravel()
 
 
+def resolution_groups(points: np.ndarray, radar: RadarConfig, extra: np.ndarray | None = None) -> np.ndarray:
+    """Group label (K,) of each bird's-eye point (K, 2) [m]: its radar resolution cell
+    (⌊r/δr⌋, ⌊θ/δθ⌋) with (δr, δθ) = :func:`resolution_cell` (and the ``extra`` key, e.g. a class),
+    the cells :func:`thin_to_resolution` reduces ground truth to."""
+    pts = _cloud("points", points)
+    if len(pts) == 0:
+        return np.empty(0, dtype=np.int64)
+    return _cell_groups(pts, resolution_cell(radar), extra)
+
+
 def _group_mean(points: np.ndarray, groups: np.ndarray) -> np.ndarray:
     n = groups.max() + 1 if len(groups) else 0
     out = np.zeros((n, 2))

@@ -6,6 +6,14 @@ greedily by descending confidence, dropping any within the window of a kept one 
 class, or of either class with ``class_nms``: a cell is LOS or mNLOS, not both). Equal logits
 are ordered by raster position, so a plateau yields one peak per window, not one per cell.
 
+Resolution-cell suppression (``cells``, applied by :func:`.learned.detections_from_output` after
+refinement): of the peaks that fall into one radar resolution cell (δr = c/2B in range, the −3 dB
+beamwidth in azimuth: :func:`xnlos_core.metrics.resolution_groups`), only the most confident is
+kept, so a detector reports at most one point per cell and class, the density at which the
+ground truth is defined (:func:`xnlos_core.metrics.thin_to_resolution`). With window (1, 1) every
+cell above threshold is a candidate and the resolution cell alone decides: along an extended echo
+(a wall) the heatmap's ridge then yields one point per cell it crosses.
+
 Sub-bin refinement (the paper's angular upsampling, Sec. 4), per axis, from the peak's two
 neighbours c₋, c₊:
 
@@ -38,6 +46,14 @@ def local_peaks(logits: np.ndarray, threshold: float, window: tuple[int, int], c
     """Integer peaks (rows (K,), cols (K,), class (K,)) of logits (C, H, W), by descending confidence."""
     z = np.asarray(logits, dtype=np.float64)
     zt = np.log(threshold) - np.log1p(-threshold)  # c > threshold ⇔ z > logit(threshold)
+    if tuple(window) == (1, 1):  # every cell above threshold (vectorised; no neighbourhood to suppress)
+        cand = z > zt
+        if class_nms:  # a cell is LOS or mNLOS: the larger logit wins (ties: the lower class)
+            best = np.argmax(z, axis=0)
+            cand &= np.arange(z.shape[0])[:, None, None] == best[None]
+        k, r, a = np.nonzero(cand)
+        order = np.argsort(-z[k, r, a], kind="stable")[:max_peaks]
+        return r[order], a[order], k[order]
     # Ties (plateaus) broken by raster order: a ramp far below any meaningful logit difference.
     ramp = np.arange(z[0].size, dtype=np.float64).reshape(z.shape[1:]) * (1e-12 * max(1.0, float(np.abs(z).max())))
     zr = z + ramp
@@ -61,6 +77,17 @@ def local_peaks(logits: np.ndarray, threshold: float, window: tuple[int, int], c
             break
     keep = np.asarray(keep, dtype=np.int64)
     return r[keep], a[keep], k[keep]
+
+
+def one_per_cell(groups: np.ndarray, confidence: np.ndarray) -> np.ndarray:
+    """Indices (ascending) of the most confident peak of each group (e.g. each radar resolution
+    cell, :func:`xnlos_core.metrics.resolution_groups`); ties: the earlier peak."""
+    groups = np.asarray(groups)
+    if len(groups) == 0:
+        return np.empty(0, dtype=np.int64)
+    order = np.argsort(-np.asarray(confidence, dtype=np.float64), kind="stable")
+    _, first = np.unique(groups[order], return_index=True)
+    return np.sort(order[first])
 
 
 def refine(logits: np.ndarray, rows: np.ndarray, cols: np.ndarray, label: np.ndarray, mode: str,

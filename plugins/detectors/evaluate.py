@@ -34,29 +34,33 @@ def summarize(per_map: list[dict]) -> dict[str, float]:
 
 def sweep_decoding(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[GroundTruth],
                    thresholds: list[float], windows: list[tuple[int, int]], radius: float,
-                   max_detections: int = 1000) -> dict[str, Any]:
-    """Per-class thresholds and the window that maximise Macro-F1 on these maps.
+                   max_detections: int = 1000, cells: tuple[bool, ...] = (False, True)) -> dict[str, Any]:
+    """Per-class thresholds, the window and the resolution-cell suppression (:mod:`.decode`) that
+    maximise Macro-F1 on these maps.
 
     LOS F1 depends only on LOS detections and mNLOS F1 only on mNLOS ones, so each class gets its
-    own best threshold; the window is shared. Returns {"best": {threshold: [t_LOS, t_mNLOS],
-    window, los_f1, mnlos_f1, macro_f1, CDs …}, "grid": [per (window, threshold) rows]}.
+    own best threshold; window and ``cells`` are shared. Suppression keeps the most confident peak
+    of a cell, so it too commutes with the threshold. Returns {"best": {threshold: [t_LOS,
+    t_mNLOS], window, cells, los_f1, mnlos_f1, macro_f1, CDs …}, "grid": [per (window, cells,
+    threshold) rows]}.
     """
     grid, candidates = [], []
     windows = windows if head.describe()["kind"] == "dense" else [tuple(windows[0])]
     for win in windows:
-        dets = [detections_from_output(o, head, m, min(thresholds), tuple(win), True, max_detections)
-                for o, m in zip(outputs, maps)]
-        rows = []
-        for t in thresholds:
-            per_map = [dense_metrics(d.select(d.confidence > t), g, radius) for d, g in zip(dets, truths)]
-            rows.append({"threshold": t, "window": list(win), **summarize(per_map)})
-        grid.extend(rows)
-        bl = max(rows, key=lambda r: (r["los_f1"], -r["threshold"]))
-        bm = max(rows, key=lambda r: (r["mnlos_f1"], -r["threshold"]))
-        per_map = [dense_metrics(select_per_class(d, (bl["threshold"], bm["threshold"])), g, radius)
-                   for d, g in zip(dets, truths)]
-        candidates.append({"threshold": [bl["threshold"], bm["threshold"]], "window": list(win),
-                           **summarize(per_map)})
+        for cell in cells:
+            dets = [detections_from_output(o, head, m, min(thresholds), tuple(win), True, max_detections, cells=cell)
+                    for o, m in zip(outputs, maps)]
+            rows = []
+            for t in thresholds:
+                per_map = [dense_metrics(d.select(d.confidence > t), g, radius) for d, g in zip(dets, truths)]
+                rows.append({"threshold": t, "window": list(win), "cells": cell, **summarize(per_map)})
+            grid.extend(rows)
+            bl = max(rows, key=lambda r: (r["los_f1"], -r["threshold"]))
+            bm = max(rows, key=lambda r: (r["mnlos_f1"], -r["threshold"]))
+            per_map = [dense_metrics(select_per_class(d, (bl["threshold"], bm["threshold"])), g, radius)
+                       for d, g in zip(dets, truths)]
+            candidates.append({"threshold": [bl["threshold"], bm["threshold"]], "window": list(win), "cells": cell,
+                               **summarize(per_map)})
     best = max(candidates, key=lambda r: r["macro_f1"])
     return {"best": best, "grid": grid}
 
@@ -68,12 +72,13 @@ def select_per_class(det: Detections, thresholds: tuple[float, float]) -> Detect
 
 
 def calibrate(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[GroundTruth],
-              threshold: tuple[float, float], window: tuple[int, int], radius: float) -> dict[str, float]:
+              threshold: tuple[float, float], window: tuple[int, int], radius: float,
+              cells: bool = False) -> dict[str, float]:
     """RMS position error [cells] per axis of detections matched to ground truth (same class,
     within ``radius``): the standard deviations the detector reports. 1/√12 cell when no match."""
     res_r, res_a = [], []
     for o, m, g in zip(outputs, maps, truths):
-        det = detections_from_output(o, head, m, threshold, window, True, 1000)
+        det = detections_from_output(o, head, m, threshold, window, True, 1000, cells=cells)
         cells = peak_cells(m, g, thin=False)
         ir, ia = np.arange(m.shape[0]), np.arange(m.shape[1])
         dr = np.interp(det.range, m.range_axis, ir)

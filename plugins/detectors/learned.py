@@ -45,6 +45,8 @@ class LearnedParams(BaseModel):
                           "values tuned on the validation split (checkpoint)")
     window: tuple[int, int] | None = Field(None, description="peak neighbourhood (range, azimuth) [cells], odd; "
                                                             "None: the checkpoint's")
+    cells: bool | None = Field(None, description="keep only the most confident peak per radar resolution cell "
+                                                 "(decode module doc); None: the checkpoint's choice")
     class_nms: bool = Field(True, description="suppress a weaker peak of the other class within the window")
     max_detections: int = Field(1000, ge=1, le=100_000, description="keep at most this many peaks")
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
@@ -104,19 +106,21 @@ def run_network(net, features: np.ndarray, device, threads: int | None = None) -
 
 
 def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, window: tuple[int, int],
-                           class_nms: bool, max_detections: int, calibration: dict[str, float] | None = None
-                           ) -> Detections:
+                           class_nms: bool, max_detections: int, calibration: dict[str, float] | None = None,
+                           cells: bool = False) -> Detections:
     """Detections of one raw network output (see :mod:`.tasks`) on the grid of ``ra_map``.
 
     threshold: one confidence threshold, or (LOS, mNLOS) thresholds (peaks are found at the lower
-    one, then each class keeps those reaching its own)."""
+    one, then each class keeps those reaching its own). cells: keep the most confident peak per
+    radar resolution cell (and class; of both classes with ``class_nms``), see :mod:`.decode`.
+    Ordered by descending confidence, at most ``max_detections``."""
     thr = (float(threshold),) * 2 if np.ndim(threshold) == 0 else (float(threshold[0]), float(threshold[1]))
     h, w = ra_map.shape
     if out.ndim != 3:
         raise InputError(f"network output: expected (channels, H, W), got shape {out.shape}")
     if head.describe()["kind"] == "dense":
         out = out[:, :h, :w]
-    fr, fc, k, conf = head.peaks(out, min(thr), tuple(window), class_nms, max_detections)
+    fr, fc, k, conf = head.peaks(out, min(thr), tuple(window), class_nms, h * w * 2 if cells else max_detections)
     inside = (fr > -0.5) & (fr < h - 0.5) & (fc > -0.5) & (fc < w - 0.5) & (conf > np.asarray(thr)[k])
     fr, fc, k, conf = np.clip(fr[inside], 0, h - 1), np.clip(fc[inside], 0, w - 1), k[inside], conf[inside]
     ir, ia = np.arange(h), np.arange(w)
@@ -127,7 +131,16 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     da = np.interp(fc, ia, np.gradient(ra_map.azimuth_axis))
     rs = cal.get("range_cells", UNIFORM_STD) * dr
     azs = cal.get("azimuth_cells", UNIFORM_STD) * da
-    return Detections(rng, az, k.astype(np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+    det = Detections(rng, az, k.astype(np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+    if cells and len(rng):
+        from xnlos_core.metrics import resolution_groups
+
+        from .decode import one_per_cell
+
+        keep = one_per_cell(resolution_groups(det.position, ra_map.radar, None if class_nms else k), conf)
+        keep = keep[np.argsort(-conf[keep], kind="stable")][:max_detections]
+        det = det.select(keep)
+    return det
 
 
 class LearnedDetector(Detector):
@@ -174,12 +187,14 @@ class LearnedDetector(Detector):
         self._load()
         return self._meta
 
-    def _decode_defaults(self) -> tuple[tuple[float, float], tuple[int, int], dict]:
+    def _decode_defaults(self) -> tuple[tuple[float, float], tuple[int, int], dict, bool]:
+        """(thresholds, window, calibration, cells): the parameters', else the checkpoint's."""
         dec = self._meta.get("decode", {})
         thr = self.params.threshold if self.params.threshold is not None else dec.get("threshold", 0.3)
         thr = (float(thr),) * 2 if np.ndim(thr) == 0 else (float(thr[0]), float(thr[1]))
         win = self.params.window if self.params.window is not None else tuple(dec.get("window", (1, 3)))
-        return thr, tuple(win), dec.get("calibration", {})
+        cells = self.params.cells if self.params.cells is not None else bool(dec.get("cells", False))
+        return thr, tuple(win), dec.get("calibration", {}), cells
 
     def _output(self, frame: Frame) -> np.ndarray:
         from .features import ra_features
@@ -206,9 +221,9 @@ class LearnedDetector(Detector):
     def detect(self, frame: Frame) -> Detections:
         """Detections of ``frame``, ordered by descending confidence (an empty map may give none)."""
         out = self._output(frame)
-        thr, win, cal = self._decode_defaults()
+        thr, win, cal, cells = self._decode_defaults()
         return detections_from_output(out, self._head, frame.ra_map, thr, win, self.params.class_nms,
-                                      self.params.max_detections, cal)
+                                      self.params.max_detections, cal, cells)
 
 
 class SwinUNetDetector(LearnedDetector):

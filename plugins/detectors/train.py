@@ -229,7 +229,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
             rec.update(val_loss=val_loss, val=best, val_seconds=time.perf_counter() - t0 - train_s)
             if best["macro_f1"] > state["best_f1"]:
                 state.update(best_f1=best["macro_f1"], best_epoch=epoch, bad_epochs=0)
-                dec = {"threshold": best["threshold"], "window": best["window"]}
+                dec = {"threshold": best["threshold"], "window": best["window"], "cells": best["cells"]}
                 save_checkpoint(out / "best.pt", net, {**base_meta, "decode": dec,
                                                        "training": {"epoch": epoch, "val": best}})
             else:
@@ -265,7 +265,8 @@ def _finish(cfg, out: Path, base_meta, head, val_set, device, history, data_rec,
     val_loss, outputs, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
     best = sweep["best"]
     win = tuple(best["window"])
-    cal = calibrate(outputs, head, val_set.maps, val_set.truths, best["threshold"], win, cfg.data.match_radius)
+    cal = calibrate(outputs, head, val_set.maps, val_set.truths, best["threshold"], win, cfg.data.match_radius,
+                    best["cells"])
     epochs = [r for r in history if "train_seconds" in r]
     training = {
         "config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest(), "config_file": source,
@@ -277,7 +278,7 @@ def _finish(cfg, out: Path, base_meta, head, val_set, device, history, data_rec,
     }
     n_params = sum(p.numel() for p in net.parameters())
     final = {**base_meta, "n_parameters": n_params, "training": training,
-             "decode": {"threshold": best["threshold"], "window": list(win), "calibration": cal}}
+             "decode": {"threshold": best["threshold"], "window": list(win), "cells": best["cells"], "calibration": cal}}
     save_checkpoint(out / "model.pt", net, final)
     if cfg.export:
         dest = Path(cfg.export)
