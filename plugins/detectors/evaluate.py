@@ -39,28 +39,31 @@ def sweep_decoding(outputs: list[np.ndarray], head, maps: list[RAMap], truths: l
     maximise Macro-F1 on these maps.
 
     LOS F1 depends only on LOS detections and mNLOS F1 only on mNLOS ones, so each class gets its
-    own best threshold; window and ``cells`` are shared. Suppression keeps the most confident peak
-    of a cell, so it too commutes with the threshold. Returns {"best": {threshold: [t_LOS,
+    own best threshold; window and ``cells`` are shared (suppression is tried with every window and
+    with (1, 1) for a dense head). Suppression keeps the most confident peak of a cell, so it too
+    commutes with the threshold. Returns {"best": {threshold: [t_LOS,
     t_mNLOS], window, cells, los_f1, mnlos_f1, macro_f1, CDs …}, "grid": [per (window, cells,
     threshold) rows]}.
     """
     grid, candidates = [], []
-    windows = windows if head.describe()["kind"] == "dense" else [tuple(windows[0])]
-    for win in windows:
-        for cell in cells:
-            dets = [detections_from_output(o, head, m, min(thresholds), tuple(win), True, max_detections, cells=cell)
-                    for o, m in zip(outputs, maps)]
-            rows = []
-            for t in thresholds:
-                per_map = [dense_metrics(d.select(d.confidence > t), g, radius) for d, g in zip(dets, truths)]
-                rows.append({"threshold": t, "window": list(win), "cells": cell, **summarize(per_map)})
-            grid.extend(rows)
-            bl = max(rows, key=lambda r: (r["los_f1"], -r["threshold"]))
-            bm = max(rows, key=lambda r: (r["mnlos_f1"], -r["threshold"]))
-            per_map = [dense_metrics(select_per_class(d, (bl["threshold"], bm["threshold"])), g, radius)
-                       for d, g in zip(dets, truths)]
-            candidates.append({"threshold": [bl["threshold"], bm["threshold"]], "window": list(win), "cells": cell,
-                               **summarize(per_map)})
+    windows = [tuple(w) for w in windows] if head.describe()["kind"] == "dense" else [tuple(windows[0])]
+    settings = [(w, c) for w in windows for c in cells]
+    if True in cells and head.describe()["kind"] == "dense" and (1, 1) not in windows:
+        settings.append(((1, 1), True))  # every cell above threshold, one per resolution cell
+    for win, cell in settings:
+        dets = [detections_from_output(o, head, m, min(thresholds), tuple(win), True, max_detections, cells=cell)
+                for o, m in zip(outputs, maps)]
+        rows = []
+        for t in thresholds:
+            per_map = [dense_metrics(d.select(d.confidence > t), g, radius) for d, g in zip(dets, truths)]
+            rows.append({"threshold": t, "window": list(win), "cells": cell, **summarize(per_map)})
+        grid.extend(rows)
+        bl = max(rows, key=lambda r: (r["los_f1"], -r["threshold"]))
+        bm = max(rows, key=lambda r: (r["mnlos_f1"], -r["threshold"]))
+        per_map = [dense_metrics(select_per_class(d, (bl["threshold"], bm["threshold"])), g, radius)
+                   for d, g in zip(dets, truths)]
+        candidates.append({"threshold": [bl["threshold"], bm["threshold"]], "window": list(win), "cells": cell,
+                           **summarize(per_map)})
     best = max(candidates, key=lambda r: r["macro_f1"])
     return {"best": best, "grid": grid}
 
@@ -79,7 +82,7 @@ def calibrate(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[G
     res_r, res_a = [], []
     for o, m, g in zip(outputs, maps, truths):
         det = detections_from_output(o, head, m, threshold, window, True, 1000, cells=cells)
-        cells = peak_cells(m, g, thin=False)
+        gt_cells = peak_cells(m, g, thin=False)
         ir, ia = np.arange(m.shape[0]), np.arange(m.shape[1])
         dr = np.interp(det.range, m.range_axis, ir)
         da = np.interp(det.azimuth, m.azimuth_axis, ia)
@@ -90,7 +93,7 @@ def calibrate(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[G
             if not sel.any() or len(pts) == 0:
                 continue
             pi, gi = match_points(det.position[sel], pts, radius)
-            gcell = cells[cells[:, 2] == label]
+            gcell = gt_cells[gt_cells[:, 2] == label]
             if len(gcell) != len(pts):  # points outside the map were dropped: skip this class
                 continue
             res_r.extend(dr[sel][pi] - gcell[gi, 0])

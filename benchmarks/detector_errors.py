@@ -1,0 +1,194 @@
+"""Where dense detectors go wrong: every miss and false alarm sorted by cause (not a test).
+
+    .venv/bin/python benchmarks/detector_errors.py [--dataset out/data/default] [--split test]
+        [--max-maps 60] [--detectors swin_unet,unet] [--out benchmarks/detector_errors.md]
+        [--figure benchmarks/detector_errors.png]
+
+Per class (LOS, mNLOS), each ground-truth point (thinned to resolution cells, as scored) that no
+detection of its class matches within the radius is a **miss**, and each unmatched detection a
+**false alarm**. Causes, tested in this order:
+
+* miss: *wrong class* (a detection of the other class within the radius), *displaced* (a
+  detection of its class within 2.5 radii, already matched elsewhere or too far), *missed*.
+* false alarm: *wrong class* (ground truth of the other class within the radius), *displaced or
+  duplicate* (ground truth of its class within 2.5 radii), *multipath* (within 1.5 m of an echo
+  the ground truth leaves out by design: two or more mirrors, or out along one chain and back along
+  another, with path SNR > 5 dB; found by re-tracing the frame's scene, ``raytrace`` datasets
+  only), *other* (noise, sidelobes, echoes below the ground truth's SNR threshold).
+
+Two ceilings that no detector can beat are printed as well: the F1 between the ground truth and
+itself thinned on a grid shifted by half a resolution cell (thinning picks one point per cell, so
+where a cell boundary falls is arbitrary), per class.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+CAUSES_MISS = ("wrong class", "displaced", "missed")
+CAUSES_FA = ("wrong class", "displaced or duplicate", "multipath", "other")
+
+
+def _near(points: np.ndarray, p: np.ndarray, radius: float) -> bool:
+    return len(points) > 0 and float(np.min(np.linalg.norm(points - p, axis=1))) < radius
+
+
+def multipath_echoes(frame, fm) -> np.ndarray:
+    """(K, 2) apparent positions [m] of the frame's echoes that are not ground truth (re-traced)."""
+    from sims.generators import generate_scene
+    from sims.propagation import ra_snr_db
+
+    meta = frame.meta or {}
+    if meta.get("forward_model") != "raytrace" or "scene_seed" not in meta:
+        return np.empty((0, 2))
+    scene = generate_scene(meta["family"], int(meta["scene_seed"]))
+    _, paths, _, _ = fm.trace(scene, frame.ra_map.radar, frame.timestamp)
+    a = paths.arrays()
+    if not len(a.get("length", [])):
+        return np.empty((0, 2))
+    keep = (a["kind"] == 2) & (ra_snr_db(frame.ra_map.radar, a["power"]) > 5.0)
+    return a["pos"][keep]
+
+
+def errors(det, frames, fm, radius: float) -> dict:
+    """Counts {class: {"tp", "gt", "pred", "miss": {cause: n}, "fa": {cause: n}}} over ``frames``."""
+    from xnlos_core.metrics import match_points, thin_to_resolution
+    from xnlos_core.types import LOS, MNLOS
+
+    out = {c: {"tp": 0, "gt": 0, "pred": 0, "miss": dict.fromkeys(CAUSES_MISS, 0), "fa": dict.fromkeys(CAUSES_FA, 0)}
+           for c in ("los", "mnlos")}
+    for f in frames:
+        d = det.detect(f)
+        g = thin_to_resolution(f.ground_truth, f.ra_map.radar)
+        clutter = None
+        for c, label, mine, other in (("los", LOS, g.los_points, g.mnlos_points),
+                                      ("mnlos", MNLOS, g.mnlos_points, g.los_points)):
+            pred, rest = d.position[d.label == label], d.position[d.label != label]
+            pi, gi = match_points(pred, mine, radius)
+            s = out[c]
+            s["tp"] += len(pi)
+            s["gt"] += len(mine)
+            s["pred"] += len(pred)
+            for i in np.setdiff1d(np.arange(len(mine)), gi):
+                cause = ("wrong class" if _near(rest, mine[i], radius) else
+                         "displaced" if _near(pred, mine[i], 2.5 * radius) else "missed")
+                s["miss"][cause] += 1
+            for i in np.setdiff1d(np.arange(len(pred)), pi):
+                if _near(other, pred[i], radius):
+                    cause = "wrong class"
+                elif _near(mine, pred[i], 2.5 * radius):
+                    cause = "displaced or duplicate"
+                else:
+                    if clutter is None:
+                        clutter = multipath_echoes(f, fm)
+                    cause = "multipath" if _near(clutter, pred[i], 1.5) else "other"
+                s["fa"][cause] += 1
+    return out
+
+
+def grid_ceiling(frames, shift: tuple[float, float] = (0.5, 0.5)) -> dict[str, float]:
+    """Mean F1 (LOS, mNLOS) of the thinned ground truth against itself thinned on a grid shifted by
+    ``shift`` resolution cells (range, azimuth): what a detector that cannot know the cell grid loses."""
+    import xnlos_core.metrics as M
+
+    original = M._cell_groups
+
+    def shifted(points, cell, extra=None):
+        r, a = M.cartesian_to_polar(points)
+        keys = [np.floor(r / cell[0] + shift[0]), np.floor(a / cell[1] + shift[1])] + ([] if extra is None else [extra])
+        return np.unique(np.stack(keys, -1), axis=0, return_inverse=True)[1].ravel()
+
+    f1 = {"los": [], "mnlos": []}
+    for f in frames:
+        g0 = M.thin_to_resolution(f.ground_truth, f.ra_map.radar)
+        M._cell_groups = shifted
+        try:
+            g1 = M.thin_to_resolution(f.ground_truth, f.ra_map.radar)
+        finally:
+            M._cell_groups = original
+        f1["los"].append(M.f1_score(g1.los_points, g0.los_points, 1.0)["f1"])
+        f1["mnlos"].append(M.f1_score(g1.mnlos_points, g0.mnlos_points, 1.0)["f1"])
+    return {k: float(np.mean(v)) for k, v in f1.items()}
+
+
+def figure(res: dict, path: str) -> None:
+    from xnlos_core.figures import save_png
+
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 1.4 + 0.8 * len(res)), sharey=True)
+    colours = plt.get_cmap("tab10").colors
+    for ax, (kind, causes, title) in zip(axes, (("miss", CAUSES_MISS, "misses (share of ground truth)"),
+                                                ("fa", CAUSES_FA, "false alarms (share of detections)"))):
+        labels, y = [], 0
+        for name, r in res.items():
+            for c in ("los", "mnlos"):
+                s, left = r[c], 0.0
+                total = s["gt"] if kind == "miss" else s["pred"]
+                for k, cause in enumerate(causes):
+                    w = s[kind][cause] / max(total, 1)
+                    ax.barh(y, w, left=left, color=colours[k], label=cause if y == 0 else None)
+                    left += w
+                labels.append(f"{name} {c}")
+                y += 1
+        ax.set_yticks(range(len(labels)), labels)
+        ax.set_title(title)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=len(causes), fontsize=8, frameon=False)
+    fig.tight_layout()
+    save_png(fig, path)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dataset", default="out/data/default")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--max-maps", type=int, default=60)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--radius", type=float, default=1.0)
+    ap.add_argument("--detectors", default="swin_unet,unet")
+    ap.add_argument("--out", default=None, help="also write the Markdown report here")
+    ap.add_argument("--figure", default=None, help="PNG of the error shares")
+    args = ap.parse_args()
+
+    import torch
+
+    from sims.dataset import open_dataset
+    from xnlos_core.registry import get_registry
+
+    torch.set_num_threads(args.threads)
+    ds = open_dataset(args.dataset, args.split)
+    frames = [f for _, f in zip(range(args.max_maps or len(ds)), ds)]
+    reg = get_registry()
+    fm = reg.create("forward_model", "raytrace", {})
+    res = {name: errors(reg.create("detector", name, {}), frames, fm, args.radius)
+           for name in args.detectors.split(",")}
+    ceiling = grid_ceiling(frames)
+
+    lines = [f"# Detector errors by cause ({args.dataset}, {args.split}: first {len(frames)} maps, "
+             f"match radius {args.radius} m)", "", "Counts pooled over the maps (the module doc of "
+             "`benchmarks/detector_errors.py` defines each cause).", "",
+             "| detector | class | ground truth | detections | matched | misses: " + " / ".join(CAUSES_MISS) +
+             " | false alarms: " + " / ".join(CAUSES_FA) + " |", "|---|---|---|---|---|---|---|"]
+    for name, r in res.items():
+        for c in ("los", "mnlos"):
+            s = r[c]
+            lines.append(f"| {name} | {c} | {s['gt']} | {s['pred']} | {s['tp']} | "
+                         f"{' / '.join(str(s['miss'][k]) for k in CAUSES_MISS)} | "
+                         f"{' / '.join(str(s['fa'][k]) for k in CAUSES_FA)} |")
+    lines += ["", f"Grid ceiling: the ground truth thinned on a grid shifted by half a resolution cell scores "
+              f"F1 {ceiling['los']:.3f} (LOS) and {ceiling['mnlos']:.3f} (mNLOS) against itself."]
+    if args.figure:
+        figure(res, args.figure)
+        lines += ["", f"![errors by cause]({Path(args.figure).name})"]
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.out:
+        from xnlos_core.io import atomic_write_text
+
+        atomic_write_text(args.out, text)
+
+
+if __name__ == "__main__":
+    main()
