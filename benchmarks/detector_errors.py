@@ -91,25 +91,14 @@ def errors(det, frames, fm, radius: float) -> dict:
 def grid_ceiling(frames, shift: tuple[float, float] = (0.5, 0.5)) -> dict[str, float]:
     """Mean F1 (LOS, mNLOS) of the thinned ground truth against itself thinned on a grid shifted by
     ``shift`` resolution cells (range, azimuth): what a detector that cannot know the cell grid loses."""
-    import xnlos_core.metrics as M
-
-    original = M._cell_groups
-
-    def shifted(points, cell, extra=None):
-        r, a = M.cartesian_to_polar(points)
-        keys = [np.floor(r / cell[0] + shift[0]), np.floor(a / cell[1] + shift[1])] + ([] if extra is None else [extra])
-        return np.unique(np.stack(keys, -1), axis=0, return_inverse=True)[1].ravel()
+    from xnlos_core.metrics import f1_score, thin_to_resolution
 
     f1 = {"los": [], "mnlos": []}
     for f in frames:
-        g0 = M.thin_to_resolution(f.ground_truth, f.ra_map.radar)
-        M._cell_groups = shifted
-        try:
-            g1 = M.thin_to_resolution(f.ground_truth, f.ra_map.radar)
-        finally:
-            M._cell_groups = original
-        f1["los"].append(M.f1_score(g1.los_points, g0.los_points, 1.0)["f1"])
-        f1["mnlos"].append(M.f1_score(g1.mnlos_points, g0.mnlos_points, 1.0)["f1"])
+        g0 = thin_to_resolution(f.ground_truth, f.ra_map.radar)
+        g1 = thin_to_resolution(f.ground_truth, f.ra_map.radar, shift)
+        f1["los"].append(f1_score(g1.los_points, g0.los_points, 1.0)["f1"])
+        f1["mnlos"].append(f1_score(g1.mnlos_points, g0.mnlos_points, 1.0)["f1"])
     return {k: float(np.mean(v)) for k, v in f1.items()}
 
 

@@ -144,3 +144,19 @@ def test_scene_metrics_score_the_complete_reflected_cloud():
     empty = scene_metrics(Detections.empty(), np.empty((0, 2)),
                           GroundTruth(), radius=1.0)
     assert empty["f1"] == 1.0 and empty["cd"] == 0.0
+
+
+def test_thinning_grid_shift_moves_cell_boundaries_only():
+    from xnlos_core.metrics import resolution_cell, thin_to_resolution
+    from xnlos_core.radar import RadarConfig
+    from xnlos_core.types import GroundTruth
+
+    radar = RadarConfig()
+    dr, _ = resolution_cell(radar)
+    r = 20.0 + dr * np.array([0.1, 0.4, 0.6, 0.9])        # two points in each half of one range cell
+    los = np.stack([r, np.zeros_like(r)], 1)
+    gt = GroundTruth(los, np.empty((0, 2)), np.empty((0, 2)), np.empty(0, np.int64), (), ())
+    assert len(thin_to_resolution(gt, radar).los_points) == 1
+    assert len(thin_to_resolution(gt, radar, (0.5, 0.0)).los_points) == 2
+    np.testing.assert_allclose(thin_to_resolution(gt, radar, (1.0, 1.0)).los_points,
+                               thin_to_resolution(gt, radar).los_points)

@@ -198,10 +198,13 @@ def resolution_cell(radar: RadarConfig) -> tuple[float, float]:
     return radar.range_resolution, float(beam_metrics(radar)["beamwidth_3db"])
 
 
-def _cell_groups(points: np.ndarray, cell: tuple[float, float], extra: np.ndarray | None = None) -> np.ndarray:
-    """Group label (K,) of each point's (range, azimuth) resolution cell (and ``extra`` key)."""
+def _cell_groups(points: np.ndarray, cell: tuple[float, float], extra: np.ndarray | None = None,
+                 shift: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """Group label (K,) of each point's (range, azimuth) resolution cell (and ``extra`` key); the
+    grid is offset by ``shift`` cells (range, azimuth)."""
     r, a = cartesian_to_polar(points)
-    keys = np.stack([np.floor(r / cell[0]), np.floor(a / cell[1])] + ([] if extra is None else [extra]), -1)
+    keys = [np.floor(r / cell[0] + shift[0]), np.floor(a / cell[1] + shift[1])]
+    keys = np.stack(keys + ([] if extra is None else [extra]), -1)
     return np.unique(keys, axis=0, return_inverse=True)[1].ravel()
 
 
@@ -229,24 +232,26 @@ def _group_max(values: np.ndarray, groups: np.ndarray) -> np.ndarray:
     return out
 
 
-def thin_to_resolution(ground_truth: GroundTruth, radar: RadarConfig) -> GroundTruth:
+def thin_to_resolution(ground_truth: GroundTruth, radar: RadarConfig,
+                       shift: tuple[float, float] = (0.0, 0.0)) -> GroundTruth:
     """Ground truth at the density a radar can resolve: one point (the mean) per resolution cell.
 
     Simulators list scatterers every few centimetres; scoring detections against all of them
     would make recall meaningless. LOS points are grouped by their (range, azimuth) cell;
     mNLOS points by their cell and object, with their hidden points averaged alike (Eq. 7 is
     affine, so the mean hidden point is the mirror of the mean virtual point). A cell's SNR is
-    the largest of its points'.
+    the largest of its points'. ``shift`` offsets the cell grid by that many cells (range,
+    azimuth); the scored ground truth uses (0, 0).
     """
     cell = resolution_cell(radar)
     gt = ground_truth
     los, los_snr = gt.los_points, gt.los_snr_db
     if len(los):
-        g = _cell_groups(los, cell)
+        g = _cell_groups(los, cell, shift=shift)
         los, los_snr = _group_mean(los, g), _group_max(los_snr, g)
     m, h, obj, m_snr = gt.mnlos_points, gt.hidden_points, gt.mnlos_object, gt.mnlos_snr_db
     if len(m):
-        g = _cell_groups(m, cell, obj)
+        g = _cell_groups(m, cell, obj, shift)
         m, h, m_snr = _group_mean(m, g), _group_mean(h, g), _group_max(m_snr, g)
         first = np.zeros(g.max() + 1, dtype=np.int64)
         first[g[::-1]] = np.arange(len(g))[::-1]
