@@ -209,3 +209,22 @@ def test_shipped_swin_unet_finds_the_corner_scene_echoes(detectors):
     det = detectors["swin_unet"].detect(frame)
     m = dense_metrics(det, thin_to_resolution(frame.ground_truth, radar), 1.0)
     assert m["los"]["f1"] > 0.3
+
+
+def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path):
+    from plugins.detectors.nets.swin_unet import SwinUNet, SwinUNetParams, count_parameters
+
+    base = dict(TINY["swin_unet"])
+    one, two = SwinUNet(SwinUNetParams(**base)), SwinUNet(SwinUNetParams(**base, decoder_convs=2))
+    s0, s1 = base["stem_channels"], base["head_channels"]
+    # one extra 3×3 conv (no bias) + BatchNorm (weight, bias) at full and at half resolution
+    assert count_parameters(two) - count_parameters(one) == 9 * s0 * s0 + 2 * s0 + 9 * s1 * s1 + 2 * s1
+    x = torch.randn(1, 4, 8, 8)
+    assert two.eval()(x).shape == (1, 2, 8, 8)
+    # a checkpoint written before the field existed (no "decoder_convs" in its hparams) loads as 1
+    _tiny_checkpoint(tmp_path / "a.pt", "swin_unet")
+    sd, meta, _ = load_checkpoint(tmp_path / "a.pt")
+    del meta["hparams"]["decoder_convs"]
+    save_checkpoint(tmp_path / "old.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
+    det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "old.pt"), "device": "cpu"})
+    assert isinstance(det.detect(synthetic_frame(SMALL)), Detections)

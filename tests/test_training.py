@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from plugins.detectors.checkpoint import load_checkpoint
+from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
 from plugins.detectors.data import MapSet
 from plugins.detectors.features import ra_features
 from plugins.detectors.heatmaps import peak_cells
@@ -156,3 +156,8 @@ def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network
     with pytest.raises(InputError, match="missing.pt"):
         train(parse_train_config({**tune, "out": str(tmp_path / "d"), "init": str(tmp_path / "missing.pt")}),
               progress=False)
+    # a parent written before a hyper-parameter existed (here decoder_convs) counts with the default
+    meta_old = {k: v for k, v in meta_a.items() if k != "weights_sha256"}
+    meta_old["hparams"] = {k: v for k, v in meta_a["hparams"].items() if k != "decoder_convs"}
+    save_checkpoint(tmp_path / "old.pt", sd_a, meta_old)
+    train(parse_train_config({**tune, "out": str(tmp_path / "e"), "init": str(tmp_path / "old.pt")}), progress=False)

@@ -124,7 +124,11 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     if not path.is_absolute():
         path = Path(base_dir) / path
     sd, meta, _ = load_checkpoint(path, cfg.model.name, map_location="cpu")
-    if meta.get("hparams") != hp.model_dump(mode="json"):
+    try:  # fields added since the parent was made take their defaults, as when the parent is loaded
+        parent_hp = type(hp).model_validate(meta.get("hparams") or {}).model_dump(mode="json")
+    except ValueError:
+        parent_hp = meta.get("hparams")
+    if parent_hp != hp.model_dump(mode="json"):
         raise InputError(f"init {str(path)!r}: its hyper-parameters {meta.get('hparams')} differ from model.params "
                          f"{hp.model_dump(mode='json')}; fine-tuning needs the same network")
     net.load_state_dict(sd)

@@ -7,8 +7,9 @@ a learned relative-position bias) followed by patch merging (2×2 → 2C). Decod
 Swin blocks. Our addition (a hybrid, as in TransUNet): the patch embedding sits on a small
 convolutional stem — conv-BN-ReLU at full and at half resolution — whose two feature maps are
 skips for the last two decoder steps (patch expanding to half resolution, fusion, transposed-conv
-up-sampling to full resolution, fusion). A pure ×4 patch embedding loses the sub-cell peak shape
-that the Gaussian targets and the refinement rely on (Sec. 4, angular upsampling); with the stem
+up-sampling to full resolution, fusion; each fusion ``decoder_convs`` 3×3 conv-BN-ReLU). A pure
+×4 patch embedding loses the sub-cell peak shape that the Gaussian targets and the refinement
+rely on (Sec. 4, angular upsampling); with the stem
 the transformer still sees every cell's context at 1/p resolution. A 3×3 projection to two
 channels is the head (the paper's linear layer with a 3×3 support); the Sigmoid is applied by the
 loss / detector.
@@ -39,6 +40,8 @@ class SwinUNetParams(BaseModel):
     mlp_ratio: float = Field(2.0, gt=0, le=8, description="MLP hidden width / channels")
     stem_channels: int = Field(8, ge=1, le=128, description="conv stem channels at full resolution")
     head_channels: int = Field(16, ge=1, le=128, description="conv stem / decoder channels at half resolution")
+    decoder_convs: int = Field(1, ge=1, le=4, description="3×3 conv-BN-ReLU per full- and half-resolution "
+                                                           "decoder step (2: the UNet unit)")
 
     def model_post_init(self, _ctx) -> None:
         if len(self.depths) != len(self.heads):
@@ -198,9 +201,9 @@ class SwinUNet(nn.Module):
         self.fuse = nn.ModuleList(nn.Linear(2 * c * 2**i, c * 2**i) for i in range(n - 1))
         self.decoder = nn.ModuleList(_stage(c * 2**i, hp.depths[i], hp.heads[i], win, hp.mlp_ratio) for i in range(n - 1))
         self.final_expand = PatchExpand(c, s1, half)
-        self.fuse1 = conv_bn(2 * s1, s1)
+        self.fuse1 = _fuse(2 * s1, s1, hp.decoder_convs)
         self.up0 = nn.ConvTranspose2d(s1, s0, 2, stride=2)
-        self.fuse0 = conv_bn(2 * s0, s0)
+        self.fuse0 = _fuse(2 * s0, s0, hp.decoder_convs)
         self.head = nn.Conv2d(s0, 2, 3, padding=1)
         head_bias_init(self.head)
         self.apply(_init)
@@ -224,6 +227,11 @@ class SwinUNet(nn.Module):
         y = self.fuse1(torch.cat([self.final_expand(t).permute(0, 3, 1, 2), f1], 1))
         y = self.fuse0(torch.cat([self.up0(y), f0], 1))
         return self.head(y)
+
+
+def _fuse(cin: int, cout: int, n: int) -> nn.Sequential:
+    """n 3×3 conv-BN-ReLU (n = 1 keeps the layout of the checkpoints made before ``decoder_convs``)."""
+    return conv_bn(cin, cout) if n == 1 else nn.Sequential(conv_bn(cin, cout), *(conv_bn(cout, cout) for _ in range(n - 1)))
 
 
 def _init(m: nn.Module) -> None:
