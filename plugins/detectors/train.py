@@ -118,16 +118,14 @@ def _prepare_out(out: Path, cfg: TrainConfig, overwrite: bool) -> bool:
 def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     """Load ``cfg.init`` into ``net`` (same architecture and hyper-parameters, else InputError);
     returns its provenance {path, weights_sha256, its own training record} for the metadata."""
-    from .checkpoint import load_checkpoint
+    from .checkpoint import build_model, load_checkpoint
 
     path = Path(cfg.init)
     if not path.is_absolute():
         path = Path(base_dir) / path
     sd, meta, _ = load_checkpoint(path, cfg.model.name, map_location="cpu")
-    try:  # fields added since the parent was made take their defaults, as when the parent is loaded
-        parent_hp = type(hp).model_validate(meta.get("hparams") or {}).model_dump(mode="json")
-    except ValueError:
-        parent_hp = meta.get("hparams")
+    # the parent as any detector loads it: fields added since it was made take their defaults
+    parent_hp = build_model(meta, source=f"init {str(path)!r}").hp.model_dump(mode="json")
     if parent_hp != hp.model_dump(mode="json"):
         raise InputError(f"init {str(path)!r}: its hyper-parameters {meta.get('hparams')} differ from model.params "
                          f"{hp.model_dump(mode='json')}; fine-tuning needs the same network")

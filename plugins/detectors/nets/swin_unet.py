@@ -9,10 +9,9 @@ convolutional stem — conv-BN-ReLU at full and at half resolution — whose two
 skips for the last two decoder steps (patch expanding to half resolution, fusion, transposed-conv
 up-sampling to full resolution, fusion; each fusion ``decoder_convs`` 3×3 conv-BN-ReLU). A pure
 ×4 patch embedding loses the sub-cell peak shape that the Gaussian targets and the refinement
-rely on (Sec. 4, angular upsampling); with the stem
-the transformer still sees every cell's context at 1/p resolution. A 3×3 projection to two
-channels is the head (the paper's linear layer with a 3×3 support); the Sigmoid is applied by the
-loss / detector.
+rely on (Sec. 4, angular upsampling); with the stem the transformer still sees every cell's
+context at 1/p resolution. A 3×3 projection to two channels is the head (the paper's linear
+layer with a 3×3 support); the Sigmoid is applied by the loss / detector.
 
 Inputs (B, 4, H, W) with H, W multiples of ``multiple`` = patch · 2^(stages−1); windows that do
 not tile a stage are zero-padded inside the block and cropped back (as in Swin).
