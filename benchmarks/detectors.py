@@ -13,7 +13,8 @@ pipeline scores them; CD is averaged over maps where it is finite (both sets non
 CFAR cannot classify, so like the paper ('-') its Macro row uses the class-agnostic F1 / CD.
 Training time per epoch comes from each shipped checkpoint's metadata. Recall per ground-truth
 SNR bin (each point's expected RA-map SNR is kept in the dataset) shows where detection fails:
-at the noise floor or on strong echoes it misclassifies.
+at the noise floor or on strong echoes it misclassifies. The sub-bin refinement section scores the
+shipped swin_unet with each refinement mode (F1, and paired position residuals).
 """
 from __future__ import annotations
 
@@ -146,17 +147,55 @@ def recall_section(names, res, figure: str | None, link: str | None = None) -> l
     return out
 
 
-def refinement_error(det, frames, mode: str, radius: float) -> dict:
-    """RMS residual [cells] of matched detections with the head's refinement set to ``mode``."""
-    from plugins.detectors.evaluate import calibrate
-    from xnlos_core.metrics import thin_to_resolution
+def refinement_study(det, frames, radius: float) -> list[dict]:
+    """Sub-bin refinement of ``det`` (a dense learned detector) per mode ("none", "gaussian",
+    "parabolic"): mean F1 (LOS, mNLOS, Macro) with that mode, and the RMS residual [cells] per axis
+    on one *paired* set of peaks: the raw-grid detections matched to ground truth (same class,
+    within ``radius``), placed at the cell centre or moved by the mode's offset. Pairing matters:
+    each mode moves points across the match radius, so RMS over each mode's own matches would
+    compare different populations."""
+    from plugins.detectors.decode import refine
+    from plugins.detectors.evaluate import summarize
+    from plugins.detectors.heatmaps import peak_cells
+    from plugins.detectors.learned import detections_from_output
+    from xnlos_core.metrics import dense_metrics, match_points, thin_to_resolution
+    from xnlos_core.types import LOS, MNLOS
 
     det._load()
-    det._head.refine = mode
+    head = det._head
     thr, win, _, cells = det._decode_defaults()
-    outs = [det._output(f) for f in frames]
+    outs = [det._output(f)[:, : f.ra_map.shape[0], : f.ra_map.shape[1]] for f in frames]
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
-    return calibrate(outs, det._head, [f.ra_map for f in frames], truths, thr, win, radius, cells)
+    modes = ("none", "gaussian", "parabolic")
+    pairs = {m: ([], []) for m in modes}  # per mode: (range residuals, azimuth residuals)
+    head.refine = "none"
+    for o, f, g in zip(outs, frames, truths):
+        m = f.ra_map
+        d = detections_from_output(o, head, m, thr, win, True, 1000, cells=cells)
+        rows = np.rint(np.interp(d.range, m.range_axis, np.arange(m.shape[0]))).astype(np.int64)
+        cols = np.rint(np.interp(d.azimuth, m.azimuth_axis, np.arange(m.shape[1]))).astype(np.int64)
+        gcell = peak_cells(m, g, thin=False)
+        for label, pts in ((LOS, g.los_points), (MNLOS, g.mnlos_points)):
+            sel = np.nonzero(d.label == label)[0]
+            gl = gcell[gcell[:, 2] == label]
+            if not len(sel) or not len(pts) or len(gl) != len(pts):  # points off the map: skip the class
+                continue
+            pi, gi = match_points(d.position[sel], pts, radius)
+            r, a, k = rows[sel][pi], cols[sel][pi], d.label[sel][pi].astype(np.int64)
+            for mode in modes:
+                fr, fc = refine(o, r, a, k, mode, head.sigma)
+                pairs[mode][0].extend(fr - gl[gi, 0])
+                pairs[mode][1].extend(fc - gl[gi, 1])
+    out = []
+    for mode in modes:
+        head.refine = mode
+        per_map = [dense_metrics(detections_from_output(o, head, f.ra_map, thr, win, True, 1000, cells=cells),
+                                 g, radius) for o, f, g in zip(outs, frames, truths)]
+        rr, ra = (np.asarray(v) for v in pairs[mode])
+        out.append({"mode": mode, **summarize(per_map), "range_cells": float(np.sqrt(np.mean(rr**2))),
+                    "azimuth_cells": float(np.sqrt(np.mean(ra**2))), "n_pairs": len(rr)})
+    head.refine = "gaussian" if head.target == "gaussian" else "parabolic"
+    return out
 
 
 def main() -> None:
@@ -230,12 +269,20 @@ def main() -> None:
     lines += ["", f"F1 at a {args.radius} m match radius; CD mean over maps with both sets non-empty. "
               "nlos_cfar is given the true relay walls (the paper's known-wall baseline)."]
     if "swin_unet" in names:
-        lines += ["", "## Sub-bin refinement (swin_unet)", "", "RMS position error of detections matched to "
-                  "ground truth (same class, within the match radius) [cells]:", "",
-                  "| peaks | range | azimuth | matches |", "|---|---|---|---|"]
-        for mode, label in (("none", "raw grid (cell centres)"), ("gaussian", "refined (Gaussian log-ratio)")):
-            cal = refinement_error(reg.create("detector", "swin_unet", {"device": "cpu"}), frames, mode, args.radius)
-            lines.append(f"| {label} | {cal['range_cells']:.3f} | {cal['azimuth_cells']:.3f} | {cal['n_matches']} |")
+        study = refinement_study(reg.create("detector", "swin_unet", {"device": "cpu"}), frames, args.radius)
+        lines += ["", "## Sub-bin refinement (swin_unet)", "",
+                  "F1 with each refinement of the peaks (decoding otherwise as shipped), and RMS position error "
+                  f"[cells] of the same {study[0]['n_pairs']} raw-grid detections matched to ground truth (same "
+                  "class, within the match radius), placed by each mode:", "",
+                  "| peaks | Macro F1 | LOS F1 | mNLOS F1 | RMS range | RMS azimuth |", "|---|---|---|---|---|---|"]
+        labels = {"none": "raw grid (cell centres)", "gaussian": "refined, Gaussian log-ratio (shipped)",
+                  "parabolic": "refined, parabola through log c"}
+        for r in study:
+            lines.append(f"| {labels[r['mode']]} | {r['macro_f1']:.3f} | {r['los_f1']:.3f} | {r['mnlos_f1']:.3f} | "
+                         f"{r['range_cells']:.3f} | {r['azimuth_cells']:.3f} |")
+        lines += ["", "Cell quantisation alone would leave 0.289 cells (1/√12). The larger residual reflects "
+                  "the ground truth: a thinned point stands for all scatterers of its resolution cell, whose "
+                  "coherent sum need not peak at it."]
     link = os.path.relpath(args.figure, Path(args.out).parent) if args.figure and args.out else args.figure
     lines += recall_section(names, res, args.figure, link)
     text = "\n".join(lines)
