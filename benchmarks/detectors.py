@@ -163,6 +163,7 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
 
     det._load()
     head = det._head
+    shipped = head.refine
     thr, win, _, cells = det._decode_defaults()
     outs = [det._output(f)[:, : f.ra_map.shape[0], : f.ra_map.shape[1]] for f in frames]
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
@@ -194,7 +195,7 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
         rr, ra = (np.asarray(v) for v in pairs[mode])
         out.append({"mode": mode, **summarize(per_map), "range_cells": float(np.sqrt(np.mean(rr**2))),
                     "azimuth_cells": float(np.sqrt(np.mean(ra**2))), "n_pairs": len(rr)})
-    head.refine = "gaussian" if head.target == "gaussian" else "parabolic"
+    head.refine = shipped
     return out
 
 
