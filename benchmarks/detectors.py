@@ -168,11 +168,14 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
     outs = [det._output(f)[:, : f.ra_map.shape[0], : f.ra_map.shape[1]] for f in frames]
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
     modes = ("none", "gaussian", "parabolic")
+    dets = {}
+    for mode in modes:
+        head.refine = mode
+        dets[mode] = [detections_from_output(o, head, f.ra_map, thr, win, True, 1000, cells=cells)
+                      for o, f in zip(outs, frames)]
     pairs = {m: ([], []) for m in modes}  # per mode: (range residuals, azimuth residuals)
-    head.refine = "none"
-    for o, f, g in zip(outs, frames, truths):
+    for o, f, g, d in zip(outs, frames, truths, dets["none"]):
         m = f.ra_map
-        d = detections_from_output(o, head, m, thr, win, True, 1000, cells=cells)
         rows = np.rint(np.interp(d.range, m.range_axis, np.arange(m.shape[0]))).astype(np.int64)
         cols = np.rint(np.interp(d.azimuth, m.azimuth_axis, np.arange(m.shape[1]))).astype(np.int64)
         gcell = peak_cells(m, g, thin=False)
@@ -189,12 +192,10 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
                 pairs[mode][1].extend(fc - gl[gi, 1])
     out = []
     for mode in modes:
-        head.refine = mode
-        per_map = [dense_metrics(detections_from_output(o, head, f.ra_map, thr, win, True, 1000, cells=cells),
-                                 g, radius) for o, f, g in zip(outs, frames, truths)]
         rr, ra = (np.asarray(v) for v in pairs[mode])
-        out.append({"mode": mode, **summarize(per_map), "range_cells": float(np.sqrt(np.mean(rr**2))),
-                    "azimuth_cells": float(np.sqrt(np.mean(ra**2))), "n_pairs": len(rr)})
+        out.append({"mode": mode, **summarize([dense_metrics(d, g, radius) for d, g in zip(dets[mode], truths)]),
+                    "range_cells": float(np.sqrt(np.mean(rr**2))), "azimuth_cells": float(np.sqrt(np.mean(ra**2))),
+                    "n_pairs": len(rr)})
     head.refine = shipped
     return out
 
