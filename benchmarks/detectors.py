@@ -45,6 +45,15 @@ def _finite_mean(v):
     return float(np.mean(v)) if v else float("nan")
 
 
+def _lineage(meta: dict) -> str:
+    """`parent command → command` of a shipped model, from its checkpoint metadata."""
+    tr = meta.get("training", {})
+    parent = (tr.get("dataset") or {}).get("init") or {}
+    steps = [c.removeprefix("xnlos train ") for c in (parent.get("command"), tr.get("command")) if c]
+    epochs = ([parent.get("epochs_run")] if parent.get("command") else []) + [tr.get("epochs_run")]
+    return " → ".join(f"`{c}` ({n} epochs)" if n else f"`{c}`" for c, n in zip(steps, epochs)) or "unknown"
+
+
 def latency(det, frames, repeats: int) -> tuple[float, float]:
     for f in frames[:2]:
         det.detect(f)
@@ -270,6 +279,10 @@ def main() -> None:
                      f"| {p} |")
     lines += ["", f"F1 at a {args.radius} m match radius; CD mean over maps with both sets non-empty. "
               "nlos_cfar is given the true relay walls (the paper's known-wall baseline)."]
+    trained = [f"{name}: {_lineage(meta[name])}" for name in names if meta[name]]
+    if trained:
+        lines += ["", "Training runs behind each shipped model (its checkpoint metadata; the config headers give "
+                  "the stages before): " + "; ".join(trained) + "."]
     if "swin_unet" in names:
         study = refinement_study(reg.create("detector", "swin_unet", {"device": "cpu"}), frames, args.radius)
         lines += ["", "## Sub-bin refinement (swin_unet)", "",

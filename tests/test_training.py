@@ -148,6 +148,7 @@ def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network
             torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=1e-6, msg=key)
     init = meta_b["training"]["dataset"]["init"]
     assert init["weights_sha256"] == meta_a["weights_sha256"] and init["command"] == meta_a["training"]["command"]
+    assert init["epochs_run"] == meta_a["training"]["epochs_run"]
 
     other = {**tune, "out": str(tmp_path / "c"),
              "model": {**base["model"], "params": {**base["model"]["params"], "embed_dim": 8}}}

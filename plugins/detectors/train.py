@@ -133,7 +133,7 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     parent = meta.get("training", {})
     return {"path": str(cfg.init), "weights_sha256": meta.get("weights_sha256"),
             "command": parent.get("command"), "config_sha256": parent.get("config_sha256"),
-            "val": parent.get("metrics", {}).get("val")}
+            "epochs_run": parent.get("epochs_run"), "val": parent.get("metrics", {}).get("val")}
 
 
 def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
