@@ -49,9 +49,8 @@ def _lineage(meta: dict) -> str:
     """`parent command → command` of a shipped model, from its checkpoint metadata."""
     tr = meta.get("training", {})
     parent = (tr.get("dataset") or {}).get("init") or {}
-    steps = [c.removeprefix("xnlos train ") for c in (parent.get("command"), tr.get("command")) if c]
-    epochs = ([parent.get("epochs_run")] if parent.get("command") else []) + [tr.get("epochs_run")]
-    return " → ".join(f"`{c}` ({n} epochs)" if n else f"`{c}`" for c, n in zip(steps, epochs)) or "unknown"
+    runs = [(r["command"].removeprefix("xnlos train "), r.get("epochs_run")) for r in (parent, tr) if r.get("command")]
+    return " → ".join(f"`{c}` ({n} epochs)" if n else f"`{c}`" for c, n in runs) or "unknown"
 
 
 def latency(det, frames, repeats: int) -> tuple[float, float]:
