@@ -163,11 +163,9 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
     each mode moves points across the match radius, so RMS over each mode's own matches would
     compare different populations."""
     from plugins.detectors.decode import refine
-    from plugins.detectors.evaluate import summarize
-    from plugins.detectors.heatmaps import peak_cells
+    from plugins.detectors.evaluate import matched_cells, summarize
     from plugins.detectors.learned import detections_from_output
-    from xnlos_core.metrics import dense_metrics, match_points, thin_to_resolution
-    from xnlos_core.types import LOS, MNLOS
+    from xnlos_core.metrics import dense_metrics, thin_to_resolution
 
     det._load()
     head = det._head
@@ -177,34 +175,29 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
     modes = ("none", "gaussian", "parabolic")
     dets = {}
-    for mode in modes:
-        head.refine = mode
-        dets[mode] = [detections_from_output(o, head, f.ra_map, thr, win, True, 1000, cells=cells)
-                      for o, f in zip(outs, frames)]
+    try:
+        for mode in modes:
+            head.refine = mode
+            dets[mode] = [detections_from_output(o, head, f.ra_map, thr, win, True, 1000, cells=cells)
+                          for o, f in zip(outs, frames)]
+    finally:
+        head.refine = shipped
     pairs = {m: ([], []) for m in modes}  # per mode: (range residuals, azimuth residuals)
     for o, f, g, d in zip(outs, frames, truths, dets["none"]):
         m = f.ra_map
         rows = np.rint(np.interp(d.range, m.range_axis, np.arange(m.shape[0]))).astype(np.int64)
         cols = np.rint(np.interp(d.azimuth, m.azimuth_axis, np.arange(m.shape[1]))).astype(np.int64)
-        gcell = peak_cells(m, g, thin=False)
-        for label, pts in ((LOS, g.los_points), (MNLOS, g.mnlos_points)):
-            sel = np.nonzero(d.label == label)[0]
-            gl = gcell[gcell[:, 2] == label]
-            if not len(sel) or not len(pts) or len(gl) != len(pts):  # points off the map: skip the class
-                continue
-            pi, gi = match_points(d.position[sel], pts, radius)
-            r, a, k = rows[sel][pi], cols[sel][pi], d.label[sel][pi].astype(np.int64)
+        for idx, gcell in matched_cells(d, m, g, radius):
             for mode in modes:
-                fr, fc = refine(o, r, a, k, mode, head.sigma)
-                pairs[mode][0].extend(fr - gl[gi, 0])
-                pairs[mode][1].extend(fc - gl[gi, 1])
+                fr, fc = refine(o, rows[idx], cols[idx], d.label[idx].astype(np.int64), mode, head.sigma)
+                pairs[mode][0].extend(fr - gcell[:, 0])
+                pairs[mode][1].extend(fc - gcell[:, 1])
     out = []
     for mode in modes:
         rr, ra = (np.asarray(v) for v in pairs[mode])
         out.append({"mode": mode, **summarize([dense_metrics(d, g, radius) for d, g in zip(dets[mode], truths)]),
                     "range_cells": float(np.sqrt(np.mean(rr**2))), "azimuth_cells": float(np.sqrt(np.mean(ra**2))),
                     "n_pairs": len(rr)})
-    head.refine = shipped
     return out
 
 
@@ -236,9 +229,9 @@ def main() -> None:
              f"{frames[0].ra_map.shape[1]}), {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} CPUs, torch threads {args.threads}, load average "
              f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}", ""]
-    lat, res, meta = {}, {}, {}
+    lat, res, meta, dets = {}, {}, {}, {}
     for name in names:
-        det = reg.create("detector", name, {"device": "cpu"} if name not in ("cfar", "nlos_cfar") else {})
+        det = dets[name] = reg.create("detector", name, {"device": "cpu"} if name not in ("cfar", "nlos_cfar") else {})
         lat[name] = latency(det, frames, args.repeats)
         res[name] = metrics(det, frames, args.radius)
         meta[name] = det.metadata if hasattr(det, "metadata") else None
@@ -283,7 +276,7 @@ def main() -> None:
         lines += ["", "Training runs behind each shipped model (its checkpoint metadata; the config headers give "
                   "the stages before): " + "; ".join(trained) + "."]
     if "swin_unet" in names:
-        study = refinement_study(reg.create("detector", "swin_unet", {"device": "cpu"}), frames, args.radius)
+        study = refinement_study(dets["swin_unet"], frames, args.radius)
         lines += ["", "## Sub-bin refinement (swin_unet)", "",
                   "F1 with each refinement of the peaks (decoding otherwise as shipped), and RMS position error "
                   f"[cells] of the same {study[0]['n_pairs']} raw-grid detections matched to ground truth (same "

@@ -74,6 +74,20 @@ def select_per_class(det: Detections, thresholds: tuple[float, float]) -> Detect
     return det.select(det.confidence > t)
 
 
+def matched_cells(det: Detections, ra_map: RAMap, truth: GroundTruth, radius: float):
+    """Per class (LOS, mNLOS): (indices into ``det`` of the detections matched to ground truth of
+    their class within ``radius`` [m], the matched truths' fractional cells (n, 3)). A class with
+    ground-truth points off the map is skipped (their cells would not line up)."""
+    gt_cells = peak_cells(ra_map, truth, thin=False)
+    for label, pts in ((LOS, truth.los_points), (MNLOS, truth.mnlos_points)):
+        sel = np.nonzero(det.label == label)[0]
+        gcell = gt_cells[gt_cells[:, 2] == label]
+        if not len(sel) or not len(pts) or len(gcell) != len(pts):
+            continue
+        pi, gi = match_points(det.position[sel], pts, radius)
+        yield sel[pi], gcell[gi]
+
+
 def calibrate(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[GroundTruth],
               threshold: tuple[float, float], window: tuple[int, int], radius: float,
               cells: bool = False) -> dict[str, float]:
@@ -82,22 +96,11 @@ def calibrate(outputs: list[np.ndarray], head, maps: list[RAMap], truths: list[G
     res_r, res_a = [], []
     for o, m, g in zip(outputs, maps, truths):
         det = detections_from_output(o, head, m, threshold, window, True, 1000, cells=cells)
-        gt_cells = peak_cells(m, g, thin=False)
-        ir, ia = np.arange(m.shape[0]), np.arange(m.shape[1])
-        dr = np.interp(det.range, m.range_axis, ir)
-        da = np.interp(det.azimuth, m.azimuth_axis, ia)
-        gt_pts = {LOS: g.los_points, MNLOS: g.mnlos_points}
-        for label in (LOS, MNLOS):
-            sel = det.label == label
-            pts = gt_pts[label]
-            if not sel.any() or len(pts) == 0:
-                continue
-            pi, gi = match_points(det.position[sel], pts, radius)
-            gcell = gt_cells[gt_cells[:, 2] == label]
-            if len(gcell) != len(pts):  # points outside the map were dropped: skip this class
-                continue
-            res_r.extend(dr[sel][pi] - gcell[gi, 0])
-            res_a.extend(da[sel][pi] - gcell[gi, 1])
+        dr = np.interp(det.range, m.range_axis, np.arange(m.shape[0]))
+        da = np.interp(det.azimuth, m.azimuth_axis, np.arange(m.shape[1]))
+        for idx, gcell in matched_cells(det, m, g, radius):
+            res_r.extend(dr[idx] - gcell[:, 0])
+            res_a.extend(da[idx] - gcell[:, 1])
     u = 1.0 / np.sqrt(12.0)
     rms = lambda v: float(np.sqrt(np.mean(np.square(v)))) if len(v) >= 5 else u  # noqa: E731
     return {"range_cells": float(max(rms(res_r), 0.05)), "azimuth_cells": float(max(rms(res_a), 0.05)),
