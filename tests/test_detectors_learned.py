@@ -228,3 +228,24 @@ def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path)
     save_checkpoint(tmp_path / "old.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
     det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "old.pt"), "device": "cpu"})
     assert isinstance(det.detect(synthetic_frame(SMALL)), Detections)
+
+
+def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block():
+    from plugins.detectors.nets.swin_unet import MixMLP, SwinUNet, SwinUNetParams, count_parameters
+
+    base = dict(TINY["swin_unet"])
+    plain, mixed = SwinUNet(SwinUNetParams(**base)), SwinUNet(SwinUNetParams(**base, mlp_conv=True))
+    hp = plain.hp
+    # encoder stages and the decoder stages below the bottleneck; a 3×3 depthwise conv with bias
+    hidden = [int(hp.embed_dim * 2**i * hp.mlp_ratio) for i in range(len(hp.depths))]
+    blocks = [(d, h) for d, h in zip(hp.depths, hidden)] + [(d, h) for d, h in zip(hp.depths[:-1], hidden)]
+    assert count_parameters(mixed) - count_parameters(plain) == sum(d * 10 * h for d, h in blocks)
+    assert mixed.eval()(torch.randn(1, 4, 8, 12)).shape == (1, 2, 8, 12)
+    # an impulse at one token changes the MLP's output on exactly its 3 × 3 neighbourhood
+    mlp = MixMLP(4, 8).eval()
+    x = torch.randn(1, 7, 9, 4)
+    x2 = x.clone()
+    x2[0, 3, 4] += 1.0
+    with torch.no_grad():
+        changed = (mlp(x2) - mlp(x)).abs().amax(-1)[0] > 1e-7
+    assert changed.nonzero().tolist() == [[i, j] for i in (2, 3, 4) for j in (3, 4, 5)]
