@@ -27,7 +27,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/raytrace_speed.py
 	$(MAKE) dataset
 	$(PY) benchmarks/detectors.py
-	$(PY) benchmarks/detector_errors.py --out benchmarks/detector_errors.md --figure benchmarks/detector_errors.png
+	$(PY) benchmarks/detector_errors.py --detectors swin_unet,unet,further_than_cfar,rtn --out benchmarks/detector_errors.md --figure benchmarks/detector_errors.png
 	$(PY) benchmarks/residual_mirror.py
 
 # The default simulated dataset (2,160 ray-traced maps, ≈ 2 min on 2 cores; resumes, no-op when complete)

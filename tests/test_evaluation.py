@@ -178,6 +178,26 @@ def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys):
     assert "another configuration" in capsys.readouterr().err
 
 
+def test_eval_refuses_to_resume_with_other_learned_weights(tiny_dataset, tmp_path, capsys):
+    from tests.test_detectors_learned import _tiny_checkpoint
+
+    ckpt = tmp_path / "unet.pt"
+    _tiny_checkpoint(ckpt, "unet", seed=0)
+    cfg = _config(tmp_path, tiny_dataset).read_text().replace('name = "nlos_cfar"', f'name = "unet"\n'
+                                                                f'params = {{ checkpoint = "{ckpt}", device = "cpu" }}')
+    p, out = tmp_path / "learned.toml", tmp_path / "out"
+    p.write_text(cfg)
+    assert main(["eval", str(p), "--out", str(out), "--limit", "2", "--no-figures", "-q"]) == 0
+    state = json.loads((out / "run-000" / "run.json").read_text())["state_sha256"]
+    assert set(state) == {"detector"}
+    _tiny_checkpoint(ckpt, "unet", seed=1)  # retrained into the same file; the config is unchanged
+    capsys.readouterr()
+    assert main(["eval", str(p), "--out", str(out), "--limit", "2", "--no-figures", "-q"]) == 2
+    assert f"other learned weights (detector {state['detector'][:12]}" in capsys.readouterr().err
+    assert main(["eval", str(p), "--out", str(out), "--limit", "2", "--no-figures", "-q", "--overwrite"]) == 0
+    assert json.loads((out / "run-000" / "run.json").read_text())["state_sha256"] != state
+
+
 def test_table2_sweep_end_to_end_on_a_tiny_dataset(tiny_dataset, tmp_path):
     res = run_eval(ROOT / "configs/ablations/table2.toml", tmp_path / "out", dataset=str(tiny_dataset),
                    split="test", limit=2, figures=1, progress=False)

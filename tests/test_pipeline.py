@@ -113,6 +113,43 @@ def test_run_refuses_to_mix_configs(tmp_path):
         run_to_dir(parse_pipeline(small_table(seed=9), "b"), tmp_path, progress=False)
 
 
+def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys):
+    """A model retrained into the same file under an unchanged config is neither resumed (run) nor
+    reported as done (sweep): the provenance keeps each learned stage's weights hash."""
+    from tests.test_detectors_learned import _tiny_checkpoint
+    from xnlos_core import ConfigError
+    from xnlos_core.cli import main
+
+    ckpt = tmp_path / "unet.pt"
+    _tiny_checkpoint(ckpt, "unet", seed=0)
+    t = small_table()
+    t["detector"] = {"name": "unet", "params": {"checkpoint": str(ckpt), "device": "cpu"}}
+    cfg, out = parse_pipeline(t, "t"), tmp_path / "run"
+    run_to_dir(cfg, out, progress=False)
+    first = json.loads((out / "provenance.json").read_text())["state_sha256"]
+    assert first == {"detector": Pipeline(cfg).stages["detector"].metadata["weights_sha256"]}
+    run_to_dir(cfg, out, progress=False)  # same weights: resumes
+    _tiny_checkpoint(ckpt, "unet", seed=1)  # retrained in place
+    with pytest.raises(ConfigError, match=rf"other learned weights \(detector {first['detector'][:12]} ≠ "):
+        run_to_dir(cfg, out, progress=False)
+    run_to_dir(cfg, out, progress=False, overwrite=True)
+    assert json.loads((out / "provenance.json").read_text())["state_sha256"]["detector"] != first["detector"]
+    assert json.loads((out / "summary.json").read_text())["state_sha256"] != first
+
+    # A sweep point finished with the old weights is not reported as done: it is run again, and
+    # its directory (old weights) is refused rather than resumed.
+    sweep = tmp_path / "s.toml"
+    sweep.write_text(f"""name = "w"\nseed = 5\n[scene]\nbuiltin = "corner"\n[forward_model]\nname = "image"
+[detector]\nname = "unet"\nparams = {{ checkpoint = "{ckpt}", device = "cpu" }}
+[wall_estimator]\nname = "lsq"\n[reconstructor]\nname = "mirror"\n[run]\nframes = 1\nfigure = false
+[sweep]\n"wall_estimator.params.min_points" = [3]\n""")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q"]) == 0
+    _tiny_checkpoint(ckpt, "unet", seed=2)
+    capsys.readouterr()
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q"]) == 2
+    assert "other learned weights (detector" in capsys.readouterr().err
+
+
 def test_tracker_follows_moving_hidden_car():
     t = small_table(run={"frames": 6, "frame_interval": 0.5, "figure": False})
     t["scene"] = {"builtin": "corner", "objects": [{"name": "car", "center": [22.0, -16.0], "heading": 1.5708,

@@ -15,7 +15,9 @@ cloud (LOS detections plus reconstructed hidden points against LOS plus hidden g
 maps (AGGREGATION below) is the one of benchmarks/detectors.py.
 
 Output (``OUT``): ``run-NNN/frames.jsonl`` (one fsync'd line per map: a killed eval rerun with the
-same command resumes after the last complete map; a larger ``limit`` extends a finished one),
+same command resumes after the last complete map; a larger ``limit`` extends a finished one; a
+changed config or changed learned weights — a model retrained into the same file — is refused
+rather than mixed with the old records),
 ``run-NNN/run.json`` (config and provenance), ``run-NNN/map_MMMMM.png`` (Fig. 6-style panels of
 the first ``figures`` maps), ``eval.json`` (atomic) and ``eval.md``.
 """
@@ -31,6 +33,7 @@ import numpy as np
 from .config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
 from .errors import ConfigError, InputError
 from .io import append_jsonl, atomic_write_text, read_jsonl
+from .provenance import state_change
 
 DEFAULT_DATASET = "out/data/default"
 DEFAULT_SPLIT = "test"
@@ -214,14 +217,15 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     """Score one planned run (:func:`plan_runs`) into ``out``; returns its eval.json entry.
 
     Resumes from ``out/frames.jsonl`` when ``out/run.json`` holds the same configuration (up to the
-    backend's limit); another configuration is a ConfigError unless ``overwrite``."""
+    backend's limit) and the same learned weights (:meth:`Pipeline.state_sha256`); anything else is
+    a ConfigError unless ``overwrite``."""
     from .pipeline import Pipeline, timed_frames
 
     cfg: PipelineConfig = run["config"]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     pipe = Pipeline(cfg, registry=registry, source=run["source"])
-    digest = resume_digest(cfg)
+    digest, state = resume_digest(cfg), pipe.state_sha256()
     info_path, log = out / "run.json", out / "frames.jsonl"
     done: list[dict] = []
     if info_path.exists() and not overwrite:
@@ -230,6 +234,10 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
             raise ConfigError(f"{out}: holds an evaluation of another configuration (hash "
                               f"{str(old.get('resume_sha256'))[:12]} ≠ {digest[:12]}); choose another --out "
                               "or pass --overwrite")
+        changed = state_change(old.get("state_sha256"), state)
+        if changed:
+            raise ConfigError(f"{out}: holds an evaluation made with other learned weights ({changed}); choose "
+                              "another --out or pass --overwrite")
         done = read_jsonl(log)
         atomic_write_text(log, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))  # drop a torn line
     else:
@@ -237,7 +245,8 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
         for f in out.glob("map_*.png"):
             f.unlink()
     atomic_write_text(info_path, json.dumps({"name": cfg.name, "assignment": run["assignment"],
-                                             "resume_sha256": digest, "config": cfg.model_dump(mode="json"),
+                                             "resume_sha256": digest, "state_sha256": state,
+                                             "config": cfg.model_dump(mode="json"),
                                              "provenance": pipe.provenance()}, indent=2, sort_keys=True,
                                             default=str))
     backend = pipe.stages["backend"]

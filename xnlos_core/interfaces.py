@@ -42,6 +42,16 @@ class Plugin:
         """Parameters as a plain dict (for provenance and cloning)."""
         return self.params.model_dump()
 
+    def state_sha256(self) -> str | None:
+        """Hash of what, besides the parameters, decides this stage's output — learned weights read
+        from a file — or None when the parameters decide it all (the default).
+
+        Resumable runs (``xnlos run``, ``eval``, sweeps) compare it, so that results made with other
+        weights under an unchanged config (a retrained model exported over the shipped one) are
+        never resumed or reported as current.
+        """
+        return None
+
 
 class ForwardModel(Plugin, abc.ABC):
     """Scene → Frame. ``simulate`` must be deterministic given ``rng`` and return ground truth."""

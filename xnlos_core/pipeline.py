@@ -131,8 +131,18 @@ class Pipeline:
                          "params": self.stages[kind].get_params()}
         return out
 
+    def state_sha256(self) -> dict[str, str]:
+        """kind → hash of the learned state of each stage that reads one from a file
+        (:meth:`xnlos_core.interfaces.Plugin.state_sha256`)."""
+        out = {}
+        for kind, stage in self.stages.items():
+            digest = stage.state_sha256()
+            if digest is not None:
+                out[kind] = digest
+        return out
+
     def provenance(self) -> dict:
-        return provenance(self.config, self.plugin_info())
+        return provenance(self.config, self.plugin_info(), self.state_sha256())
 
     def frames(self, start: int = 0) -> Iterator[Frame]:
         """Frames ``start`` … ``run.frames``−1 from the forward model or the backend."""

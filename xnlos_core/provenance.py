@@ -20,10 +20,21 @@ def package_versions(names=PACKAGES) -> dict[str, str | None]:
     return out
 
 
-def provenance(config, plugins: dict[str, dict]) -> dict:
-    """Provenance record of a pipeline run (config: PipelineConfig; plugins: kind → info)."""
+def state_change(old: dict[str, str] | None, new: dict[str, str]) -> str | None:
+    """'detector 1a2b3c4d5e6f ≠ 0f9e8d7c6b5a, …' for each stage whose learned-state hash differs
+    between a recorded run (``old``; None: recorded before hashes were kept) and now; None if equal."""
+    old = old or {}
+    diff = [f"{k} {str(old.get(k, 'unrecorded'))[:12]} ≠ {str(new.get(k, 'none'))[:12]}"
+            for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+    return ", ".join(diff) or None
+
+
+def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = None) -> dict:
+    """Provenance record of a pipeline run (config: PipelineConfig; plugins: kind → info; state:
+    kind → hash of the stage's learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`)."""
     return {
         "config_sha256": config.digest(),
+        "state_sha256": dict(state or {}),
         "seed": config.seed,
         "plugins": plugins,
         "versions": package_versions(),

@@ -1,7 +1,9 @@
 """``xnlos sweep``: a `[sweep]` grid and/or `[[sweep.cases]]` of pipelines (config-driven ablations), one run per point.
 
 Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
-per finished point, so a killed sweep resumes with the points still missing. ``sweep.md``
+per finished point, so a killed sweep resumes with the points still missing (a point is done when
+its config and its stages' learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`, are
+those recorded). ``sweep.md``
 tabulates the assignment of every point beside its metrics and per-stage time.
 """
 from __future__ import annotations
@@ -14,6 +16,7 @@ from .config import expand_sweep, load_toml, parse_pipeline
 from .errors import ConfigError
 from .executor import map_unordered
 from .io import append_jsonl, atomic_write_text, read_jsonl
+from .pipeline import Pipeline
 
 COLUMNS = (
     ("dense.macro.f1", "macro F1"), ("dense.los.f1", "LOS F1"), ("dense.mnlos.f1", "mNLOS F1"),
@@ -46,11 +49,13 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
         label = f"{source} (sweep point {i}: {assignment})" if assignment else source
         cfg = parse_pipeline(t, label, base_dir)  # every point is validated before anything runs
         jobs.append({"point": i, "assignment": assignment, "table": t, "source": label,
-                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfg.digest()})
+                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfg.digest(),
+                     "state": Pipeline(cfg, source=label).state_sha256()})
     out.mkdir(parents=True, exist_ok=True)
     log = out / "sweep.jsonl"
     done = {r["point"]: r for r in read_jsonl(log)
-            if r["point"] < len(jobs) and r.get("config_sha256") == jobs[r["point"]]["digest"]}
+            if r["point"] < len(jobs) and r.get("config_sha256") == jobs[r["point"]]["digest"]
+            and r["summary"].get("state_sha256", {}) == jobs[r["point"]]["state"]}
     todo = [j for j in jobs if j["point"] not in done]
     bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, desc="sweep", unit="point")
     for _, rec in map_unordered(_run_point, todo, scheduler=scheduler, workers=workers):

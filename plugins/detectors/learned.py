@@ -187,6 +187,10 @@ class LearnedDetector(Detector):
         self._load()
         return self._meta
 
+    def state_sha256(self) -> str | None:
+        """The checkpoint's ``weights_sha256`` (None for ``checkpoint = "none"``: the seed decides)."""
+        return None if self.params.checkpoint == "none" else self.metadata["weights_sha256"]
+
     def _decode_defaults(self) -> tuple[tuple[float, float], tuple[int, int], dict, bool]:
         """(thresholds, window, calibration, cells): the parameters', else the checkpoint's."""
         dec = self._meta.get("decode", {})

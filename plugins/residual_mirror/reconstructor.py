@@ -89,6 +89,10 @@ class ResidualMirrorReconstructor(MirrorReconstructor):
     def _model(self):
         return load_model(self.params.model)
 
+    def state_sha256(self) -> str | None:
+        """The residual checkpoint's ``weights_sha256``."""
+        return self._model()[1]["weights_sha256"]
+
     def settings(self, meta: dict) -> tuple[int, float]:
         """(neighbours K, support distance [m]): the parameters', else the checkpoint's."""
         k = self.params.neighbours or int(meta.get("neighbours", 16))
