@@ -162,3 +162,37 @@ def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network
     meta_old["hparams"] = {k: v for k, v in meta_a["hparams"].items() if k != "decoder_convs"}
     save_checkpoint(tmp_path / "old.pt", sd_a, meta_old)
     train(parse_train_config({**tune, "out": str(tmp_path / "e"), "init": str(tmp_path / "old.pt")}), progress=False)
+
+
+def test_azimuth_flip_mirrors_features_and_targets_and_leaves_other_runs_alone(corner_maps):
+    head = default_head("unet", architectures()["unet"].HParams(**TINY["unet"]), (0.7, 1.0))
+    plain, flip = Batcher(corner_maps, head, (4, 4), None, 1), Batcher(corner_maps, head, (4, 4), None, 1, flip=True)
+    x0, y0 = plain.padded(0)
+    x1, y1 = plain.padded(0, flip=True)
+    w = corner_maps.features.shape[-1]  # 31 bins, padded to 32 at the high-azimuth end
+    assert np.array_equal(x1[:, :, :w], x0[:, :, :w][:, :, ::-1]) and not x1[:, :, w:].any()
+    # the Gaussian targets peak at 1 on the mirrored cells
+    p = corner_maps.peaks[0]
+    r, a, c = np.rint(p[:, 0]).astype(int), np.rint(p[:, 1]).astype(int), p[:, 2].astype(int)
+    assert np.allclose(y1[c, r, w - 1 - a], 1.0) and np.allclose(y0[c, r, a], 1.0)
+    # over a few epochs both orientations occur, each sample being one of the two
+    seen = set()
+    for epoch in range(4):
+        for x, _ in flip.epoch(0, epoch):
+            i = [k for k in range(2) if np.array_equal(x[0], plain.padded(k)[0]) or
+                 np.array_equal(x[0], plain.padded(k, True)[0])]
+            assert len(i) == 1
+            seen.add(np.array_equal(x[0], plain.padded(i[0], True)[0]))
+    assert seen == {False, True}
+
+
+def test_shipped_models_keep_the_digest_of_their_training_config():
+    """Options added later (data.flip_azimuth) leave the digests of existing runs unchanged."""
+    from plugins.detectors.learned import MODELS_DIR
+
+    for name in ("swin_unet", "unet", "further_than_cfar", "rtn"):
+        meta = json.loads((MODELS_DIR / f"{name}.json").read_text())
+        cfg = load_train_config(ROOT / meta["training"]["config_file"])
+        assert cfg.digest() == meta["training"]["config_sha256"], name
+        flipped = cfg.model_copy(update={"data": cfg.data.model_copy(update={"flip_azimuth": True})})
+        assert flipped.digest() != cfg.digest()

@@ -49,10 +49,18 @@ def _round_up(n: int, m: int) -> int:
 
 class Batcher:
     """Training batches of (features, targets) with seeded order and crops (aligned to the
-    network's multiple so the patch grid sits as at inference)."""
+    network's multiple so the patch grid sits as at inference), optionally mirrored in azimuth.
 
-    def __init__(self, maps, head, multiple: tuple[int, int], crop: tuple[int, int] | None, batch_size: int):
-        self.maps, self.head, self.multiple, self.batch_size = maps, head, multiple, batch_size
+    ``flip``: each sample is mirrored in azimuth with probability 1/2 — features reversed along
+    azimuth before the zero padding (which stays at the high-azimuth end, as at inference), peak
+    azimuth indices a → W − 1 − a. Valid for an azimuth axis symmetric about boresight: the
+    power and the occlusion channel mirror exactly, and the phase of a centred array's beamformed
+    map is unchanged by the mirror. The extra draw is made only when ``flip``, so runs without it
+    draw exactly the order and crops they drew before the option existed."""
+
+    def __init__(self, maps, head, multiple: tuple[int, int], crop: tuple[int, int] | None, batch_size: int,
+                 flip: bool = False):
+        self.maps, self.head, self.multiple, self.batch_size, self.flip = maps, head, multiple, batch_size, flip
         h, w = maps.features.shape[-2:]
         self.full = (_round_up(h, multiple[0]), _round_up(w, multiple[1]))
         if crop is None:
@@ -64,13 +72,19 @@ class Batcher:
     def n_batches(self) -> int:
         return -(-len(self.maps) // self.batch_size)
 
-    def padded(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        """Features and targets of map i, zero-padded to the network's multiple."""
+    def padded(self, i: int, flip: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Features and targets of map i (mirrored in azimuth when ``flip``), zero-padded to the
+        network's multiple."""
         f = self.maps.features[i].astype(np.float32)
+        peaks = self.maps.peaks[i]
+        if flip:
+            f = f[:, :, ::-1]
+            peaks = peaks.copy()
+            peaks[:, 1] = (f.shape[2] - 1) - peaks[:, 1]
         fh, fw = self.full
         x = np.zeros((f.shape[0], fh, fw), np.float32)
         x[:, : f.shape[1], : f.shape[2]] = f
-        return x, self.head.targets(self.maps.peaks[i], (fh, fw))
+        return x, self.head.targets(peaks, (fh, fw))
 
     def epoch(self, seed: int, epoch: int):
         """Yield (features (B, 4, h, w), targets (B, C, h', w')) numpy batches of one epoch."""
@@ -82,9 +96,9 @@ class Batcher:
         for b in range(self.n_batches()):
             xs, ys = [], []
             for i in order[b * self.batch_size:(b + 1) * self.batch_size]:
-                x, y = self.padded(int(i))
                 r0 = int(rng.integers(0, (fh - ch) // mh + 1)) * mh
                 a0 = int(rng.integers(0, (fw - cw) // mw + 1)) * mw
+                x, y = self.padded(int(i), self.flip and bool(rng.random() < 0.5))
                 xs.append(x[:, r0:r0 + ch, a0:a0 + cw])
                 sr, sa = fh // y.shape[-2], fw // y.shape[-1]  # 1 for dense targets, the stride for a grid
                 ys.append(y[:, r0 // sr:(r0 + ch) // sr, a0 // sa:(a0 + cw) // sa])
@@ -184,7 +198,13 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
 
     torch.manual_seed(cfg.seed)  # the documented global seed: nn.init of the new network
     net = arch.module(hp).to(device)
-    batcher = Batcher(train_set, head, net.multiple, cfg.data.crop, cfg.optim.batch_size)
+    if cfg.data.flip_azimuth:
+        axis = val_set.maps[0].azimuth_axis  # the split shares the dataset's radar
+        if not np.allclose(axis, -axis[::-1], atol=1e-9):
+            raise ConfigError(f"data.flip_azimuth: the azimuth axis ({np.degrees(axis[0]):.2f}° … "
+                              f"{np.degrees(axis[-1]):.2f}°, {len(axis)} bins) is not symmetric about boresight, "
+                              "so a mirrored map is not a map of this radar; set flip_azimuth = false")
+    batcher = Batcher(train_set, head, net.multiple, cfg.data.crop, cfg.optim.batch_size, cfg.data.flip_azimuth)
     steps = min(batcher.n_batches(), cfg.optim.steps_per_epoch or batcher.n_batches())
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(cfg.optim.warmup_steps, steps * cfg.optim.epochs))

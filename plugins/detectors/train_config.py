@@ -65,6 +65,9 @@ class GenerateConfig(BaseModel):
         return self
 
 
+LATE_OPTIONS = (("data", "flip_azimuth", False),)  # (section, key, default): see TrainConfig.digest
+
+
 class DataConfig(BaseModel):
     """Where the maps come from and how training samples are cut."""
 
@@ -76,6 +79,8 @@ class DataConfig(BaseModel):
     max_train_maps: int | None = Field(None, ge=1, description="use only the first N training maps")
     max_val_maps: int | None = Field(None, ge=1, description="use only the first N validation maps")
     crop: tuple[int, int] | None = Field(None, description="training crop (range, azimuth) [cells]")
+    flip_azimuth: bool = Field(False, description="mirror each training sample in azimuth with probability "
+                                                  "1/2 (seeded); needs an azimuth axis symmetric about boresight")
     match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m] (Table 2 metrics)")
 
     @model_validator(mode="after")
@@ -167,8 +172,15 @@ class TrainConfig(BaseModel):
                               prefix="model.params")
 
     def digest(self) -> str:
-        """sha256 of the canonical config, excluding where outputs go (identifies a run for resuming)."""
-        blob = json.dumps(self.model_dump(exclude={"out", "export", "threads"}), sort_keys=True, default=str)
+        """sha256 of the canonical config, excluding where outputs go (identifies a run for resuming).
+
+        Options added after models were shipped (LATE_OPTIONS) count only when set, so that the runs
+        and checkpoints made before them keep their identity."""
+        dump = self.model_dump(exclude={"out", "export", "threads"})
+        for section, key, default in LATE_OPTIONS:
+            if dump[section].get(key) == default:
+                del dump[section][key]
+        blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 
 
