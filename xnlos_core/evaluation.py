@@ -33,7 +33,7 @@ import numpy as np
 from .config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
 from .errors import ConfigError, InputError
 from .io import append_jsonl, atomic_write_text, read_jsonl
-from .provenance import state_change
+from .provenance import require_same_state
 
 DEFAULT_DATASET = "out/data/default"
 DEFAULT_SPLIT = "test"
@@ -234,10 +234,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
             raise ConfigError(f"{out}: holds an evaluation of another configuration (hash "
                               f"{str(old.get('resume_sha256'))[:12]} ≠ {digest[:12]}); choose another --out "
                               "or pass --overwrite")
-        changed = state_change(old.get("state_sha256"), state)
-        if changed:
-            raise ConfigError(f"{out}: holds an evaluation made with other learned weights ({changed}); choose "
-                              "another --out or pass --overwrite")
+        require_same_state(out, old.get("state_sha256"), state, "an evaluation")
         done = read_jsonl(log)
         atomic_write_text(log, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))  # drop a torn line
     else:

@@ -6,6 +6,8 @@ import sys
 import time
 from importlib.metadata import PackageNotFoundError, version
 
+from .errors import ConfigError
+
 PACKAGES = ("xnlos", "numpy", "scipy", "pydantic", "pluggy", "matplotlib", "torch", "dask", "distributed")
 
 
@@ -27,6 +29,14 @@ def state_change(old: dict[str, str] | None, new: dict[str, str]) -> str | None:
     diff = [f"{k} {str(old.get(k, 'unrecorded'))[:12]} ≠ {str(new.get(k, 'none'))[:12]}"
             for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
     return ", ".join(diff) or None
+
+
+def require_same_state(out, old: dict[str, str] | None, new: dict[str, str], what: str) -> None:
+    """ConfigError when ``out`` holds ``what`` (e.g. "results") made with other learned weights."""
+    changed = state_change(old, new)
+    if changed:
+        raise ConfigError(f"{out}: holds {what} made with other learned weights ({changed}); choose another "
+                          "--out or pass --overwrite")
 
 
 def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = None) -> dict:

@@ -16,7 +16,7 @@ from .config import PipelineConfig
 from .errors import ConfigError
 from .io import append_jsonl, atomic_write_text, read_jsonl
 from .pipeline import Pipeline
-from .provenance import state_change
+from .provenance import require_same_state
 
 
 def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<config>", progress: bool = True,
@@ -34,10 +34,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
             raise ConfigError(f"{out}: holds results of another configuration (config hash "
                               f"{old.get('config_sha256', '?')[:12]} ≠ {prov['config_sha256'][:12]}); "
                               "choose another --out or pass --overwrite")
-        changed = state_change(old.get("state_sha256"), prov["state_sha256"])
-        if changed:
-            raise ConfigError(f"{out}: holds results made with other learned weights ({changed}); choose "
-                              "another --out or pass --overwrite")
+        require_same_state(out, old.get("state_sha256"), prov["state_sha256"], "results")
         done = read_jsonl(res_path)
         # Drop a torn last line (crash mid-write) before appending after the complete records.
         atomic_write_text(res_path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))

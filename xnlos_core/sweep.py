@@ -44,18 +44,23 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
     table = load_toml(path)
     source, base_dir = str(path), str(path.resolve().parent)
     points = expand_sweep(table, source)
-    jobs = []
+    jobs, cfgs = [], []
     for i, (assignment, t) in enumerate(points):
         label = f"{source} (sweep point {i}: {assignment})" if assignment else source
-        cfg = parse_pipeline(t, label, base_dir)  # every point is validated before anything runs
+        cfgs.append(parse_pipeline(t, label, base_dir))  # every point is validated before anything runs
         jobs.append({"point": i, "assignment": assignment, "table": t, "source": label,
-                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfg.digest(),
-                     "state": Pipeline(cfg, source=label).state_sha256()})
+                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfgs[-1].digest()})
+
+    def current(r: dict[str, Any]) -> bool:
+        """A recorded point is done when its config and its stages' learned weights are today's (the
+        pipeline, which loads the weights, is built only for records whose config matches)."""
+        i = r["point"]
+        return (i < len(jobs) and r.get("config_sha256") == jobs[i]["digest"]
+                and r["summary"].get("state_sha256", {}) == Pipeline(cfgs[i], source=jobs[i]["source"]).state_sha256())
+
     out.mkdir(parents=True, exist_ok=True)
     log = out / "sweep.jsonl"
-    done = {r["point"]: r for r in read_jsonl(log)
-            if r["point"] < len(jobs) and r.get("config_sha256") == jobs[r["point"]]["digest"]
-            and r["summary"].get("state_sha256", {}) == jobs[r["point"]]["state"]}
+    done = {r["point"]: r for r in read_jsonl(log) if current(r)}
     todo = [j for j in jobs if j["point"] not in done]
     bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, desc="sweep", unit="point")
     for _, rec in map_unordered(_run_point, todo, scheduler=scheduler, workers=workers):
