@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/detectors.py [--dataset out/data/default] [--split test]
         [--max-maps 216] [--threads 2] [--repeats 15] [--out benchmarks/detectors.md]
-        [--figure benchmarks/detectors_recall_snr.png] [--seed 0]
+        [--figure benchmarks/detectors_recall_snr.png] [--range-figure benchmarks/detectors_f1_range.png]
+        [--fit-maps 96] [--seed 0]
 
 Latency: median / p90 ms of ``detect`` on one 401 × 121 RA map of the split (default radar)
 with ``torch.set_num_threads(threads)``, after two warm-up calls, plus the whole fast pipeline
@@ -16,7 +17,10 @@ SNR bin (each point's expected RA-map SNR is kept in the dataset) shows where de
 at the noise floor or on strong echoes it misclassifies. The sub-bin refinement section scores the
 shipped swin_unet with each refinement mode (F1, and paired position residuals). The ordering
 section asks whether each step of the paper's ranking holds beyond map-to-map scatter: the mean
-per-map Macro-F1 difference of neighbouring detectors with a paired bootstrap interval.
+per-map Macro-F1 difference of neighbouring detectors with a paired bootstrap interval. The fit
+section scores each learned detector on maps it was trained on: F1 there barely above the
+evaluated split's means the model underfits, not that it fails to generalise. F1 per range band
+shows where a detector loses (near, dense scenes or far, weak echoes).
 """
 from __future__ import annotations
 
@@ -116,16 +120,29 @@ def pipeline_latency(frames, repeats: int) -> tuple[float, float, dict]:
 
 
 SNR_EDGES = np.array([10.4, 13.0, 16.0, 20.0, 25.0, 30.0, 40.0, np.inf])  # [dB], from the GT threshold
+RANGE_EDGES = np.array([0.0, 10.0, 20.0, 30.0, 40.0, 60.0, np.inf])  # [m]
+
+
+def _range_counts(pred: np.ndarray, pts: np.ndarray, pred_idx: np.ndarray, gt_idx: np.ndarray) -> np.ndarray:
+    """(3, bands) true positives, false alarms and misses per range band: matched and missed points
+    at their ground-truth range, false alarms at the detection's range (positions (N, 2) [m])."""
+    fa = np.setdiff1d(np.arange(len(pred)), pred_idx)
+    miss = np.setdiff1d(np.arange(len(pts)), gt_idx)
+    return np.stack([np.histogram(np.hypot(*q.T), RANGE_EDGES)[0] if len(q) else np.zeros(len(RANGE_EDGES) - 1)
+                     for q in (pts[gt_idx], pred[fa], pts[miss])])
 
 
 def metrics(det, frames, radius: float) -> dict:
-    """Mean F1 / CD per class, and per ground-truth SNR bin the recall (``recall_snr``: class →
-    (hits, totals) over SNR_EDGES; a detector that cannot classify is matched class-agnostically)."""
+    """Mean F1 / CD per class, per ground-truth SNR bin the recall (``recall_snr``: class →
+    (hits, totals) over SNR_EDGES; a detector that cannot classify is matched class-agnostically),
+    and per range band the pooled match counts (``range_counts``: class → (3, bands), see
+    :func:`_range_counts`)."""
     from xnlos_core.metrics import dense_metrics, match_points, thin_to_resolution
     from xnlos_core.types import LOS, MNLOS
 
     rows = []
     counts = {c: (np.zeros(len(SNR_EDGES) - 1), np.zeros(len(SNR_EDGES) - 1)) for c in ("los", "mnlos")}
+    by_range = {c: np.zeros((3, len(RANGE_EDGES) - 1)) for c in ("los", "mnlos")}
     for f in frames:
         d = det.detect(f)
         g = thin_to_resolution(f.ground_truth, f.ra_map.radar)
@@ -134,11 +151,13 @@ def metrics(det, frames, radius: float) -> dict:
         for c, label, pts, snr in (("los", LOS, g.los_points, g.los_snr_db),
                                    ("mnlos", MNLOS, g.mnlos_points, g.mnlos_snr_db)):
             pred = d.position[d.label == label] if m["classified"] else d.position
+            pi, gi = match_points(pred, pts, radius)
+            by_range[c] += _range_counts(pred, pts, pi, gi)
             hit = np.zeros(len(pts), dtype=bool)
-            hit[match_points(pred, pts, radius)[1]] = True
+            hit[gi] = True
             counts[c][0][:] += np.histogram(snr[hit], SNR_EDGES)[0]
             counts[c][1][:] += np.histogram(snr, SNR_EDGES)[0]
-    out = {"recall_snr": counts,
+    out = {"recall_snr": counts, "range_counts": by_range,
            "macro_f1_maps": np.array([m["macro" if m["classified"] else "all"]["f1"] for m in rows])}
     for key in ("los", "mnlos", "macro", "all"):
         out[f"{key}_f1"] = float(np.mean([m[key]["f1"] for m in rows]))
@@ -183,6 +202,67 @@ def recall_section(names, res, figure: str | None, link: str | None = None) -> l
         axes[1].legend(fontsize=8)
         save_png(fig, figure, dpi=110)
         out += ["", f"![recall versus SNR]({link or figure})"]
+    return out
+
+
+def range_section(names, res, figure: str | None, link: str | None = None) -> list[str]:
+    """Markdown table (and a PNG at ``figure``) of F1 per range band, pooled over the maps (detectors
+    that classify; a class-agnostic detector would count every detection as a false alarm of each class)."""
+    names = [n for n in names if res[n]["classified"]]
+    if not names:
+        return []
+    bands = [f"{lo:g}–{hi:g}" if np.isfinite(hi) else f"≥ {lo:g}" for lo, hi in zip(RANGE_EDGES[:-1], RANGE_EDGES[1:])]
+    out = ["", "## F1 versus range", "",
+           "F1 per range band [m], pooled over the maps: 2·TP / (2·TP + false alarms + misses), matched and missed "
+           "points at their ground-truth range, false alarms at the detection's range.", "",
+           "| detector | class | " + " | ".join(bands) + " |", "|---|---|" + "---|" * len(bands)]
+    f1 = {}
+    for name in names:
+        for c in ("los", "mnlos"):
+            tp, fa, miss = res[name]["range_counts"][c]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                f1[name, c] = np.where(tp + fa + miss > 0, 2 * tp / (2 * tp + fa + miss), np.nan)
+            out.append(f"| {name} | {c} | " + " | ".join(_fmt(v) for v in f1[name, c]) + " |")
+    gt = {c: res[names[0]]["range_counts"][c][[0, 2]].sum(0) for c in ("los", "mnlos")}
+    out.append("| points | los / mnlos | " + " | ".join(f"{int(a)} / {int(b)}" for a, b in zip(gt["los"], gt["mnlos"]))
+               + " |")
+    if figure:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        from xnlos_core.figures import save_png
+
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+        x = np.arange(len(bands))
+        for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
+            for name in names:
+                ax.plot(x, f1[name, c], "o-", label=name)
+            ax.set(title=f"{title} F1", xlabel="range [m]", ylim=(0, 1.02), xticks=x, xticklabels=bands)
+            ax.grid(alpha=0.3)
+        axes[0].set_ylabel("F1 at the match radius")
+        axes[1].legend(fontsize=8)
+        save_png(fig, figure, dpi=110)
+        out += ["", f"![F1 versus range]({link or figure})"]
+    return out
+
+
+def fit_section(names, res, fit, n_maps: int) -> list[str]:
+    """Markdown: each learned detector's F1 on training maps beside the evaluated split. Train ≈ test
+    means the model underfits (more capacity or training would help); train ≫ test, that it overfits."""
+    if not fit:
+        return []
+    out = ["", "## Fit: training maps against the evaluated split", "",
+           f"F1 on the first {n_maps} maps of the train split (seen in training) and on the evaluated split, "
+           "decoded as shipped.", "",
+           "| detector | train Macro / LOS / mNLOS F1 | evaluated Macro / LOS / mNLOS F1 | Macro gap |", "|---|---|---|---|"]
+    for name in names:
+        if name in fit:
+            a, b = fit[name], res[name]
+            out.append(f"| {name} | {a['macro_f1']:.3f} / {a['los_f1']:.3f} / {a['mnlos_f1']:.3f} | "
+                       f"{b['macro_f1']:.3f} / {b['los_f1']:.3f} / {b['mnlos_f1']:.3f} | "
+                       f"{a['macro_f1'] - b['macro_f1']:+.3f} |")
     return out
 
 
@@ -245,6 +325,10 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="also write the Markdown report here")
     ap.add_argument("--figure", default="figures/detector_recall_snr.png",
                     help="PNG of recall versus ground-truth SNR ('' for none)")
+    ap.add_argument("--range-figure", default="figures/detector_f1_range.png",
+                    help="PNG of F1 versus range ('' for none)")
+    ap.add_argument("--fit-maps", type=int, default=96,
+                    help="score the learned detectors also on this many train maps (0: skip)")
     args = ap.parse_args()
 
     import torch
@@ -261,12 +345,16 @@ def main() -> None:
              f"{frames[0].ra_map.shape[1]}), {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} CPUs, torch threads {args.threads}, load average "
              f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}", ""]
-    lat, res, meta, dets = {}, {}, {}, {}
+    train = ([f for _, f in zip(range(args.fit_maps), open_dataset(args.dataset, "train"))]
+             if args.fit_maps > 0 else [])
+    lat, res, meta, dets, fit = {}, {}, {}, {}, {}
     for name in names:
         det = dets[name] = reg.create("detector", name, {"device": "cpu"} if name not in ("cfar", "nlos_cfar") else {})
         lat[name] = latency(det, frames, args.repeats)
         res[name] = metrics(det, frames, args.radius)
         meta[name] = det.metadata if hasattr(det, "metadata") else None
+        if meta[name] and train:
+            fit[name] = metrics(det, train, args.radius)
     pipe_med, pipe_p90, pipe_stages = pipeline_latency(frames, args.repeats)
 
     lines += ["## Latency per RA map (CPU)", "", "| detector | median ms | p90 ms | parameters | checkpoint KiB | "
@@ -308,6 +396,7 @@ def main() -> None:
         lines += ["", "Training runs behind each shipped model (its checkpoint metadata; the config headers give "
                   "the stages before): " + "; ".join(trained) + "."]
     lines += ordering_section(names, res, args.seed)
+    lines += fit_section(names, res, fit, len(train))
     if "swin_unet" in names:
         study = refinement_study(dets["swin_unet"], frames, args.radius)
         lines += ["", "## Sub-bin refinement (swin_unet)", "",
@@ -323,8 +412,11 @@ def main() -> None:
         lines += ["", "Cell quantisation alone would leave 0.289 cells (1/√12). The larger residual reflects "
                   "the ground truth: a thinned point stands for all scatterers of its resolution cell, whose "
                   "coherent sum need not peak at it."]
-    link = os.path.relpath(args.figure, Path(args.out).parent) if args.figure and args.out else args.figure
-    lines += recall_section(names, res, args.figure, link)
+    def link(figure):
+        return os.path.relpath(figure, Path(args.out).parent) if figure and args.out else figure
+
+    lines += recall_section(names, res, args.figure, link(args.figure))
+    lines += range_section(names, res, args.range_figure, link(args.range_figure))
     text = "\n".join(lines)
     print(text)
     if args.out:
