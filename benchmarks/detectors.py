@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/detectors.py [--dataset out/data/default] [--split test]
         [--max-maps 216] [--threads 2] [--repeats 15] [--out benchmarks/detectors.md]
         [--figure benchmarks/detectors_recall_snr.png] [--range-figure benchmarks/detectors_f1_range.png]
-        [--fit-maps 96] [--seed 0]
+        [--fit-maps 96] [--seed 0] [--checkpoint swin_unet=out/train/X/model.pt ...]
 
 Latency: median / p90 ms of ``detect`` on one 401 × 121 RA map of the split (default radar)
 with ``torch.set_num_threads(threads)``, after two warm-up calls, plus the whole fast pipeline
@@ -99,12 +99,12 @@ def latency(det, frames, repeats: int) -> tuple[float, float]:
     return 1e3 * float(np.median(ts)), 1e3 * float(np.percentile(ts, 90))
 
 
-def pipeline_latency(frames, repeats: int) -> tuple[float, float, dict]:
+def pipeline_latency(frames, repeats: int, checkpoint: str = "default") -> tuple[float, float, dict]:
     from xnlos_core.config import parse_pipeline
     from xnlos_core.pipeline import Pipeline
 
     table = {"name": "fast", "seed": 0, "scene": {"builtin": "corner"}, "forward_model": {"name": "image"},
-             "detector": {"name": "swin_unet"}, "wall_estimator": {"name": "lsq"},
+             "detector": {"name": "swin_unet", "params": {"checkpoint": checkpoint}}, "wall_estimator": {"name": "lsq"},
              "reconstructor": {"name": "mirror"}, "run": {"frames": 1, "figure": False}}
     pipe = Pipeline(parse_pipeline(table, "benchmark"), source="benchmark")
     for f in frames[:2]:
@@ -322,6 +322,8 @@ def main() -> None:
     ap.add_argument("--radius", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=0, help="seed of the bootstrap resamples")
     ap.add_argument("--detectors", default=",".join(DETECTORS))
+    ap.add_argument("--checkpoint", action="append", default=[], metavar="NAME=PATH",
+                    help="score a learned detector with this checkpoint instead of the shipped one (repeatable)")
     ap.add_argument("--out", default=None, help="also write the Markdown report here")
     ap.add_argument("--figure", default="figures/detector_recall_snr.png",
                     help="PNG of recall versus ground-truth SNR ('' for none)")
@@ -330,6 +332,9 @@ def main() -> None:
     ap.add_argument("--fit-maps", type=int, default=96,
                     help="score the learned detectors also on this many train maps (0: skip)")
     args = ap.parse_args()
+    checkpoints = dict(c.split("=", 1) for c in args.checkpoint if "=" in c)
+    if len(checkpoints) != len(args.checkpoint):
+        ap.error(f"--checkpoint {args.checkpoint}: expected NAME=PATH, e.g. swin_unet=out/train/swin_unet/model.pt")
 
     import torch
 
@@ -349,13 +354,15 @@ def main() -> None:
              if args.fit_maps > 0 else [])
     lat, res, meta, dets, fit = {}, {}, {}, {}, {}
     for name in names:
-        det = dets[name] = reg.create("detector", name, {"device": "cpu"} if name not in ("cfar", "nlos_cfar") else {})
+        params = {} if name in ("cfar", "nlos_cfar") else {"device": "cpu", **(
+            {"checkpoint": checkpoints[name]} if name in checkpoints else {})}
+        det = dets[name] = reg.create("detector", name, params)
         lat[name] = latency(det, frames, args.repeats)
         res[name] = metrics(det, frames, args.radius)
         meta[name] = det.metadata if hasattr(det, "metadata") else None
         if meta[name] and train:
             fit[name] = metrics(det, train, args.radius)
-    pipe_med, pipe_p90, pipe_stages = pipeline_latency(frames, args.repeats)
+    pipe_med, pipe_p90, pipe_stages = pipeline_latency(frames, args.repeats, checkpoints.get("swin_unet", "default"))
 
     lines += ["## Latency per RA map (CPU)", "", "| detector | median ms | p90 ms | parameters | checkpoint KiB | "
               "train s/epoch (device) |", "|---|---|---|---|---|---|"]
@@ -364,7 +371,7 @@ def main() -> None:
     for name in names:
         m = meta[name]
         if m:
-            kib = (MODELS_DIR / f"{name}.pt").stat().st_size / 1024
+            kib = Path(checkpoints.get(name, MODELS_DIR / f"{name}.pt")).stat().st_size / 1024
             tr = m.get("training", {})
             extra = f"{m.get('n_parameters', 0):,} | {kib:.0f} | {_fmt(tr.get('seconds_per_epoch'), 0)} ({tr.get('device')})"
         else:
@@ -393,8 +400,10 @@ def main() -> None:
               "nlos_cfar is given the true relay walls (the paper's known-wall baseline)."]
     trained = [f"{name}: {_lineage(meta[name])}" for name in names if meta[name]]
     if trained:
-        lines += ["", "Training runs behind each shipped model (its checkpoint metadata; the config headers give "
+        lines += ["", "Training runs behind each model (its checkpoint metadata; the config headers give "
                   "the stages before): " + "; ".join(trained) + "."]
+    if checkpoints:
+        lines += ["", "Not the shipped models: " + ", ".join(f"{k} from `{v}`" for k, v in checkpoints.items()) + "."]
     lines += ordering_section(names, res, args.seed)
     lines += fit_section(names, res, fit, len(train))
     if "swin_unet" in names:
