@@ -148,6 +148,9 @@ def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys
     capsys.readouterr()
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q"]) == 2
     assert "other learned weights (detector" in capsys.readouterr().err
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q", "--overwrite"]) == 0
+    rec = [json.loads(x) for x in (tmp_path / "sw" / "sweep.jsonl").read_text().splitlines()]
+    assert len(rec) == 1 and rec[0]["summary"]["state_sha256"] == Pipeline(cfg).state_sha256() != first
 
 
 def test_tracker_follows_moving_hidden_car():

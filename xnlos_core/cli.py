@@ -41,7 +41,8 @@ def _cmd_demo(args) -> int:
 def _cmd_sweep(args) -> int:
     from .sweep import run_sweep
 
-    records = run_sweep(args.config, args.out, scheduler=args.scheduler, workers=args.workers, progress=not args.quiet)
+    records = run_sweep(args.config, args.out, scheduler=args.scheduler, workers=args.workers, progress=not args.quiet,
+                        overwrite=args.overwrite)
     print((Path(args.out) / "sweep.md").read_text())
     print(f"{len(records)} point(s); wrote {Path(args.out) / 'sweep.md'}")
     return 0
@@ -194,6 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, type=Path)
     s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); default: local")
     s.add_argument("--workers", type=int, default=None, help="local worker processes (1 = in process)")
+    s.add_argument("--overwrite", action="store_true", help="run every point again, discarding the results in --out")
     s.add_argument("-q", "--quiet", action="store_true")
     s.set_defaults(func=_cmd_sweep)
 

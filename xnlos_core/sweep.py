@@ -3,7 +3,7 @@
 Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
 per finished point, so a killed sweep resumes with the points still missing (a point is done when
 its config and its stages' learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`, are
-those recorded). ``sweep.md`` tabulates the assignment of every point beside its metrics and
+those recorded; ``overwrite`` runs every point again). ``sweep.md`` tabulates the assignment of every point beside its metrics and
 per-stage time.
 """
 from __future__ import annotations
@@ -30,14 +30,15 @@ def _run_point(job: dict[str, Any]) -> dict[str, Any]:
     from .runner import run_to_dir
 
     cfg = parse_pipeline(job["table"], job["source"], job["base_dir"])
-    summary = run_to_dir(cfg, job["out"], source=job["source"], progress=False)
+    summary = run_to_dir(cfg, job["out"], source=job["source"], progress=False, overwrite=job["overwrite"])
     return {"point": job["point"], "assignment": job["assignment"], "config_sha256": cfg.digest(),
             "summary": summary}
 
 
 def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None, workers: int | None = None,
-              progress: bool = True) -> list[dict[str, Any]]:
-    """Run every grid point of the sweep file ``path`` into ``out``; returns records by point."""
+              progress: bool = True, overwrite: bool = False) -> list[dict[str, Any]]:
+    """Run every grid point of the sweep file ``path`` into ``out``; returns records by point.
+    ``overwrite``: discard the recorded points and their directories' results and run all again."""
     from tqdm import tqdm
 
     path, out = Path(path), Path(out)
@@ -49,7 +50,8 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
         label = f"{source} (sweep point {i}: {assignment})" if assignment else source
         cfgs.append(parse_pipeline(t, label, base_dir))  # every point is validated before anything runs
         jobs.append({"point": i, "assignment": assignment, "table": t, "source": label,
-                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfgs[-1].digest()})
+                     "base_dir": base_dir, "out": str(out / f"point-{i:03d}"), "digest": cfgs[-1].digest(),
+                     "overwrite": overwrite})
 
     def current(r: dict[str, Any]) -> bool:
         """A recorded point is done when its config and its stages' learned weights are today's (the
@@ -60,6 +62,8 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "sweep.jsonl"
+    if overwrite:
+        log.unlink(missing_ok=True)
     done = {r["point"]: r for r in read_jsonl(log) if current(r)}
     todo = [j for j in jobs if j["point"] not in done]
     bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, desc="sweep", unit="point")
