@@ -166,9 +166,35 @@ def metrics(det, frames, radius: float) -> dict:
     return out
 
 
+def _bands(edges) -> list[str]:
+    return [f"{lo:g}–{hi:g}" if np.isfinite(hi) else f"≥ {lo:g}" for lo, hi in zip(edges[:-1], edges[1:])]
+
+
+def _class_panels(names, curves, x, xlabel: str, quantity: str, figure: str, ticks=None) -> None:
+    """PNG at ``figure``: an LOS and an mNLOS panel, one line per detector (curves[name, class] over x)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from xnlos_core.figures import save_png
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
+        for name in names:
+            ax.plot(x, curves[name, c], "o-", label=name)
+        ax.set(title=f"{title} {quantity}", xlabel=xlabel, ylim=(0, 1.02))
+        if ticks is not None:
+            ax.set(xticks=x, xticklabels=ticks)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel(f"{quantity} at the match radius")
+    axes[1].legend(fontsize=8)
+    save_png(fig, figure, dpi=110)
+
+
 def recall_section(names, res, figure: str | None, link: str | None = None) -> list[str]:
     """Markdown table (and a PNG at ``figure``) of recall versus ground-truth SNR per detector."""
-    bins = [f"{lo:g}–{hi:g}" if np.isfinite(hi) else f"≥ {lo:g}" for lo, hi in zip(SNR_EDGES[:-1], SNR_EDGES[1:])]
+    bins = _bands(SNR_EDGES)
     out = ["", "## Recall versus ground-truth SNR", "",
            "Share of ground-truth points (thinned to resolution cells) matched by a detection of their class, "
            "by the cell's expected RA-map SNR [dB] (10.4 dB: the detectability threshold of the ground truth).", "",
@@ -182,25 +208,11 @@ def recall_section(names, res, figure: str | None, link: str | None = None) -> l
     out.append("| points | los / mnlos | " + " | ".join(f"{int(a)} / {int(b)}" for a, b in
                                                         zip(totals["los"][1], totals["mnlos"][1])) + " |")
     if figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        from xnlos_core.figures import save_png
-
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
         mid = np.append(0.5 * (SNR_EDGES[:-2] + SNR_EDGES[1:-1]), SNR_EDGES[-2] + 5)
-        for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
-            for name in names:
-                hits, tot = res[name]["recall_snr"][c]
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    ax.plot(mid, np.where(tot > 0, hits / tot, np.nan), "o-", label=name)
-            ax.set(title=f"{title} recall", xlabel="ground-truth RA-map SNR [dB]", ylim=(0, 1.02))
-            ax.grid(alpha=0.3)
-        axes[0].set_ylabel("recall at the match radius")
-        axes[1].legend(fontsize=8)
-        save_png(fig, figure, dpi=110)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            curves = {(n, c): np.where(res[n]["recall_snr"][c][1] > 0, np.divide(*res[n]["recall_snr"][c]), np.nan)
+                      for n in names for c in ("los", "mnlos")}
+        _class_panels(names, curves, mid, "ground-truth RA-map SNR [dB]", "recall", figure)
         out += ["", f"![recall versus SNR]({link or figure})"]
     return out
 
@@ -211,7 +223,7 @@ def range_section(names, res, figure: str | None, link: str | None = None) -> li
     names = [n for n in names if res[n]["classified"]]
     if not names:
         return []
-    bands = [f"{lo:g}–{hi:g}" if np.isfinite(hi) else f"≥ {lo:g}" for lo, hi in zip(RANGE_EDGES[:-1], RANGE_EDGES[1:])]
+    bands = _bands(RANGE_EDGES)
     out = ["", "## F1 versus range", "",
            "F1 per range band [m], pooled over the maps: 2·TP / (2·TP + false alarms + misses), matched and missed "
            "points at their ground-truth range, false alarms at the detection's range.", "",
@@ -227,23 +239,7 @@ def range_section(names, res, figure: str | None, link: str | None = None) -> li
     out.append("| points | los / mnlos | " + " | ".join(f"{int(a)} / {int(b)}" for a, b in zip(gt["los"], gt["mnlos"]))
                + " |")
     if figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        from xnlos_core.figures import save_png
-
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-        x = np.arange(len(bands))
-        for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
-            for name in names:
-                ax.plot(x, f1[name, c], "o-", label=name)
-            ax.set(title=f"{title} F1", xlabel="range [m]", ylim=(0, 1.02), xticks=x, xticklabels=bands)
-            ax.grid(alpha=0.3)
-        axes[0].set_ylabel("F1 at the match radius")
-        axes[1].legend(fontsize=8)
-        save_png(fig, figure, dpi=110)
+        _class_panels(names, f1, np.arange(len(bands)), "range [m]", "F1", figure, bands)
         out += ["", f"![F1 versus range]({link or figure})"]
     return out
 
