@@ -3,8 +3,8 @@
 Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
 per finished point, so a killed sweep resumes with the points still missing (a point is done when
 its config and its stages' learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`, are
-those recorded; ``overwrite`` runs every point again). ``sweep.md`` tabulates the assignment of every point beside its metrics and
-per-stage time.
+those recorded; ``overwrite`` runs every point again). ``sweep.md`` tabulates the assignment of
+every point beside its metrics and per-stage time.
 """
 from __future__ import annotations
 
