@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 DETECTORS = ["nlos_cfar", "cfar", "rtn", "further_than_cfar", "unet", "swin_unet"]
+CLASSICAL = ("cfar", "nlos_cfar")  # no weights: no checkpoint, device or fit section
 PAPER = {  # Table 2, simulation rows: Macro / LOS / mNLOS F1, Macro / LOS / mNLOS CD [m²]
     "nlos_cfar": ("NLOS-CFAR [61]", 0.23, None, None, 68.6, None, None),
     "rtn": ("RTN [50]", 0.57, 0.68, 0.47, 104.0, 140.6, 67.2),
@@ -328,9 +329,12 @@ def main() -> None:
     ap.add_argument("--fit-maps", type=int, default=96,
                     help="score the learned detectors also on this many train maps (0: skip)")
     args = ap.parse_args()
+    names = args.detectors.split(",")
+    learned = [n for n in names if n not in CLASSICAL]
     checkpoints = dict(c.split("=", 1) for c in args.checkpoint if "=" in c)
-    if len(checkpoints) != len(args.checkpoint):
-        ap.error(f"--checkpoint {args.checkpoint}: expected NAME=PATH, e.g. swin_unet=out/train/swin_unet/model.pt")
+    if len(checkpoints) != len(args.checkpoint) or not set(checkpoints) <= set(learned):
+        ap.error(f"--checkpoint {args.checkpoint}: expected NAME=PATH with NAME one of the learned --detectors "
+                 f"{learned}, e.g. swin_unet=out/train/swin_unet/model.pt")
 
     import torch
 
@@ -340,17 +344,16 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     ds = open_dataset(args.dataset, args.split)
     frames = [f for _, f in zip(range(args.max_maps or len(ds)), ds)]
-    names = args.detectors.split(",")
     reg = get_registry()
     lines = [f"# Detectors on {args.dataset} ({args.split}: {len(frames)} maps of {frames[0].ra_map.shape[0]} × "
              f"{frames[0].ra_map.shape[1]}), {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} CPUs, torch threads {args.threads}, load average "
              f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}", ""]
     train = ([f for _, f in zip(range(args.fit_maps), open_dataset(args.dataset, "train"))]
-             if args.fit_maps > 0 else [])
+             if args.fit_maps > 0 and learned else [])
     lat, res, meta, dets, fit = {}, {}, {}, {}, {}
     for name in names:
-        params = {} if name in ("cfar", "nlos_cfar") else {"device": "cpu", **(
+        params = {} if name in CLASSICAL else {"device": "cpu", **(
             {"checkpoint": checkpoints[name]} if name in checkpoints else {})}
         det = dets[name] = reg.create("detector", name, params)
         lat[name] = latency(det, frames, args.repeats)
