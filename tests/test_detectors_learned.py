@@ -249,3 +249,31 @@ def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block():
     with torch.no_grad():
         changed = (mlp(x2) - mlp(x)).abs().amax(-1)[0] > 1e-7
     assert changed.nonzero().tolist() == [[i, j] for i in (2, 3, 4) for j in (3, 4, 5)]
+
+
+def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_path):
+    from plugins.detectors.nets.swin_unet import SwinUNet, SwinUNetParams
+
+    base = dict(TINY["swin_unet"])
+    with pytest.raises(ValueError, match="multiple of 4"):
+        SwinUNetParams(**base, stem_levels=3)  # patch (2, 2) cannot sit on a 1/4-resolution stem
+    two = SwinUNet(SwinUNetParams(**base))
+    three = SwinUNet(SwinUNetParams(**{**base, "patch": (4, 4)}, stem_levels=3))
+    top = {net: {k.split(".")[0] for k in net.state_dict()} for net in (two, three)}
+    # two levels keep the module names of the checkpoints made before the field; three add one level
+    assert {"stem0", "stem1", "up0", "fuse0", "fuse1"} <= top[two] and not top[two] & {"stem2", "up1", "fuse2"}
+    assert top[three] - top[two] == {"stem2", "up1", "fuse2"}
+    seen = {}
+    for name in ("stem2", "embed"):
+        getattr(three, name).register_forward_hook(lambda m, i, o, name=name: seen.update({name: tuple(o.shape)}))
+    assert three.multiple == (8, 8)
+    assert three.eval()(torch.randn(1, 4, 16, 24)).shape == (1, 2, 16, 24)
+    hc, c = base["head_channels"], base["embed_dim"]
+    assert seen == {"stem2": (1, 2 * hc, 4, 6), "embed": (1, c, 4, 6)}  # 1/4 resolution, 2 · head_channels
+    # the detector pads any map to the multiple and crops back
+    hp = SwinUNetParams(**{**base, "patch": (4, 4)}, stem_levels=3)
+    meta = {"architecture": "swin_unet", "hparams": hp.model_dump(mode="json"),
+            "head": default_head("swin_unet", hp, (0.7, 1.0)).describe(), "decode": {"threshold": 0.5, "window": [1, 3]}}
+    save_checkpoint(tmp_path / "three.pt", SwinUNet(hp), meta)
+    det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "three.pt"), "device": "cpu"})
+    assert isinstance(det.detect(_frame(np.random.default_rng(0).normal(size=(37, 13)) + 1j)), Detections)

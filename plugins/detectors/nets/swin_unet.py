@@ -5,12 +5,12 @@ Encoder: patch embedding (p_r × p_a patches → C channels), then per stage ``d
 a learned relative-position bias) followed by patch merging (2×2 → 2C). Decoder: patch expanding
 (C → 2×2 × C/2), concatenation with the encoder skip of the same scale, a linear fusion and
 Swin blocks. Our addition (a hybrid, as in TransUNet): the patch embedding sits on a small
-convolutional stem — conv-BN-ReLU at full and at half resolution — whose two feature maps are
-skips for the last two decoder steps (patch expanding to half resolution, fusion, transposed-conv
-up-sampling to full resolution, fusion; each fusion ``decoder_convs`` 3×3 conv-BN-ReLU). A pure
-×4 patch embedding loses the sub-cell peak shape that the Gaussian targets and the refinement
-rely on (Sec. 4, angular upsampling); with the stem the transformer still sees every cell's
-context at 1/p resolution. A 3×3 projection to two channels is the head (the paper's linear
+convolutional stem — ``stem_levels`` levels of conv-BN-ReLU at full, 1/2, 1/4, … resolution, each
+level after the first halving it — whose feature maps are skips for the last decoder steps (patch
+expanding to the stem's lowest resolution, fusion, then per level transposed-conv up-sampling by
+2 and fusion; each fusion ``decoder_convs`` 3×3 conv-BN-ReLU). A pure ×4 patch embedding loses
+the sub-cell peak shape that the Gaussian targets and the refinement rely on (Sec. 4, angular
+upsampling); with the stem the transformer still sees every cell's context at 1/p resolution. A 3×3 projection to two channels is the head (the paper's linear
 layer with a 3×3 support); the Sigmoid is applied by the loss / detector. With ``mlp_conv`` each
 block's MLP carries a 3×3 depthwise convolution (Mix-FFN, :class:`MixMLP`): attention stays
 windowed and shifted, and every token also sees its neighbours (+1 % parameters; after the
@@ -46,6 +46,9 @@ class SwinUNetParams(BaseModel):
                                                            "decoder step (2: the UNet unit)")
     mlp_conv: bool = Field(False, description="a 3×3 depthwise convolution between the two linear layers of "
                                               "every block's MLP (Mix-FFN)")
+    stem_levels: int = Field(2, ge=2, le=4, description="conv stem levels before the patch embedding (full, "
+                                                         "1/2, 1/4, … resolution); level k ≥ 1 has "
+                                                         "head_channels · 2^(k−1) channels")
 
     def model_post_init(self, _ctx) -> None:
         if len(self.depths) != len(self.heads):
@@ -53,9 +56,11 @@ class SwinUNetParams(BaseModel):
         for i, h in enumerate(self.heads):
             if (self.embed_dim * 2**i) % h:
                 raise ValueError(f"stage {i}: {self.embed_dim * 2**i} channels not divisible by {h} heads")
-        if min(self.window) < 1 or min(self.patch) < 2 or any(p % 2 for p in self.patch):
-            raise ValueError(f"window {self.window} must be ≥ 1 and patch {self.patch} even (≥ 2): the conv "
-                             "stem halves the resolution before the patch embedding")
+        step = 2 ** (self.stem_levels - 1)
+        if min(self.window) < 1 or min(self.patch) < step or any(p % step for p in self.patch):
+            raise ValueError(f"window {self.window} must be ≥ 1 and patch {self.patch} a multiple of {step}: "
+                             f"the {self.stem_levels}-level conv stem divides the resolution by {step} before "
+                             "the patch embedding")
 
 
 class WindowAttention(nn.Module):
@@ -212,11 +217,14 @@ class SwinUNet(nn.Module):
         n = len(hp.depths)
         c = hp.embed_dim
         self.multiple = (hp.patch[0] * 2 ** (n - 1), hp.patch[1] * 2 ** (n - 1))
-        s0, s1 = hp.stem_channels, hp.head_channels
-        self.stem0 = nn.Sequential(conv_bn(N_FEATURES, s0), conv_bn(s0, s0))
-        self.stem1 = nn.Sequential(conv_bn(s0, s1, stride=2), conv_bn(s1, s1))
-        half = (hp.patch[0] // 2, hp.patch[1] // 2)
-        self.embed = nn.Conv2d(s1, c, kernel_size=half, stride=half)
+        levels = hp.stem_levels
+        ch = [hp.stem_channels] + [hp.head_channels * 2 ** (k - 1) for k in range(1, levels)]
+        self.stem0 = nn.Sequential(conv_bn(N_FEATURES, ch[0]), conv_bn(ch[0], ch[0]))
+        for k in range(1, levels):
+            self.add_module(f"stem{k}", nn.Sequential(conv_bn(ch[k - 1], ch[k], stride=2), conv_bn(ch[k], ch[k])))
+        step = 2 ** (levels - 1)
+        rest = (hp.patch[0] // step, hp.patch[1] // step)
+        self.embed = nn.Conv2d(ch[-1], c, kernel_size=rest, stride=rest)
         self.embed_norm = nn.LayerNorm(c)
         win = tuple(hp.window)
         self.encoder = nn.ModuleList(_stage(c * 2**i, hp.depths[i], hp.heads[i], win, hp.mlp_ratio, hp.mlp_conv)
@@ -226,11 +234,13 @@ class SwinUNet(nn.Module):
         self.fuse = nn.ModuleList(nn.Linear(2 * c * 2**i, c * 2**i) for i in range(n - 1))
         self.decoder = nn.ModuleList(_stage(c * 2**i, hp.depths[i], hp.heads[i], win, hp.mlp_ratio, hp.mlp_conv)
                                      for i in range(n - 1))
-        self.final_expand = PatchExpand(c, s1, half)
-        self.fuse1 = _fuse(2 * s1, s1, hp.decoder_convs)
-        self.up0 = nn.ConvTranspose2d(s1, s0, 2, stride=2)
-        self.fuse0 = _fuse(2 * s0, s0, hp.decoder_convs)
-        self.head = nn.Conv2d(s0, 2, 3, padding=1)
+        self.final_expand = PatchExpand(c, ch[-1], rest)
+        # Attribute names fuse{k} / up{k} keep the two-level checkpoints' state_dict keys.
+        for k in reversed(range(levels)):
+            self.add_module(f"fuse{k}", _fuse(2 * ch[k], ch[k], hp.decoder_convs))
+            if k:
+                self.add_module(f"up{k - 1}", nn.ConvTranspose2d(ch[k], ch[k - 1], 2, stride=2))
+        self.head = nn.Conv2d(ch[0], 2, 3, padding=1)
         head_bias_init(self.head)
         self.apply(_init)
 
@@ -238,9 +248,11 @@ class SwinUNet(nn.Module):
         h, w = x.shape[-2:]
         if h % self.multiple[0] or w % self.multiple[1]:
             raise ValueError(f"SwinUNet: input {h}×{w} must be a multiple of {self.multiple}; pad it first")
-        f0 = self.stem0(x)
-        f1 = self.stem1(f0)
-        t = self.embed_norm(self.embed(f1).permute(0, 2, 3, 1))
+        levels = self.hp.stem_levels
+        feats = [self.stem0(x)]
+        for k in range(1, levels):
+            feats.append(getattr(self, f"stem{k}")(feats[-1]))
+        t = self.embed_norm(self.embed(feats[-1]).permute(0, 2, 3, 1))
         skips = []
         for i, stage in enumerate(self.encoder):
             t = stage(t)
@@ -250,8 +262,9 @@ class SwinUNet(nn.Module):
         for i in reversed(range(len(self.decoder))):
             t = self.expand[i](t)
             t = self.decoder[i](self.fuse[i](torch.cat([t, skips[i]], -1)))
-        y = self.fuse1(torch.cat([self.final_expand(t).permute(0, 3, 1, 2), f1], 1))
-        y = self.fuse0(torch.cat([self.up0(y), f0], 1))
+        y = getattr(self, f"fuse{levels - 1}")(torch.cat([self.final_expand(t).permute(0, 3, 1, 2), feats[-1]], 1))
+        for k in reversed(range(levels - 1)):
+            y = getattr(self, f"fuse{k}")(torch.cat([getattr(self, f"up{k}")(y), feats[k]], 1))
         return self.head(y)
 
 
