@@ -10,11 +10,14 @@ level after the first halving it — whose feature maps are skips for the last d
 expanding to the stem's lowest resolution, fusion, then per level transposed-conv up-sampling by
 2 and fusion; each fusion ``decoder_convs`` 3×3 conv-BN-ReLU). A pure ×4 patch embedding loses
 the sub-cell peak shape that the Gaussian targets and the refinement rely on (Sec. 4, angular
-upsampling); with the stem the transformer still sees every cell's context at 1/p resolution. A 3×3 projection to two channels is the head (the paper's linear
-layer with a 3×3 support); the Sigmoid is applied by the loss / detector. With ``mlp_conv`` each
-block's MLP carries a 3×3 depthwise convolution (Mix-FFN, :class:`MixMLP`): attention stays
-windowed and shifted, and every token also sees its neighbours (+1 % parameters; after the
-24 crop epochs of stage 1 on the default dataset, val loss 0.250 against 0.267 without).
+upsampling); with the stem the transformer still sees every cell's context at 1/p resolution.
+The shipped model has three stem levels (full, 1/2, 1/4) under 8 × 8 patches: convolutions where
+echoes are dense, attention from 1/8 on, where an 8 × 8-token window spans 64 × 64 cells. A 3×3
+projection to two channels is the head (the paper's linear layer with a 3×3 support); the
+Sigmoid is applied by the loss / detector. With ``mlp_conv`` each block's MLP carries a 3×3
+depthwise convolution (Mix-FFN, :class:`MixMLP`): attention stays windowed and shifted, and every
+token also sees its neighbours (+1 % parameters; after the 24 crop epochs of stage 1 on the
+default dataset, val loss 0.250 against 0.267 without).
 
 Inputs (B, 4, H, W) with H, W multiples of ``multiple`` = patch · 2^(stages−1); windows that do
 not tile a stage are zero-padded inside the block and cropped back (as in Swin).
@@ -41,7 +44,8 @@ class SwinUNetParams(BaseModel):
     patch: tuple[int, int] = Field((4, 4), description="patch size (range, azimuth) [bins], even")
     mlp_ratio: float = Field(2.0, gt=0, le=8, description="MLP hidden width / channels")
     stem_channels: int = Field(8, ge=1, le=128, description="conv stem channels at full resolution")
-    head_channels: int = Field(16, ge=1, le=128, description="conv stem / decoder channels at half resolution")
+    head_channels: int = Field(16, ge=1, le=128, description="conv stem / decoder channels at half resolution "
+                                                              "(doubled per further stem level)")
     decoder_convs: int = Field(1, ge=1, le=4, description="3×3 conv-BN-ReLU per full- and half-resolution "
                                                            "decoder step (2: the UNet unit)")
     mlp_conv: bool = Field(False, description="a 3×3 depthwise convolution between the two linear layers of "
@@ -262,7 +266,8 @@ class SwinUNet(nn.Module):
         for i in reversed(range(len(self.decoder))):
             t = self.expand[i](t)
             t = self.decoder[i](self.fuse[i](torch.cat([t, skips[i]], -1)))
-        y = getattr(self, f"fuse{levels - 1}")(torch.cat([self.final_expand(t).permute(0, 3, 1, 2), feats[-1]], 1))
+        y = torch.cat([self.final_expand(t).permute(0, 3, 1, 2), feats[-1]], 1)
+        y = getattr(self, f"fuse{levels - 1}")(y)
         for k in reversed(range(levels - 1)):
             y = getattr(self, f"fuse{k}")(torch.cat([getattr(self, f"up{k}")(y), feats[k]], 1))
         return self.head(y)
