@@ -38,9 +38,10 @@ def _frame(data, radar=None) -> Frame:
     return Frame(RAMap(data, r, a, radar or SMALL))
 
 
-def _tiny_checkpoint(path, name, seed=0, extra_meta=None):
+def _tiny_checkpoint(path, name, seed=0, extra_meta=None, **params):
+    """Save a tiny untrained ``name`` (TINY hyper-parameters, ``params`` overriding) and return it."""
     arch = architectures()[name]
-    hp = arch.HParams(**TINY[name])
+    hp = arch.HParams(**{**TINY[name], **params})
     torch.manual_seed(seed)
     net = arch.module(hp)
     meta = {"architecture": name, "hparams": hp.model_dump(mode="json"),
@@ -258,7 +259,7 @@ def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_pat
     with pytest.raises(ValueError, match="multiple of 4"):
         SwinUNetParams(**base, stem_levels=3)  # patch (2, 2) cannot sit on a 1/4-resolution stem
     two = SwinUNet(SwinUNetParams(**base))
-    three = SwinUNet(SwinUNetParams(**{**base, "patch": (4, 4)}, stem_levels=3))
+    three = _tiny_checkpoint(tmp_path / "three.pt", "swin_unet", patch=(4, 4), stem_levels=3)
     top = {net: {k.split(".")[0] for k in net.state_dict()} for net in (two, three)}
     # two levels keep the module names of the checkpoints made before the field; three add one level
     assert {"stem0", "stem1", "up0", "fuse0", "fuse1"} <= top[two] and not top[two] & {"stem2", "up1", "fuse2"}
@@ -271,9 +272,5 @@ def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_pat
     hc, c = base["head_channels"], base["embed_dim"]
     assert seen == {"stem2": (1, 2 * hc, 4, 6), "embed": (1, c, 4, 6)}  # 1/4 resolution, 2 · head_channels
     # the detector pads any map to the multiple and crops back
-    hp = SwinUNetParams(**{**base, "patch": (4, 4)}, stem_levels=3)
-    meta = {"architecture": "swin_unet", "hparams": hp.model_dump(mode="json"),
-            "head": default_head("swin_unet", hp, (0.7, 1.0)).describe(), "decode": {"threshold": 0.5, "window": [1, 3]}}
-    save_checkpoint(tmp_path / "three.pt", SwinUNet(hp), meta)
     det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "three.pt"), "device": "cpu"})
     assert isinstance(det.detect(_frame(np.random.default_rng(0).normal(size=(37, 13)) + 1j)), Detections)
