@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/detectors.py [--dataset out/data/default] [--split test]
         [--max-maps 216] [--threads 2] [--repeats 15] [--out benchmarks/detectors.md]
         [--figure benchmarks/detectors_recall_snr.png] [--range-figure benchmarks/detectors_f1_range.png]
-        [--fit-maps 96] [--seed 0] [--checkpoint swin_unet=out/train/X/model.pt ...]
+        [--fit-maps 96] [--seed 0] [--checkpoint swin_unet=out/train/X/model.pt ...] [--tta swin_unet,unet]
 
 Latency: median / p90 ms of ``detect`` on one 401 × 121 RA map of the split (default radar)
 with ``torch.set_num_threads(threads)``, after two warm-up calls, plus the whole fast pipeline
@@ -20,7 +20,9 @@ section asks whether each step of the paper's ranking holds beyond map-to-map sc
 per-map Macro-F1 difference of neighbouring detectors with a paired bootstrap interval. The fit
 section scores each learned detector on maps it was trained on: F1 there barely above the
 evaluated split's means the model underfits, not that it fails to generalise. F1 per range band
-shows where a detector loses (near, dense scenes or far, weak echoes).
+shows where a detector loses (near, dense scenes or far, weak echoes). The flip-averaging section
+prices ``tta = "flip"`` (:mod:`plugins.detectors.learned`) for the ``--tta`` detectors: F1 and
+latency with it, and its paired gain over the same model without.
 """
 from __future__ import annotations
 
@@ -309,6 +311,26 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
     return out
 
 
+def tta_section(names, dets, res, frames, radius: float, repeats: int, seed: int) -> list[str]:
+    """Each of ``names`` again with ``tta = "flip"`` (same checkpoint): F1, paired Macro-F1 gain over
+    its plain run (``res``), median latency."""
+    from xnlos_core.registry import get_registry
+
+    lines = ["", '## Accuracy for time: flip averaging (`tta = "flip"`)', "",
+             "The mean of the logits on the map and, mirrored back, on its azimuth mirror; Δ against the same "
+             f"model without, paired bootstrap over the maps (seed {seed}).", "",
+             "| detector | Macro F1 | LOS F1 | mNLOS F1 | Δ Macro F1 [95 % interval] | median ms (plain) |",
+             "|---|---|---|---|---|---|"]
+    for name in names:
+        det = get_registry().create("detector", name, {**dets[name].params.model_dump(), "tta": "flip"})
+        r = metrics(det, frames, radius)
+        d, lo, hi = paired_bootstrap(r["macro_f1_maps"], res[name]["macro_f1_maps"], seed=seed)
+        plain = latency(dets[name], frames, repeats)[0]
+        lines.append(f"| {name} | {r['macro_f1']:.3f} | {r['los_f1']:.3f} | {r['mnlos_f1']:.3f} | "
+                     f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] | {latency(det, frames, repeats)[0]:.1f} ({plain:.1f}) |")
+    return lines
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dataset", default="out/data/default")
@@ -328,6 +350,8 @@ def main() -> None:
                     help="PNG of F1 versus range ('' for none)")
     ap.add_argument("--fit-maps", type=int, default=96,
                     help="score the learned detectors also on this many train maps (0: skip)")
+    ap.add_argument("--tta", default="swin_unet,unet",
+                    help="dense learned detectors to score also with tta='flip' ('' for none)")
     args = ap.parse_args()
     names = args.detectors.split(",")
     learned = [n for n in names if n not in CLASSICAL]
@@ -423,6 +447,9 @@ def main() -> None:
     def link(figure):
         return os.path.relpath(figure, Path(args.out).parent) if figure and args.out else figure
 
+    tta = [n for n in args.tta.split(",") if n in learned]
+    if tta:
+        lines += tta_section(tta, dets, res, frames, args.radius, args.repeats, args.seed)
     lines += recall_section(names, res, args.figure, link(args.figure))
     lines += range_section(names, res, args.range_figure, link(args.range_figure))
     text = "\n".join(lines)

@@ -184,6 +184,41 @@ def test_untrained_network_is_deterministic_by_seed():
     assert not np.array_equal(a, c)
 
 
+@pytest.mark.parametrize("name", ["swin_unet", "unet"])
+def test_flip_tta_is_mirror_equivariant_and_refused_for_grid_heads(name):
+    """tta = 'flip': the heatmap of the mirrored map is the mirrored heatmap (a plain network's is
+    not), and it changes the result; a grid head (rtn) is refused by name."""
+    rng = np.random.default_rng(5)
+    data = (rng.standard_normal((37, 13)) + 1j * rng.standard_normal((37, 13))) * np.exp(rng.uniform(0, 6, (37, 13)))
+    heat = {}
+    for tta in ("none", "flip"):
+        det = get_registry().create("detector", name, {"device": "cpu", "tta": tta})
+        heat[tta] = det.heatmap(_frame(data)), det.heatmap(_frame(data[:, ::-1]))
+    np.testing.assert_allclose(heat["flip"][1], heat["flip"][0][:, :, ::-1], atol=1e-6)
+    assert np.abs(heat["none"][1] - heat["none"][0][:, :, ::-1]).max() > 1e-3
+    assert np.abs(heat["flip"][0] - heat["none"][0]).max() > 1e-3
+    with pytest.raises(ConfigError, match="tta = 'flip' needs a dense head"):
+        get_registry().create("detector", "rtn", {"tta": "flip"}).detect(_frame(data))
+    with pytest.raises(ConfigError, match="tta"):
+        get_registry().create("detector", name, {"tta": "rotate"})
+
+
+def test_rtn_default_grid_holds_one_point_per_resolution_cell():
+    """RTN's default grid is no coarser than a radar resolution cell (one range bin; a beam of about
+    four azimuth bins): a cloud at that density loses no point to cell sharing; a 2 × 2 grid keeps half."""
+    from plugins.detectors.heatmaps import grid_targets
+    from plugins.detectors.nets.rtn import RTNParams
+
+    rr, aa = np.meshgrid(np.arange(64), np.arange(0, 64, 4), indexing="ij")
+    peaks = np.stack([rr.ravel(), aa.ravel() + 1.3, np.ones(rr.size)], 1)  # mNLOS points, sub-bin azimuth
+
+    def kept(stride):
+        return int(grid_targets(peaks, (64, 64), stride)[1].sum())
+
+    assert kept(RTNParams().stride) == rr.size
+    assert kept((2, 2)) == rr.size // 2
+
+
 def test_params_are_validated():
     with pytest.raises(ConfigError, match="device"):
         get_registry().create("detector", "swin_unet", {"device": "gpu0"})

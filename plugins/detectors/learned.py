@@ -6,7 +6,10 @@ the network and output head stored in their checkpoint.
 Pipeline per frame: features (:mod:`.features`: log power over the map's median in 10 dB
 units, cos/sin of the phase) → zero-padded to the network's multiple → network → cropped back →
 peaks with sub-bin refinement (:mod:`.decode`) → range / azimuth by interpolating the fractional
-cells on the map's axes. Standard deviations: the refinement residuals measured on the validation
+cells on the map's axes. ``tta = "flip"`` trades time for accuracy: the logits are the mean of the
+network's on the map and, mirrored back, on the map mirrored in azimuth (a left–right mirrored
+scene is as plausible as the scene, and no feature depends on the sign of the azimuth).
+Standard deviations: the refinement residuals measured on the validation
 split when the model was trained (checkpoint metadata ``decode.calibration``, in cells; 1/√12
 cell without one), times the local bin spacing.
 
@@ -19,12 +22,12 @@ plumbing only).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from xnlos_core.errors import InputError
+from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.types import Detections, Frame, RAMap
 
@@ -52,6 +55,9 @@ class LearnedParams(BaseModel):
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
     threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads during inference, restored "
                                                                  "afterwards (None: leave torch's setting)")
+    tta: Literal["none", "flip"] = Field("none", description="test-time augmentation: 'flip' averages the logits "
+                                         "of the map and of its azimuth mirror (twice the network time; "
+                                         "dense heads only)")
 
     @field_validator("threshold")
     @classmethod
@@ -209,6 +215,13 @@ class LearnedDetector(Detector):
         feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
                             name=f"frame {frame.index}: RAMap.data")
         out = run_network(self._net, feats, self._device, self.params.threads)
+        if self.params.tta == "flip":
+            if self._head.describe()["kind"] != "dense":
+                raise ConfigError(f"{type(self).__name__}: tta = 'flip' needs a dense head; this checkpoint's "
+                                  f"head is {self._head.describe()['kind']!r}")
+            w = feats.shape[-1]
+            back = run_network(self._net, feats[..., ::-1], self._device, self.params.threads)[..., :w][..., ::-1]
+            out[..., :w] = 0.5 * (out[..., :w] + back)
         if not np.all(np.isfinite(out)):
             raise InputError(f"{type(self).__name__}: the network produced non-finite outputs on frame "
                              f"{frame.index} (the checkpoint's weights are broken)")
