@@ -4,9 +4,15 @@ adapted, as the paper did, from object detection to LOS / mNLOS point detection.
 An object detector on a grid: a ResNet backbone down to stride (s_r, s_a), a context stage that
 fuses a coarser scale, and a detection head per grid cell — two class logits ("a LOS / an mNLOS
 point lies in this cell") and per class a 2-D position regression (logits of the point's
-position inside the cell, in [0, 1) of a cell after a sigmoid). Each cell holds at most one point per class, which is why closely spaced peaks merge
-(the failure mode the paper reports). Trained with the binary focal loss on the class logits
-and an L1 loss on the offsets of occupied cells.
+position inside the cell, in [0, 1) of a cell after a sigmoid). Each cell holds at most one point
+per class, which is why closely spaced peaks merge (the failure mode the paper reports). Trained
+with the binary focal loss on the class logits and an L1 loss on the offsets of occupied cells.
+
+The default stride (1, 2) keeps the grid no coarser than the radar's resolution cell (one range
+bin δr = c/2B; two 1° azimuth bins against a 4° beamwidth), the density at which ground truth
+is defined. A coarser grid caps recall whatever the network learns: keeping one ground-truth
+point per grid cell scores F1 0.82 / 0.81 (LOS / mNLOS, 96 val maps of the default dataset) at
+stride (2, 2), 0.94 / 0.94 at (1, 2).
 Input (B, 4, H, W), H and W multiples of the stride; output (B, 6, H/s_r, W/s_a).
 """
 from __future__ import annotations
@@ -25,8 +31,9 @@ class RTNParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     base_channels: int = Field(16, ge=2, le=128, description="channels of the first stage (doubled per stage)")
-    stride: tuple[int, int] = Field((2, 2), description="output grid stride (range, azimuth) [bins]; "
-                                                       "powers of two")
+    stride: tuple[int, int] = Field((1, 2), description="output grid stride (range, azimuth) [bins]; "
+                                                       "powers of two (module doc: keep it within a "
+                                                       "resolution cell)")
 
     def model_post_init(self, _ctx) -> None:
         for s in self.stride:
