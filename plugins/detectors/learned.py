@@ -262,7 +262,7 @@ class FurtherThanCFARDetector(LearnedDetector):
 
 
 class RTNDetector(LearnedDetector):
-    """Radar-tensor detection network on a coarse grid, adapted to LOS/mNLOS points (RTN baseline)."""
+    """Radar-tensor detection network on a grid, adapted to LOS/mNLOS points (RTN baseline)."""
 
     architecture = "rtn"
 
