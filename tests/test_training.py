@@ -2,6 +2,7 @@
 validates, checkpoints, resumes to the same weights, and refuses bad configs with located errors."""
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from pathlib import Path
@@ -187,12 +188,17 @@ def test_azimuth_flip_mirrors_features_and_targets_and_leaves_other_runs_alone(c
 
 
 def test_shipped_models_keep_the_digest_of_their_training_config():
-    """Options added later (data.flip_azimuth) leave the digests of existing runs unchanged."""
+    """Each shipped model's training config still hashes to the digest in its metadata, and the
+    option added later (data.flip_azimuth, which counts only when set) changes it when toggled."""
     from plugins.detectors.learned import MODELS_DIR
 
     for name in ("swin_unet", "unet", "further_than_cfar", "rtn"):
         meta = json.loads((MODELS_DIR / f"{name}.json").read_text())
         cfg = load_train_config(ROOT / meta["training"]["config_file"])
         assert cfg.digest() == meta["training"]["config_sha256"], name
-        flipped = cfg.model_copy(update={"data": cfg.data.model_copy(update={"flip_azimuth": True})})
-        assert flipped.digest() != cfg.digest()
+        toggled = cfg.model_copy(update={"data": cfg.data.model_copy(update={"flip_azimuth": not cfg.data.flip_azimuth})})
+        assert toggled.digest() != cfg.digest()
+        plain = toggled if cfg.data.flip_azimuth else cfg  # without the option: hashed as before it existed
+        dump = plain.model_dump(exclude={"out", "export", "threads"})
+        del dump["data"]["flip_azimuth"]
+        assert plain.digest() == hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
