@@ -216,9 +216,10 @@ class LearnedDetector(Detector):
                             name=f"frame {frame.index}: RAMap.data")
         out = run_network(self._net, feats, self._device, self.params.threads)
         if self.params.tta == "flip":
-            if self._head.describe()["kind"] != "dense":
+            kind = self._head.describe()["kind"]
+            if kind != "dense":
                 raise ConfigError(f"{type(self).__name__}: tta = 'flip' needs a dense head; this checkpoint's "
-                                  f"head is {self._head.describe()['kind']!r}")
+                                  f"head is {kind!r}")
             w = feats.shape[-1]
             back = run_network(self._net, feats[..., ::-1], self._device, self.params.threads)[..., :w][..., ::-1]
             out[..., :w] = 0.5 * (out[..., :w] + back)
