@@ -149,7 +149,12 @@ def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network
             torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=1e-6, msg=key)
     init = meta_b["training"]["dataset"]["init"]
     assert init["weights_sha256"] == meta_a["weights_sha256"] and init["command"] == meta_a["training"]["command"]
-    assert init["epochs_run"] == meta_a["training"]["epochs_run"]
+    assert init["epochs_run"] == meta_a["training"]["epochs_run"] and "init" not in init  # a started from scratch
+    # a third stage from b records the whole chain: b, and under it b's own parent a
+    train(parse_train_config({**tune, "out": str(tmp_path / "f"), "init": str(tmp_path / "b" / "model.pt")}),
+          progress=False)
+    chain = load_checkpoint(tmp_path / "f" / "model.pt", "swin_unet")[1]["training"]["dataset"]["init"]
+    assert chain["weights_sha256"] == meta_b["weights_sha256"] and chain["init"] == init
 
     other = {**tune, "out": str(tmp_path / "c"),
              "model": {**base["model"], "params": {**base["model"]["params"], "embed_dim": 8}}}

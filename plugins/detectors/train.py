@@ -131,7 +131,9 @@ def _prepare_out(out: Path, cfg: TrainConfig, overwrite: bool) -> bool:
 
 def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     """Load ``cfg.init`` into ``net`` (same architecture and hyper-parameters, else InputError);
-    returns its provenance {path, weights_sha256, its own training record} for the metadata."""
+    returns its provenance {path, weights_sha256, its own training record} for the metadata, with
+    the parent's own ``init`` nested under ``init`` when it was fine-tuned too (the whole chain of
+    stages, back to the run that started from random weights)."""
     from .checkpoint import build_model, load_checkpoint
 
     path = Path(cfg.init)
@@ -145,9 +147,11 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
                          f"{hp.model_dump(mode='json')}; fine-tuning needs the same network")
     net.load_state_dict(sd)
     parent = meta.get("training", {})
-    return {"path": str(cfg.init), "weights_sha256": meta.get("weights_sha256"),
-            "command": parent.get("command"), "config_sha256": parent.get("config_sha256"),
-            "epochs_run": parent.get("epochs_run"), "val": parent.get("metrics", {}).get("val")}
+    record = {"path": str(cfg.init), "weights_sha256": meta.get("weights_sha256"),
+              "command": parent.get("command"), "config_sha256": parent.get("config_sha256"),
+              "epochs_run": parent.get("epochs_run"), "val": parent.get("metrics", {}).get("val")}
+    grandparent = parent.get("dataset", {}).get("init")
+    return {**record, "init": grandparent} if grandparent else record
 
 
 def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
