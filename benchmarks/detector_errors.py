@@ -19,6 +19,11 @@ detection of its class matches within the radius is a **miss**, and each unmatch
 Two ceilings that no detector can beat are printed as well: the F1 between the ground truth and
 itself thinned on a grid shifted by half a resolution cell (thinning picks one point per cell, so
 where a cell boundary falls is arbitrary), per class.
+
+**Shared misses**, per pair of detectors and class: of the ground-truth points either misses, how
+many both miss. Misses both share point at the data (echoes the map does not separate); misses of
+one only point at that network, and the recall of the pair (a point matched by either) bounds what
+a better network of the same kind could reach.
 """
 from __future__ import annotations
 
@@ -53,12 +58,13 @@ def multipath_echoes(frame, fm) -> np.ndarray:
 
 
 def errors(det, frames, fm, radius: float) -> dict:
-    """Counts {class: {"tp", "gt", "pred", "miss": {cause: n}, "fa": {cause: n}}} over ``frames``."""
+    """Counts {class: {"tp", "gt", "pred", "miss": {cause: n}, "fa": {cause: n}, "hit": (gt,) bool}}
+    over ``frames``; ``hit`` marks the matched ground-truth points, frame after frame."""
     from xnlos_core.metrics import match_points, thin_to_resolution
     from xnlos_core.types import LOS, MNLOS
 
-    out = {c: {"tp": 0, "gt": 0, "pred": 0, "miss": dict.fromkeys(CAUSES_MISS, 0), "fa": dict.fromkeys(CAUSES_FA, 0)}
-           for c in ("los", "mnlos")}
+    out = {c: {"tp": 0, "gt": 0, "pred": 0, "miss": dict.fromkeys(CAUSES_MISS, 0), "fa": dict.fromkeys(CAUSES_FA, 0),
+               "hit": []} for c in ("los", "mnlos")}
     for f in frames:
         d = det.detect(f)
         g = thin_to_resolution(f.ground_truth, f.ra_map.radar)
@@ -71,6 +77,9 @@ def errors(det, frames, fm, radius: float) -> dict:
             s["tp"] += len(pi)
             s["gt"] += len(mine)
             s["pred"] += len(pred)
+            hit = np.zeros(len(mine), dtype=bool)
+            hit[gi] = True
+            s["hit"].append(hit)
             for i in np.setdiff1d(np.arange(len(mine)), gi):
                 cause = ("wrong class" if _near(rest, mine[i], radius) else
                          "displaced" if _near(pred, mine[i], 2.5 * radius) else "missed")
@@ -85,7 +94,26 @@ def errors(det, frames, fm, radius: float) -> dict:
                         clutter = multipath_echoes(f, fm)
                     cause = "multipath" if _near(clutter, pred[i], 1.5) else "other"
                 s["fa"][cause] += 1
+    for s in out.values():
+        s["hit"] = np.concatenate(s["hit"]) if s["hit"] else np.zeros(0, dtype=bool)
     return out
+
+
+def shared_misses(res: dict) -> list[str]:
+    """Markdown table: per pair of detectors and class, misses of each, of both, and the pair's recall."""
+    from itertools import combinations
+
+    lines = ["| pair | class | misses of the first / second | missed by both | share of the first's misses "
+             "| recall: first / second / either |", "|---|---|---|---|---|---|"]
+    for a, b in combinations(res, 2):
+        for c in ("los", "mnlos"):
+            ha, hb = res[a][c]["hit"], res[b][c]["hit"]
+            n = max(len(ha), 1)
+            both = int(np.sum(~ha & ~hb))
+            lines.append(f"| {a} / {b} | {c} | {int(np.sum(~ha))} / {int(np.sum(~hb))} | {both} | "
+                         f"{both / max(int(np.sum(~ha)), 1):.2f} | {ha.sum() / n:.3f} / {hb.sum() / n:.3f} / "
+                         f"{(ha | hb).sum() / n:.3f} |")
+    return lines
 
 
 def grid_ceiling(frames, shift: tuple[float, float] = (0.5, 0.5)) -> dict[str, float]:
@@ -168,6 +196,9 @@ def main() -> None:
                          f"{' / '.join(str(s['fa'][k]) for k in CAUSES_FA)} |")
     lines += ["", f"Grid ceiling: the ground truth thinned on a grid shifted by half a resolution cell scores "
               f"F1 {ceiling['los']:.3f} (LOS) and {ceiling['mnlos']:.3f} (mNLOS) against itself."]
+    if len(res) > 1:
+        lines += ["", "## Shared misses", "", "Ground-truth points missed by two detectors (module doc).", ""]
+        lines += shared_misses(res)
     if args.figure:
         figure(res, args.figure)
         lines += ["", f"![errors by cause]({Path(args.figure).name})"]
