@@ -58,8 +58,11 @@ def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: i
 
     tx_faults: :class:`~hardware.faults.Fault` rules applied to what the radar sends;
     rx_faults: rules applied to what the host receives (e.g. ``bus_error``). Backend parameters
-    default to short timeouts (``response_timeout`` 0.2 s, ``timeout`` and ``frame_timeout``
-    0.3 s, ``frame_interval`` 0.05 s). Yields (backend, emulator); both are closed afterwards.
+    default to short waits (``response_timeout`` 0.2 s, ``timeout`` 0.3 s, ``frame_interval``
+    0.05 s) but to the backend's own ``frame_timeout`` of 2 s: one 20 kB transfer takes ≈ 0.08 s
+    on an idle machine and over 0.5 s on a loaded one, and a shorter limit would report such a
+    frame lost (then late) and make exact-count tests depend on the machine's load. Yields
+    (backend, emulator); both are closed afterwards.
     """
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
@@ -78,7 +81,7 @@ def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: i
                        status_period=status_period, fc_timeout=fc_timeout,
                        bus_wrapper=wrapper(tx_faults, proto, "tx") if tx_faults else None)
     params = {"channel": channel, "sensor_id": sensor_id, "emulate": "never", "frame_interval": 0.05,
-              "response_timeout": 0.2, "timeout": 0.3, "frame_timeout": 0.3, **backend_params}
+              "response_timeout": 0.2, "timeout": 0.3, "frame_timeout": 2.0, **backend_params}
     backend = CANBackend(params)
     if rx_faults:
         backend.bus_wrapper = wrapper(rx_faults, proto, "rx")
