@@ -23,7 +23,11 @@ where a cell boundary falls is arbitrary), per class.
 **Shared misses**, per pair of detectors and class: of the ground-truth points either misses, how
 many both miss. Misses both share point at the data (echoes the map does not separate); misses of
 one only point at that network, and the recall of the pair (a point matched by either) bounds what
-a better network of the same kind could reach.
+a better network of the same kind could reach. Recall alone ignores false alarms, so **averaged
+pairs** score the pair as one detector as well: the mean of the two networks' logits, decoded on
+the first's settings (thresholds, cell suppression; pairs whose heads are alike: dense, with the same
+training target, so that their logits mean the same), against each alone. A pair
+that scores little above its better member leaves little to errors of one network.
 """
 from __future__ import annotations
 
@@ -116,6 +120,34 @@ def shared_misses(res: dict) -> list[str]:
     return lines
 
 
+def averaged_pairs(dets: dict, frames, radius: float) -> list[str]:
+    """Markdown table: per pair of learned detectors with alike dense heads (the same checkpoint head
+    record), mean Macro / LOS / mNLOS F1 over ``frames`` of each and of the mean of their logits
+    decoded as the first decodes (module doc)."""
+    from itertools import combinations
+
+    from xnlos_core.metrics import dense_metrics, thin_to_resolution
+
+    dense = {n: d for n, d in dets.items() if hasattr(d, "decode") and d.metadata["head"]["kind"] == "dense"}
+    gts = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
+    outs = {n: [d.output(f)[:, :f.ra_map.shape[0], :f.ra_map.shape[1]] for f in frames] for n, d in dense.items()}
+
+    def f1(decoder, logits) -> tuple[float, float, float]:
+        m = [dense_metrics(decoder.decode(z, f.ra_map), g, radius) for z, f, g in zip(logits, frames, gts)]
+        return tuple(float(np.mean([x[k]["f1"] for x in m])) for k in ("macro", "los", "mnlos"))
+
+    alone = {n: f1(dense[n], outs[n]) for n in dense}
+    lines = ["| pair | Macro F1: first / second / averaged | LOS F1: averaged | mNLOS F1: averaged "
+             "| averaged − better member |", "|---|---|---|---|---|"]
+    for a, b in combinations(dense, 2):
+        if dense[a].metadata["head"] != dense[b].metadata["head"]:
+            continue
+        avg = f1(dense[a], [0.5 * (x + y) for x, y in zip(outs[a], outs[b])])
+        lines.append(f"| {a} + {b} | {alone[a][0]:.3f} / {alone[b][0]:.3f} / {avg[0]:.3f} | {avg[1]:.3f} | "
+                     f"{avg[2]:.3f} | {avg[0] - max(alone[a][0], alone[b][0]):+.3f} |")
+    return lines
+
+
 def grid_ceiling(frames, shift: tuple[float, float] = (0.5, 0.5)) -> dict[str, float]:
     """Mean F1 (LOS, mNLOS) of the thinned ground truth against itself thinned on a grid shifted by
     ``shift`` resolution cells (range, azimuth): what a detector that cannot know the cell grid loses."""
@@ -179,8 +211,8 @@ def main() -> None:
     frames = [f for _, f in zip(range(args.max_maps or len(ds)), ds)]
     reg = get_registry()
     fm = reg.create("forward_model", "raytrace", {})
-    res = {name: errors(reg.create("detector", name, {}), frames, fm, args.radius)
-           for name in args.detectors.split(",")}
+    dets = {name: reg.create("detector", name, {}) for name in args.detectors.split(",")}
+    res = {name: errors(det, frames, fm, args.radius) for name, det in dets.items()}
     ceiling = grid_ceiling(frames)
 
     lines = [f"# Detector errors by cause ({args.dataset}, {args.split}: first {len(frames)} maps, "
@@ -199,6 +231,10 @@ def main() -> None:
     if len(res) > 1:
         lines += ["", "## Shared misses", "", "Ground-truth points missed by two detectors (module doc).", ""]
         lines += shared_misses(res)
+        pairs = averaged_pairs(dets, frames, args.radius)
+        if len(pairs) > 2:
+            lines += ["", "## Averaged pairs", "", "Mean F1 over the maps of each detector and of the mean of the "
+                      "pair's logits, decoded as the first decodes (module doc).", ""] + pairs
     if args.figure:
         figure(res, args.figure)
         lines += ["", f"![errors by cause]({Path(args.figure).name})"]

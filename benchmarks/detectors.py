@@ -281,7 +281,7 @@ def refinement_study(det, frames, radius: float) -> list[dict]:
     head = det._head
     shipped = head.refine
     thr, win, _, cells = det._decode_defaults()
-    outs = [det._output(f)[:, : f.ra_map.shape[0], : f.ra_map.shape[1]] for f in frames]
+    outs = [det.output(f)[:, : f.ra_map.shape[0], : f.ra_map.shape[1]] for f in frames]
     truths = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
     modes = ("none", "gaussian", "parabolic")
     dets = {}

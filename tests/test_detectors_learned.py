@@ -132,7 +132,7 @@ def test_checkpoint_round_trip(tmp_path, name):
         assert torch.equal(sd[key], value)
     det = get_registry().create("detector", name, {"checkpoint": str(tmp_path / "m.pt"), "device": "cpu"})
     frame = synthetic_frame(SMALL)
-    out = det._output(frame)
+    out = det.output(frame)
     from plugins.detectors.learned import run_network
     net.eval()
     np.testing.assert_array_equal(out, run_network(net, ra_features(frame.ra_map.data), torch.device("cpu")))
@@ -177,11 +177,29 @@ def test_weights_that_do_not_fit_the_hparams_are_refused(tmp_path):
 
 def test_untrained_network_is_deterministic_by_seed():
     frame = synthetic_frame(SMALL)
-    a = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3})._output(frame)
-    b = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3})._output(frame)
-    c = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 4})._output(frame)
+    a = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3}).output(frame)
+    b = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 3}).output(frame)
+    c = get_registry().create("detector", "unet", {"checkpoint": "none", "seed": 4}).output(frame)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_decode_of_an_output_is_detect_and_takes_combined_outputs(detectors):
+    """decode(output(frame)) is detect(frame), cropped dense logits decode alike, and the mean of two
+    networks' logits (an ensemble) decodes on the first's settings into detections inside the map."""
+    frame = synthetic_frame(RadarConfig())
+    h, w = frame.ra_map.shape
+    swin, unet = detectors["swin_unet"], detectors["unet"]
+    z = swin.output(frame)
+    ref = swin.detect(frame)
+    for out in (z, z[:, :h, :w]):
+        got = swin.decode(out, frame.ra_map)
+        np.testing.assert_array_equal(got.position, ref.position)
+        np.testing.assert_array_equal(got.label, ref.label)
+    mean = 0.5 * (z[:, :h, :w] + unet.output(frame)[:, :h, :w])
+    det = swin.decode(mean, frame.ra_map)
+    assert len(det) > 0 and np.all(np.isin(det.label, (0, 1)))
+    assert np.all((det.range >= frame.ra_map.range_axis[0]) & (det.range <= frame.ra_map.range_axis[-1]))
 
 
 @pytest.mark.parametrize("name", ["swin_unet", "unet"])

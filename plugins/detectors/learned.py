@@ -206,7 +206,10 @@ class LearnedDetector(Detector):
         cells = self.params.cells if self.params.cells is not None else bool(dec.get("cells", False))
         return thr, tuple(win), dec.get("calibration", {}), cells
 
-    def _output(self, frame: Frame) -> np.ndarray:
+    def output(self, frame: Frame) -> np.ndarray:
+        """Raw network output of ``frame`` (float32): dense logits (2, H', W') of the zero-padded map
+        (H' ≥ H, W' ≥ W; rows and columns beyond the map are padding), or a grid head's (6, H'/s_r, W'/s_a);
+        with ``tta = "flip"`` the flip-averaged logits. :meth:`decode` turns it into detections."""
         from .features import ra_features
 
         if not isinstance(frame, Frame):
@@ -231,17 +234,24 @@ class LearnedDetector(Detector):
     def heatmap(self, frame: Frame) -> np.ndarray:
         """Confidence maps (2, H', W') in [0, 1] (LOS, mNLOS); map resolution for dense heads, the
         head's grid for a grid head."""
-        out = self._output(frame)
+        out = self.output(frame)
         h, w = frame.ra_map.shape
         z = out[:2, :h, :w] if self._head.describe()["kind"] == "dense" else out[:2]
         return (1.0 / (1.0 + np.exp(-z.astype(np.float64)))).astype(np.float32)
 
+    def decode(self, out: np.ndarray, ra_map: RAMap) -> Detections:
+        """Detections of a network output ``out`` of this detector's head (:meth:`output`; dense logits
+        may also come cropped to the map, (2, H, W)) on the grid of ``ra_map``, decoded as :meth:`detect`
+        decodes: the parameters' thresholds, window and cell suppression, else the checkpoint's. Outputs
+        of several networks with the same head kind, combined (e.g. logits averaged), decode here too."""
+        self._load()
+        thr, win, cal, cells = self._decode_defaults()
+        return detections_from_output(out, self._head, ra_map, thr, win, self.params.class_nms,
+                                      self.params.max_detections, cal, cells)
+
     def detect(self, frame: Frame) -> Detections:
         """Detections of ``frame``, ordered by descending confidence (an empty map may give none)."""
-        out = self._output(frame)
-        thr, win, cal, cells = self._decode_defaults()
-        return detections_from_output(out, self._head, frame.ra_map, thr, win, self.params.class_nms,
-                                      self.params.max_detections, cal, cells)
+        return self.decode(self.output(frame), frame.ra_map)
 
 
 class SwinUNetDetector(LearnedDetector):
