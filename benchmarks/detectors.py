@@ -17,7 +17,9 @@ SNR bin (each point's expected RA-map SNR is kept in the dataset) shows where de
 at the noise floor or on strong echoes it misclassifies. The sub-bin refinement section scores the
 shipped swin_unet with each refinement mode (F1, and paired position residuals). The ordering
 section asks whether each step of the paper's ranking holds beyond map-to-map scatter: the mean
-per-map Macro-F1 difference of neighbouring detectors with a paired bootstrap interval. The fit
+per-map Macro-F1 difference of neighbouring detectors with a paired bootstrap interval. The
+averaging section sets the mean over maps beside F1 pooled over all points, with the mNLOS F1 of
+maps by their number of mNLOS points (few-point maps weigh as much as busy ones in the mean). The fit
 section scores each learned detector on maps it was trained on: F1 there barely above the
 evaluated split's means the model underfits, not that it fails to generalise. F1 per range band
 shows where a detector loses (near, dense scenes or far, weak echoes). The flip-averaging section
@@ -161,7 +163,9 @@ def metrics(det, frames, radius: float) -> dict:
             counts[c][0][:] += np.histogram(snr[hit], SNR_EDGES)[0]
             counts[c][1][:] += np.histogram(snr, SNR_EDGES)[0]
     out = {"recall_snr": counts, "range_counts": by_range,
-           "macro_f1_maps": np.array([m["macro" if m["classified"] else "all"]["f1"] for m in rows])}
+           "macro_f1_maps": np.array([m["macro" if m["classified"] else "all"]["f1"] for m in rows]),
+           "counts_maps": np.array([[[m[c]["tp"] + m[c]["fn"], m[c]["tp"], m[c]["fp"], m[c]["fn"]]
+                                     for c in ("los", "mnlos")] for m in rows])}
     for key in ("los", "mnlos", "macro", "all"):
         out[f"{key}_f1"] = float(np.mean([m[key]["f1"] for m in rows]))
         out[f"{key}_cd"] = _finite_mean([m[key]["cd"] for m in rows])
@@ -262,6 +266,36 @@ def fit_section(names, res, fit, n_maps: int) -> list[str]:
             out.append(f"| {name} | {a['macro_f1']:.3f} / {a['los_f1']:.3f} / {a['mnlos_f1']:.3f} | "
                        f"{b['macro_f1']:.3f} / {b['los_f1']:.3f} / {b['mnlos_f1']:.3f} | "
                        f"{a['macro_f1'] - b['macro_f1']:+.3f} |")
+    return out
+
+
+COUNT_BINS = (1, 11, 21, 41, 10**9)  # mNLOS ground-truth points per map: 1–10, 11–20, 21–40, > 40
+
+
+def averaging_section(names, res) -> list[str]:
+    """Markdown: F1 as the mean over maps (Table 2's figures) beside F1 pooled over all points of the
+    split (2·ΣTP / (2·ΣTP + ΣFP + ΣFN), as detection benchmarks count), and the per-map mNLOS F1 by how
+    many mNLOS points the map holds: a map with few hidden points weighs as much in the mean as a busy one."""
+    names = [n for n in names if res[n]["classified"]]
+    bins = [f"{lo}–{hi - 1}" if hi < 10**9 else f"> {lo - 1}" for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+    n_gt = res[names[0]]["counts_maps"][:, 1, 0]
+    maps = [int(np.sum((n_gt >= lo) & (n_gt < hi))) for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+    out = ["", "## F1 averaged over maps or pooled over points", "",
+           "Table 2 above averages F1 over the maps; pooled, every ground-truth point and detection of the split "
+           "counts once. Right: the mean mNLOS F1 of the maps holding that many mNLOS ground-truth points "
+           f"({' / '.join(map(str, maps))} maps).", "",
+           f"| detector | mean over maps: Macro / LOS / mNLOS F1 | pooled: Macro / LOS / mNLOS F1 | "
+           f"{' | '.join(f'mNLOS F1, {b} points' for b in bins)} |", "|---|---|---|" + "---|" * len(bins)]
+    for name in names:
+        r, c = res[name], res[name]["counts_maps"]
+        tp, fp, fn = c[:, :, 1].sum(0), c[:, :, 2].sum(0), c[:, :, 3].sum(0)
+        pooled = 2 * tp / np.maximum(2 * tp + fp + fn, 1)
+        f1 = 2 * c[:, 1, 1] / np.maximum(2 * c[:, 1, 1] + c[:, 1, 2] + c[:, 1, 3], 1)
+        f1 = np.where(2 * c[:, 1, 1] + c[:, 1, 2] + c[:, 1, 3] == 0, 1.0, f1)
+        by = [_fmt(float(f1[(n_gt >= lo) & (n_gt < hi)].mean()) if np.any((n_gt >= lo) & (n_gt < hi)) else None, 3)
+              for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+        out.append(f"| {name} | {r['macro_f1']:.3f} / {r['los_f1']:.3f} / {r['mnlos_f1']:.3f} | "
+                   f"{pooled.mean():.3f} / {pooled[0]:.3f} / {pooled[1]:.3f} | {' | '.join(by)} |")
     return out
 
 
@@ -428,6 +462,7 @@ def main() -> None:
     if checkpoints:
         lines += ["", "Not the shipped models: " + ", ".join(f"{k} from `{v}`" for k, v in checkpoints.items()) + "."]
     lines += ordering_section(names, res, args.seed)
+    lines += averaging_section(names, res)
     lines += fit_section(names, res, fit, len(train))
     if "swin_unet" in names:
         study = refinement_study(dets["swin_unet"], frames, args.radius)

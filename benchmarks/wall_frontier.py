@@ -40,11 +40,11 @@ SETTINGS = [
     ("casadi_map line-only", "casadi_map", {"models": ["line"]}),
     ("emcee 16×300", "emcee", {"n_walkers": 16, "n_steps": 300, "burn": 100}),
     ("emcee 16×600", "emcee", {"n_walkers": 16, "n_steps": 600, "burn": 150}),
-    ("emcee 16×1500 (default)", "emcee", {}),
+    ("emcee 16×2000 (default)", "emcee", {}),
     ("emcee 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300}),
     ("emcee stretch 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300, "moves": "stretch"}),
 ]
-QUICK = {"lsq", "casadi_map", "emcee 16×300", "emcee 16×1500 (default)"}
+QUICK = {"lsq", "casadi_map", "emcee 16×300", "emcee 16×2000 (default)"}
 
 
 def make_frames(n: int, seed: int, arc_fraction: float, outlier_fraction: float):
