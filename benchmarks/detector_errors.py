@@ -124,6 +124,11 @@ def shared_misses(res: dict) -> list[str]:
     return lines
 
 
+def dense_detectors(dets: dict) -> dict:
+    """The learned detectors of ``dets`` with a dense head (logits per cell, ``output`` / ``decode``)."""
+    return {n: d for n, d in dets.items() if hasattr(d, "decode") and d.metadata["head"]["kind"] == "dense"}
+
+
 def averaged_pairs(dets: dict, frames, radius: float) -> list[str]:
     """Markdown table: per pair of learned detectors with alike dense heads (the same checkpoint head
     record), mean Macro / LOS / mNLOS F1 over ``frames`` of each and of the mean of their logits
@@ -132,7 +137,7 @@ def averaged_pairs(dets: dict, frames, radius: float) -> list[str]:
 
     from xnlos_core.metrics import dense_metrics, thin_to_resolution
 
-    dense = {n: d for n, d in dets.items() if hasattr(d, "decode") and d.metadata["head"]["kind"] == "dense"}
+    dense = dense_detectors(dets)
     gts = [thin_to_resolution(f.ground_truth, f.ra_map.radar) for f in frames]
     outs = {n: [d.output(f)[:, :f.ra_map.shape[0], :f.ra_map.shape[1]] for f in frames] for n, d in dense.items()}
 
@@ -252,7 +257,7 @@ def main() -> None:
                          f"{' / '.join(str(s['fa'][k]) for k in CAUSES_FA)} |")
     lines += ["", f"Grid ceiling: the ground truth thinned on a grid shifted by half a resolution cell scores "
               f"F1 {ceiling['los']:.3f} (LOS) and {ceiling['mnlos']:.3f} (mNLOS) against itself."]
-    dense = [n for n, d in dets.items() if hasattr(d, "decode") and d.metadata["head"]["kind"] == "dense"]
+    dense = list(dense_detectors(dets))
     if dense:
         dc = decoding_ceiling(dets[dense[0]], frames, args.radius)
         lines += ["", f"Decoding ceiling: {dense[0]}'s training target, decoded as {dense[0]} decodes, scores "

@@ -164,6 +164,7 @@ def metrics(det, frames, radius: float) -> dict:
             counts[c][1][:] += np.histogram(snr, SNR_EDGES)[0]
     out = {"recall_snr": counts, "range_counts": by_range,
            "macro_f1_maps": np.array([m["macro" if m["classified"] else "all"]["f1"] for m in rows]),
+           "mnlos_f1_maps": np.array([m["mnlos"]["f1"] for m in rows]),
            "counts_maps": np.array([[[m[c]["tp"] + m[c]["fn"], m[c]["tp"], m[c]["fp"], m[c]["fn"]]
                                      for c in ("los", "mnlos")] for m in rows])}
     for key in ("los", "mnlos", "macro", "all"):
@@ -279,7 +280,8 @@ def averaging_section(names, res) -> list[str]:
     names = [n for n in names if res[n]["classified"]]
     bins = [f"{lo}–{hi - 1}" if hi < 10**9 else f"> {lo - 1}" for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
     n_gt = res[names[0]]["counts_maps"][:, 1, 0]
-    maps = [int(np.sum((n_gt >= lo) & (n_gt < hi))) for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+    masks = [(n_gt >= lo) & (n_gt < hi) for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+    maps = [int(m.sum()) for m in masks]
     out = ["", "## F1 averaged over maps or pooled over points", "",
            "Table 2 above averages F1 over the maps; pooled, every ground-truth point and detection of the split "
            "counts once. Right: the mean mNLOS F1 of the maps holding that many mNLOS ground-truth points "
@@ -290,10 +292,7 @@ def averaging_section(names, res) -> list[str]:
         r, c = res[name], res[name]["counts_maps"]
         tp, fp, fn = c[:, :, 1].sum(0), c[:, :, 2].sum(0), c[:, :, 3].sum(0)
         pooled = 2 * tp / np.maximum(2 * tp + fp + fn, 1)
-        f1 = 2 * c[:, 1, 1] / np.maximum(2 * c[:, 1, 1] + c[:, 1, 2] + c[:, 1, 3], 1)
-        f1 = np.where(2 * c[:, 1, 1] + c[:, 1, 2] + c[:, 1, 3] == 0, 1.0, f1)
-        by = [_fmt(float(f1[(n_gt >= lo) & (n_gt < hi)].mean()) if np.any((n_gt >= lo) & (n_gt < hi)) else None, 3)
-              for lo, hi in zip(COUNT_BINS[:-1], COUNT_BINS[1:])]
+        by = [_fmt(float(r["mnlos_f1_maps"][m].mean()) if m.any() else None, 3) for m in masks]
         out.append(f"| {name} | {r['macro_f1']:.3f} / {r['los_f1']:.3f} / {r['mnlos_f1']:.3f} | "
                    f"{pooled.mean():.3f} / {pooled[0]:.3f} / {pooled[1]:.3f} | {' | '.join(by)} |")
     return out
