@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
 
-.PHONY: demo test test-slow bench dataset table2 figures clean
+.PHONY: demo test test-slow fuzz bench dataset table2 figures clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -20,6 +20,10 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
+
+# The fuzz tests at full length (≥ 10,000 generated cases each; `make test` runs them briefly)
+fuzz: $(STAMP)
+	XNLOS_FUZZ=long $(PY) -m pytest -q -m fuzz
 
 bench: $(STAMP)
 	$(PY) benchmarks/pipeline_speed.py

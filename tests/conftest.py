@@ -3,13 +3,30 @@ from __future__ import annotations
 
 import copy
 import importlib.metadata as md
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 HERE = Path(__file__).parent
+
+# Fuzz budget. `make test` runs every `fuzz`-marked test briefly (hypothesis' default 100 examples,
+# or the `fuzz_cases` fixture's 200 generated cases); `make fuzz` sets XNLOS_FUZZ=long and runs only
+# those tests, ≥ 10,000 cases each. Tests must not pin max_examples, so the profile decides.
+FUZZ_LONG = os.environ.get("XNLOS_FUZZ") == "long"
+settings.register_profile("xnlos-fuzz-long", max_examples=10_000, deadline=None,
+                          suppress_health_check=[HealthCheck.too_slow])
+if FUZZ_LONG:
+    settings.load_profile("xnlos-fuzz-long")
+
+
+@pytest.fixture
+def fuzz_cases() -> int:
+    """How many generated cases a hand-rolled fuzz loop runs: 200 in `make test`, 10,000 in `make fuzz`."""
+    return 10_000 if FUZZ_LONG else 200
 
 SMALL_RADAR = {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 121}
 
