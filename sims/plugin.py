@@ -1,11 +1,15 @@
-"""Registers the built-in forward models (entry point ``xnlos-sims`` of group ``xnlos.plugins``)."""
+"""Registers the built-in forward models and scene generators (entry point ``xnlos-sims`` of group
+``xnlos.plugins``)."""
 from xnlos_core import hookimpl
 
 
 @hookimpl
 def xnlos_register_components(registry):
+    from .generators.components import COMPONENTS
     from .image import ImageForwardModel
     from .raytrace.model import RaytraceForwardModel
 
     registry.add("forward_model", "image", ImageForwardModel)
     registry.add("forward_model", "raytrace", RaytraceForwardModel)
+    for name, component in COMPONENTS.items():
+        registry.add("scene_generator", name, component)

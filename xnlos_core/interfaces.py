@@ -1,13 +1,16 @@
-"""The six plugin kinds. A plugin is a class with a pydantic ``Params`` model; ``__init__``
-only stores the validated parameters (scikit-learn style) and the stage method does the work.
+"""The plugin kinds. A plugin is a class with a pydantic ``Params`` model; ``__init__`` only
+stores the validated parameters (scikit-learn style) and the stage method does the work.
 
-Any registered plugin of a kind can replace any other of that kind by a one-line config change.
+Six kinds are pipeline stages; the seventh, ``scene_generator``, draws the random scenes a
+dataset is rendered from (a dataset config names them in ``families``). Any registered plugin of
+a kind can replace any other of that kind by a one-line config change, and a config can name
+nothing else: no module, no function.
 """
 from __future__ import annotations
 
 import abc
 from collections.abc import Iterator
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -15,7 +18,10 @@ from pydantic import BaseModel, ConfigDict
 from .radar import RadarConfig
 from .types import Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
-KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker")
+if TYPE_CHECKING:
+    from .scene import Scene
+
+KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker", "scene_generator")
 
 
 class NoParams(BaseModel):
@@ -129,6 +135,22 @@ class Tracker(Plugin, abc.ABC):
         """Forget all tracks (called at the start of a run)."""
 
 
+class SceneGenerator(Plugin, abc.ABC):
+    """seed → Scene: one scene family (Sec. 5.1), its ``Params`` the family's parameters.
+
+    A dataset config lists registered scene generators by name in ``families``; its
+    ``generator_params`` and ``family_overrides.<name>`` tables are validated by ``Params``.
+    """
+
+    kind: ClassVar[str] = "scene_generator"
+
+    @abc.abstractmethod
+    def generate(self, seed: int) -> "Scene":
+        """A random :class:`xnlos_core.scene.Scene` drawn from ``numpy.random.default_rng(seed)``
+        only (``seed`` an integer ≥ 0): the same parameters and seed give the same scene, in any
+        process. Raises :class:`xnlos_core.errors.InputError` when no valid scene can be drawn."""
+
+
 BASES: dict[str, type[Plugin]] = {
     "forward_model": ForwardModel,
     "backend": Backend,
@@ -136,4 +158,5 @@ BASES: dict[str, type[Plugin]] = {
     "wall_estimator": WallEstimator,
     "reconstructor": Reconstructor,
     "tracker": Tracker,
+    "scene_generator": SceneGenerator,
 }

@@ -14,7 +14,8 @@ import numpy as np
 
 from .errors import ConfigError, InsufficientDataError
 from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
-from .interfaces import BASES, Backend, Detector, ForwardModel, Reconstructor, Tracker, WallEstimator
+from .interfaces import (BASES, Backend, Detector, ForwardModel, Reconstructor, SceneGenerator, Tracker,
+                         WallEstimator)
 from .radar import RadarConfig
 from .types import (LOS, MNLOS, Detections, Frame, GroundTruth, HiddenPoints, RAMap, Tracks,
                     WallPosterior, WallSegment)
@@ -210,9 +211,37 @@ def check_tracker(tracker: Tracker) -> None:
     tracker.reset()
 
 
+def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:
+    """Returns a Scene drawn from the seed alone: the same seed gives the same scene, whatever the
+    global RNGs (numpy's and ``random``'s) hold, and leaves them untouched."""
+    import random
+
+    from .scene import Scene
+
+    _assert(isinstance(generator, SceneGenerator), generator, "is not a xnlos_core.SceneGenerator")
+    np_state, py_state = np.random.get_state(), random.getstate()
+    first = generator.generate(seed)
+    _assert(isinstance(first, Scene), generator, f"generate() must return a Scene, got {type(first).__name__}")
+    _assert(_same_state(np_state, np.random.get_state()) and py_state == random.getstate(), generator,
+            "generate() drew from a global RNG; draw from numpy.random.default_rng(seed) only")
+    np.random.seed(12345)  # a changed global state must not change the scene
+    random.seed(12345)
+    try:
+        again = generator.generate(seed)
+    finally:
+        np.random.set_state(np_state)
+        random.setstate(py_state)
+    _assert(again.model_dump(mode="json") == first.model_dump(mode="json"), generator,
+            f"seed {seed} gave two different scenes")
+
+
+def _same_state(a, b) -> bool:
+    return a[0] == b[0] and np.array_equal(a[1], b[1]) and tuple(a[2:]) == tuple(b[2:])
+
+
 CHECKS = {"detector": check_detector, "wall_estimator": check_wall_estimator,
           "reconstructor": check_reconstructor, "forward_model": check_forward_model,
-          "backend": check_backend, "tracker": check_tracker}
+          "backend": check_backend, "tracker": check_tracker, "scene_generator": check_scene_generator}
 
 
 def check_component(kind: str, name: str, params: dict | None = None, registry=None) -> None:

@@ -9,10 +9,10 @@
     frame_interval = 0.1
     shard_size = 24                  # maps per shard file (a multiple of frames_per_scene)
     compression = "deflate"          # or "none"
-    families = ["crossroads", "t_junction"]      # or a table of weights: [families] crossroads = 2.0
-    generator = "sims.generators:generate_scene" # generate_scene(family, seed, **overrides) -> Scene
-    [generator_params]               # keyword arguments passed to the generator for every family
-    [family_overrides.crossroads]    # … and for one family (over generator_params)
+    families = ["crossroads", "t_junction"]  # registered scene generators (xnlos plugins), or a table
+                                             # of weights: [families] crossroads = 2.0
+    [generator_params]               # parameters of every family's scene generator
+    [family_overrides.crossroads]    # … and of one family (over generator_params)
     [radar]                          # RadarConfig fields, or preset = "../radar/xband_default.toml"
     [forward_model]
     name = "raytrace"
@@ -22,15 +22,21 @@
     val = 0.1
     test = 0.1
 
+Scenes come only from registered components of kind ``scene_generator`` (the built-in
+families are registered by ``sims.plugin``; a third party adds one through the same
+``xnlos_register_components`` hook), so a config names code by registered name only and never
+imports or calls anything it spells. The former ``generator = "module:function"`` key accepts
+only its old default, ``"sims.generators:generate_scene"`` (deprecated: leave it out), which
+stays in the canonical form so that the hashes of existing datasets do not change.
+
 :func:`resolve` validates everything that can fail before any work is done (radar, forward
-model and its parameters, generator import, families, overrides) and returns the config with
-the radar written out in full, families as weights and the forward model's parameters with
-their defaults: the canonical form whose :meth:`DatasetConfig.digest` identifies a dataset.
+model and its parameters, families, their parameters) and returns the config with the radar
+written out in full, families as weights and the forward model's parameters with their
+defaults: the canonical form whose :meth:`DatasetConfig.digest` identifies a dataset.
 """
 from __future__ import annotations
 
 import hashlib
-import importlib
 import json
 import math
 from pathlib import Path
@@ -40,8 +46,11 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from xnlos_core.config import StageConfig, load_toml, validate_model
 from xnlos_core.errors import ConfigError, PluginError
+from xnlos_core.interfaces import SceneGenerator
 
 SPLITS = ("train", "val", "test")
+# The only value of the legacy `generator` key: it meant "the scene generators of sims.generators"
+# and now stands for the registry of scene_generator components.
 DEFAULT_GENERATOR = "sims.generators:generate_scene"
 
 
@@ -74,18 +83,27 @@ class DatasetConfig(BaseModel):
     shard_size: int = Field(24, ge=1, le=100_000, description="maps per shard file")
     compression: Literal["deflate", "none"] = Field("deflate", description="zip compression of shard members")
     compression_level: int = Field(1, ge=0, le=9, description="deflate level (1 fast … 9 small)")
-    families: list[str] | dict[str, float] = Field(..., description="scene families, or family → weight")
+    families: list[str] | dict[str, float] = Field(..., description="registered scene generators, or name → weight")
     generator_params: dict[str, Any] = Field(default_factory=dict,
-                                             description="generator keyword arguments for every family")
+                                             description="parameters of every family's scene generator")
     family_overrides: dict[str, dict[str, Any]] = Field(default_factory=dict,
-                                                        description="family → generator keyword arguments "
+                                                        description="family → parameters of its scene generator "
                                                                     "(over generator_params)")
-    generator: str = Field(DEFAULT_GENERATOR, pattern=r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$",
-                           description="'module:function' called as function(family, seed, **overrides)")
+    generator: str = Field(DEFAULT_GENERATOR, description=f"deprecated; only {DEFAULT_GENERATOR!r}, which "
+                                                          "stands for the registered scene generators")
     radar: dict[str, Any] = Field(default_factory=dict, description="RadarConfig fields or preset = FILE")
     forward_model: StageConfig
     split: SplitConfig = Field(default_factory=SplitConfig)
     base_dir: str = Field(".", description="directory relative paths resolve against (set by load)")
+
+    @field_validator("generator")
+    @classmethod
+    def _no_code(cls, v):
+        if v != DEFAULT_GENERATOR:  # never imported: a config names registered components only
+            raise ValueError(f"a config cannot name code to import or call; scenes come from the registered "
+                             f"scene generators named in `families` (`xnlos plugins` lists them). Leave "
+                             f"`generator` out (its one accepted value, {DEFAULT_GENERATOR!r}, is deprecated)")
+        return v
 
     @field_validator("n_maps", "shard_size")
     @classmethod
@@ -127,8 +145,12 @@ class DatasetConfig(BaseModel):
         return dict(self.families) if isinstance(self.families, dict) else {f: 1.0 for f in self.families}
 
     def generator_kwargs(self, family: str) -> dict[str, Any]:
-        """Keyword arguments of the generator for ``family``: generator_params, then its overrides."""
+        """Parameters of ``family``'s scene generator: generator_params, then its overrides."""
         return {**self.generator_params, **self.family_overrides.get(family, {})}
+
+    def params_key(self, family: str) -> str:
+        """The config key that error messages about ``family``'s parameters name."""
+        return f"family_overrides.{family}" if family in self.family_overrides else "generator_params"
 
     def digest(self) -> str:
         """sha256 of the canonical JSON (call on the :func:`resolve`-d config to identify a dataset)."""
@@ -151,61 +173,63 @@ def load_dataset_config(path: str | Path, n_maps: int | None = None) -> DatasetC
     return parse_dataset_config(load_toml(path), str(path), path.resolve().parent, n_maps)
 
 
-def import_generator(spec: str, source: str = "<config>"):
-    """The scene generator function named by ``'module:function'``."""
-    mod_name, _, attr = spec.partition(":")
-    try:
-        fn = getattr(importlib.import_module(mod_name), attr)
-    except (ImportError, AttributeError) as exc:
-        raise ConfigError(f"{source}: [generator] cannot import {spec!r} ({type(exc).__name__}: {exc}); "
-                          f"expected 'module:function', e.g. {DEFAULT_GENERATOR!r}") from None
-    if not callable(fn):
-        raise ConfigError(f"{source}: [generator] {spec!r} is not callable")
-    return fn
+def generator_classes(config: DatasetConfig, source: str = "<config>", registry=None) -> dict[str, type]:
+    """family → the scene generator class registered under that name; ConfigError naming
+    ``source`` and ``[families]`` (with the registered names) for a name no plugin registered."""
+    from xnlos_core.registry import get_registry
+
+    registry = registry or get_registry()
+    known = registry.names("scene_generator")
+    unknown = [f for f in config.weights() if f not in known]
+    if unknown:
+        raise ConfigError(f"{source}: [families] unknown scene generator{'s' if len(unknown) > 1 else ''} "
+                          f"{', '.join(map(repr, unknown))}; registered scene generators: "
+                          f"{', '.join(known) or '(none)'} (a plugin adds one with registry.add(\"scene_generator\", "
+                          f"NAME, a SceneGenerator subclass))")
+    return {fam: registry.get("scene_generator", fam).factory for fam in config.weights()}
+
+
+def scene_generators(config: DatasetConfig, source: str = "<config>", registry=None,
+                     classes: dict[str, type] | None = None) -> dict[str, SceneGenerator]:
+    """family → its scene generator, built with its validated parameters.
+
+    classes: family → class as :func:`generator_classes` resolved them (in a dataset worker,
+    from the parent's registry); else they are looked up in ``registry``. Raises ConfigError
+    naming ``source`` and the key: ``[families]`` for an unknown name, ``[generator_params.…]``
+    or ``[family_overrides.<family>.…]`` for parameters the family's ``Params`` model rejects.
+    """
+    classes = generator_classes(config, source, registry) if classes is None else classes
+    out = {}
+    for fam in config.weights():
+        cls = classes.get(fam)
+        if not (isinstance(cls, type) and issubclass(cls, SceneGenerator)):
+            raise ConfigError(f"{source}: [families] {fam!r} is not a scene generator ({cls!r})")
+        params = validate_model(cls.Params, config.generator_kwargs(fam), source=source, prefix=config.params_key(fam))
+        out[fam] = cls(params)
+    return out
 
 
 def resolve(config: DatasetConfig, source: str = "<config>", registry=None) -> DatasetConfig:
-    """Validate against the installed plugins and generator; return the canonical config.
+    """Validate against the installed plugins; return the canonical config.
 
     Fails before any work with the file and key: unknown forward model or bad parameters, bad
-    radar, a generator that does not import, unknown families (when the generator's module
-    lists ``FAMILIES``), or keyword arguments the generator rejects: checked by the module's
-    ``validate_params(family, kwargs)`` when it has one, else by drawing one scene per family.
+    radar, families that are not registered scene generators, or parameters a family's model
+    rejects. Nothing is drawn or imported here.
     """
     from xnlos_core.pipeline import load_radar
     from xnlos_core.registry import get_registry
-    from xnlos_core.scene import Scene
 
+    registry = registry or get_registry()
     radar = load_radar(config.radar, source, config.base_dir)
     fm_cfg = config.forward_model
     try:
-        fm = (registry or get_registry()).create("forward_model", fm_cfg.name, fm_cfg.params, source=source)
+        fm = registry.create("forward_model", fm_cfg.name, fm_cfg.params, source=source)
     except PluginError as exc:
         raise ConfigError(f"{source}: [forward_model.name] {exc}") from None
-    gen = import_generator(config.generator, source)
-    module = importlib.import_module(config.generator.partition(":")[0])
-    known = getattr(module, "FAMILIES", None)
-    check = getattr(module, "validate_params", None)
-    weights = config.weights()
-    if known is not None:
-        unknown = [f for f in weights if f not in known]
-        if unknown:
-            raise ConfigError(f"{source}: [families] unknown famil{'y' if len(unknown) == 1 else 'ies'} "
-                              f"{', '.join(map(repr, unknown))}; {config.generator} knows: {', '.join(known)}")
-    for fam in weights:
-        kwargs = config.generator_kwargs(fam)
-        try:
-            scene = check(fam, kwargs) if check is not None else gen(fam, 0, **kwargs)
-        except Exception as exc:  # the generator's own message says what is wrong
-            key = f"family_overrides.{fam}" if fam in config.family_overrides else "generator_params"
-            raise ConfigError(f"{source}: [{key}] the generator rejected family {fam!r} with {kwargs}: "
-                              f"{type(exc).__name__}: {exc}") from None
-        if check is None and not isinstance(scene, Scene):
-            raise ConfigError(f"{source}: [generator] {config.generator} returned {type(scene).__name__} for "
-                              f"family {fam!r}; expected an xnlos_core.scene.Scene")
+    scene_generators(config, source, registry)
     return config.model_copy(update={
         "radar": radar.model_dump(mode="json"),
-        "families": weights,
+        "families": config.weights(),
         "forward_model": StageConfig(name=fm_cfg.name, params=fm.params.model_dump(mode="json")),
         "base_dir": ".",
     })

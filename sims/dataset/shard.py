@@ -56,7 +56,7 @@ from xnlos_core.io import json_default
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
 
-from .config import DatasetConfig, import_generator
+from .config import DatasetConfig, scene_generators
 from .plan import noise_seed
 
 SCHEMA_VERSION = 2
@@ -106,18 +106,21 @@ def _forward_model(name: str, params_json: str):
 
 
 def build_shard(config: DatasetConfig, name: str, split: str, scenes: list[tuple[int, int, str]],
-                digest: str) -> dict[str, Any]:
+                digest: str, generators: dict[str, type] | None = None) -> dict[str, Any]:
     """Render the maps of ``scenes`` [(scene_index, scene_seed, family)] into shard bytes.
 
-    ``config`` must be resolved (full radar, forward model parameters). Returns
-    {shard, data (bytes), sha256, n_maps, n_scenes, seconds (wall), cpu_seconds (this process)}.
+    ``config`` must be resolved (full radar, forward model parameters). ``generators``: family →
+    scene generator class, as the parent process's registry resolved the names (a worker's own
+    registry holds only the entry points, not a plugin registered by hand); None looks the
+    names up in this process's registry. Returns {shard, data (bytes), sha256, n_maps,
+    n_scenes, seconds (wall), cpu_seconds (this process)}.
     """
     from xnlos_core.scene import Scene
 
     t0, c0 = time.perf_counter(), time.process_time()
     radar = RadarConfig.model_validate(config.radar)
     fm = _forward_model(config.forward_model.name, json.dumps(config.forward_model.params, sort_keys=True))
-    gen = import_generator(config.generator)
+    gens = scene_generators(config, f"shard {name}", classes=generators)
     fps = config.frames_per_scene
     frames: list[Frame] = []
     rows: dict[str, list] = {k: [] for k in ("map_index", "scene_index", "frame", "scene_seed", "noise_seed",
@@ -126,9 +129,9 @@ def build_shard(config: DatasetConfig, name: str, split: str, scenes: list[tuple
     for k, seed, fam in scenes:
         where = f"shard {name}, scene {k} (family {fam!r}, seed {seed})"
         try:
-            scene = gen(fam, seed, **config.generator_kwargs(fam))
+            scene = gens[fam].generate(seed)
             if not isinstance(scene, Scene):
-                raise TypeError(f"the generator returned {type(scene).__name__}, expected a Scene")
+                raise TypeError(f"the scene generator returned {type(scene).__name__}, expected a Scene")
             scene_docs.append({"scene_index": k, "scene_seed": seed, "family": fam,
                                "scene": scene.model_dump(mode="json")})
             for f in range(fps):
@@ -159,9 +162,12 @@ def run_shard_job(job: dict[str, Any]) -> dict[str, Any]:
     sets up its worker processes), and a 2-thread BLAS per worker on 2 cores costs ~35 % more
     CPU per map in oversubscription.
     """
-    cfg = DatasetConfig.model_validate(job["config"])
+    from xnlos_core.config import validate_model
+
+    cfg = validate_model(DatasetConfig, job["config"], source=f"dataset job {job['shard']}", prefix="config")
     with _one_blas_thread():
-        return build_shard(cfg, job["shard"], job["split"], [tuple(s) for s in job["scenes"]], job["digest"])
+        return build_shard(cfg, job["shard"], job["split"], [tuple(s) for s in job["scenes"]], job["digest"],
+                           job.get("generators"))
 
 
 def _one_blas_thread():

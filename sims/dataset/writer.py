@@ -26,7 +26,7 @@ from xnlos_core.errors import ConfigError
 from xnlos_core.executor import map_unordered
 from xnlos_core.io import append_jsonl, atomic_write_bytes, atomic_write_text, read_jsonl
 
-from .config import SPLITS, DatasetConfig, resolve
+from .config import SPLITS, DatasetConfig, generator_classes, resolve
 from .manifest import FORMAT, LOG, MANIFEST, SHARD_DIR, check_files, describe, write_manifest
 from .plan import make_plan
 from .shard import SCHEMA_VERSION, DatasetError, run_shard_job
@@ -35,7 +35,7 @@ from .shard import SCHEMA_VERSION, DatasetError, run_shard_job
 def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<config>",
                      workers: int | None = None, scheduler: str | None = None, overwrite: bool = False,
                      repair: bool = False, progress: bool = True,
-                     on_shard: Callable[[dict], None] | None = None) -> dict[str, Any]:
+                     on_shard: Callable[[dict], None] | None = None, registry=None) -> dict[str, Any]:
     """Generate (or finish) the dataset of ``config`` in ``out``; returns a summary dict.
 
     workers: local processes (1 = in this process, None = every core); scheduler: a Dask
@@ -43,9 +43,12 @@ def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<
     overwrite: discard a dataset of another config in ``out``. repair: rebuild logged shards
     whose file is missing or corrupt instead of stopping. on_shard(record): called after each
     shard is durably recorded (an exception raised there stops the run, as a kill would).
+    registry: where the forward model and the scene generators (``families``) are looked up
+    (default: the process-wide one); workers get each family's class as resolved here.
     """
     t0 = time.perf_counter()
-    cfg = resolve(config, source)
+    cfg = resolve(config, source, registry)
+    classes = generator_classes(cfg, source, registry)
     digest = cfg.digest()
     plan = make_plan(cfg)
     out = Path(out)
@@ -70,7 +73,8 @@ def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<
     write_manifest(out, cfg, digest, plan, done)
 
     todo = [s for s in plan.shards if s.name not in done]
-    jobs = [{"config": cfg.model_dump(mode="json"), "digest": digest, "shard": s.name, "split": s.split,
+    jobs = [{"config": cfg.model_dump(mode="json"), "digest": digest, "generators": classes, "shard": s.name,
+             "split": s.split,
              "scenes": [(k, int(plan.scene_seed[k]), plan.family[k]) for k in s.scenes]} for s in todo]
     from tqdm import tqdm
 
