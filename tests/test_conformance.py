@@ -25,8 +25,10 @@ def test_builtin_conforms(kind, name, tmp_path):
     if (kind, name) == ("backend", "dataset"):
         from sims.dataset import parse_dataset_config, simulate_dataset
         from tests.test_dataset import table
+        from tests.tiny_scenes import tiny_registry
 
-        simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), tmp_path, workers=1, progress=False)
+        simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), tmp_path, workers=1, progress=False,
+                         registry=tiny_registry())
         params = {"path": str(tmp_path), "split": "all"}
     check_component(kind, name, params)
 

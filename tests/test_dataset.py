@@ -21,37 +21,29 @@ from xnlos_core.cli import main
 from xnlos_core.errors import ConfigError
 from xnlos_core.io import read_jsonl
 from xnlos_core.registry import get_registry
-from xnlos_core.scene import Scene
+from tests.tiny_scenes import FAMILIES, tiny_manager, tiny_registry, tiny_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY_RADAR = {"n_samples": 128, "max_range": 30.0, "n_azimuth_bins": 31}
-FAMILIES = ("corner_a", "corner_b", "corner_c")  # read by resolve() to check family names
-GEN = "tests.test_dataset:tiny_scene"
+GEN_PLUGIN = "tests.tiny_scenes"  # the tiny scene generators corner_a, corner_b, corner_c
 
 
-def tiny_scene(family: str, seed: int, rcs: float = 10.0, delay: float = 0.0) -> Scene:
-    """A small corner (relay wall, occluder, hidden car) jittered by ``seed``; ``delay`` [s] slows it down."""
-    if family not in FAMILIES:
-        raise ValueError(f"unknown family {family!r}")
-    if delay:
-        time.sleep(delay)
-    rng = np.random.default_rng(seed)
-    dx, dy = rng.uniform(-1.0, 1.0, 2)
-    speed = {"corner_a": 0.0, "corner_b": 1.5, "corner_c": -1.0}[family]
-    return Scene.model_validate({
-        "name": f"{family}-{seed}",
-        "walls": [{"name": "relay", "start": [8.0 + dx, 6.0], "end": [18.0 + dx, -4.0]},
-                  {"name": "occluder", "start": [3.0, -2.0], "end": [10.0, -2.0]},
-                  {"name": "side", "start": [10.0, -2.0], "end": [10.0, -15.0]}],
-        "objects": [{"name": "car", "center": [13.0 + dx, -8.0 + dy], "heading": 1.57, "rcs": rcs,
-                     "velocity": [0.0, speed]}],
-        "meta": {"family": family, "seed": seed, "dx": dx, "dy": dy},
-    })
+def simulate_tiny(config, out, **kw):
+    """simulate_dataset with the tiny scene generators registered (:func:`tests.tiny_scenes.tiny_registry`)."""
+    return simulate_dataset(config, out, registry=tiny_registry(), **kw)
+
+
+@pytest.fixture
+def tiny_cli(monkeypatch):
+    """In-process ``main([...])`` sees the tiny scene generators (as after ``xnlos -p tests.tiny_scenes``)."""
+    import xnlos_core.registry as registry_module
+
+    monkeypatch.setattr(registry_module, "_MANAGER", tiny_manager())
 
 
 def table(**over) -> dict:
     t = {"name": "tiny", "seed": 7, "n_maps": 12, "shard_size": 2, "families": list(FAMILIES),
-         "generator": GEN, "radar": dict(TINY_RADAR), "forward_model": {"name": "image"},
+         "radar": dict(TINY_RADAR), "forward_model": {"name": "image"},
          "split": {"train": 0.5, "val": 0.25, "test": 0.25}}
     t.update(over)
     return t
@@ -69,7 +61,7 @@ def hashes(out: Path) -> dict[str, str]:
 def reference(tmp_path_factory) -> Path:
     """An uninterrupted inline run of the tiny config."""
     out = tmp_path_factory.mktemp("ref")
-    simulate_dataset(cfg(), out, workers=1, progress=False)
+    simulate_tiny(cfg(), out, workers=1, progress=False)
     return out
 
 
@@ -110,7 +102,7 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
 
 def test_workers_and_order_do_not_change_the_shards(reference, tmp_path):
     out = tmp_path / "pool"
-    summary = simulate_dataset(cfg(), out, workers=2, progress=False)
+    summary = simulate_tiny(cfg(), out, workers=2, progress=False)
     assert summary["generated"] == 7 and summary["splits"] == {"train": 6, "val": 3, "test": 3}
     assert hashes(out) == hashes(reference)
     assert all(hashes(out).values())
@@ -124,7 +116,7 @@ def test_dask_local_cluster_gives_the_same_shards(reference, tmp_path):
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
-        simulate_dataset(cfg(), tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
+        simulate_tiny(cfg(), tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
     assert hashes(tmp_path / "dask") == hashes(reference)
 
 
@@ -137,14 +129,14 @@ def test_resume_after_interruption_loses_and_duplicates_nothing(reference, tmp_p
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        simulate_dataset(cfg(), out, workers=1, progress=False, on_shard=stop_after_two)
+        simulate_tiny(cfg(), out, workers=1, progress=False, on_shard=stop_after_two)
     assert len(read_jsonl(out / "completed.jsonl")) == 2 and not read_manifest(out)["complete"]
     # What a kill can also leave: a temporary file of a shard being written and a torn log line.
     stale = out / "shards" / ".train-00002.npz.abc123.tmp"
     stale.write_bytes(b"partial")
     with (out / "completed.jsonl").open("a") as fh:
         fh.write('{"shard": "train-00002.npz", "sha2')
-    summary = simulate_dataset(cfg(), out, workers=1, progress=False)
+    summary = simulate_tiny(cfg(), out, workers=1, progress=False)
     assert summary["skipped"] == 2 and summary["generated"] == 5
     assert not stale.exists()
     names = [r["shard"] for r in read_jsonl(out / "completed.jsonl")]
@@ -159,7 +151,8 @@ def test_killed_cli_process_resumes_bit_identical(tmp_path):
     path = tmp_path / "slow.toml"
     path.write_text(_toml(t))
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "xnlos_core", "simulate", str(path), "--out", str(out), "--workers", "1", "-q"]
+    cmd = [sys.executable, "-m", "xnlos_core", "-p", GEN_PLUGIN, "simulate", str(path), "--out", str(out),
+           "--workers", "1", "-q"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     log = out / "completed.jsonl"
     deadline = time.monotonic() + 60
@@ -175,7 +168,7 @@ def test_killed_cli_process_resumes_bit_identical(tmp_path):
     recs = read_jsonl(log)
     assert len(recs) == 12 and len({r["shard"] for r in recs}) == 12
     ref = tmp_path / "ref"
-    simulate_dataset(parse_dataset_config(t, str(path)), ref, workers=1, progress=False)
+    simulate_tiny(parse_dataset_config(t, str(path)), ref, workers=1, progress=False)
     assert hashes(out) == hashes(ref)
 
 
@@ -193,16 +186,16 @@ def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference,
     assert not rep.healthy and list(rep.corrupt) == ["val-00000.npz"] and rep.missing == ["test-00000.npz"]
     assert "val-00000.npz" in rep.render() and "--repair" in rep.render()
     with pytest.raises(DatasetError, match="val-00000.npz is corrupt"):
-        simulate_dataset(cfg(), out, workers=1, progress=False)
+        simulate_tiny(cfg(), out, workers=1, progress=False)
     with pytest.raises(DatasetError, match="val-00000.npz is corrupt"):
         list(open_dataset(out, "val"))
-    summary = simulate_dataset(cfg(), out, workers=1, progress=False, repair=True)
+    summary = simulate_tiny(cfg(), out, workers=1, progress=False, repair=True)
     assert summary["repaired"] == ["test-00000.npz", "val-00000.npz"]
     assert verify_dataset(out).healthy and hashes(out) == hashes(reference)
 
 
 def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
-    c = resolve(cfg())
+    c = resolve(cfg(), registry=tiny_registry())
     plan = make_plan(c)
     fm = get_registry().create("forward_model", "image", c.forward_model.params)
     from xnlos_core.radar import RadarConfig
@@ -242,7 +235,7 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
 
 def test_moving_scenes_render_frames_at_k_times_the_interval(tmp_path):
     out = tmp_path / "multi"
-    simulate_dataset(cfg(n_maps=12, frames_per_scene=3, shard_size=6, frame_interval=0.5), out, workers=1,
+    simulate_tiny(cfg(n_maps=12, frames_per_scene=3, shard_size=6, frame_interval=0.5), out, workers=1,
                      progress=False)
     frames = list(open_dataset(out, None))
     by_scene = {}
@@ -265,7 +258,7 @@ def test_schema_version_is_checked(reference, tmp_path):
     with pytest.raises(DatasetError, match="schema version"):
         open_dataset(out)
     with pytest.raises(ConfigError, match="schema version"):
-        simulate_dataset(cfg(), out, workers=1, progress=False)
+        simulate_tiny(cfg(), out, workers=1, progress=False)
     from sims.dataset.shard import encode_npz
 
     with pytest.raises(DatasetError, match="shard x.npz: schema version 99"):
@@ -278,8 +271,8 @@ def test_another_config_in_out_needs_overwrite(reference, tmp_path):
     out = tmp_path / "o"
     shutil.copytree(reference, out)
     with pytest.raises(ConfigError, match="another configuration.*--overwrite"):
-        simulate_dataset(cfg(seed=8), out, workers=1, progress=False)
-    simulate_dataset(cfg(seed=8), out, workers=1, progress=False, overwrite=True)
+        simulate_tiny(cfg(seed=8), out, workers=1, progress=False)
+    simulate_tiny(cfg(seed=8), out, workers=1, progress=False, overwrite=True)
     assert read_manifest(out)["config"]["seed"] == 8 and verify_dataset(out).healthy
 
 
@@ -291,15 +284,17 @@ def test_another_config_in_out_needs_overwrite(reference, tmp_path):
     ({"family_overrides": {"nowhere": {}}}, "[family_overrides]"),
     ({"forward_model": {"name": "imagee"}}, "unknown forward_model 'imagee'"),
     ({"forward_model": {"name": "image", "params": {"noise": "maybe"}}}, "forward_model.params.noise"),
-    ({"generator": "tests.nowhere:gen"}, "[generator] cannot import"),
-    ({"families": ["corner_a", "corner_z"]}, "[families] unknown family 'corner_z'"),
-    ({"family_overrides": {"corner_a": {"colour": "red"}}}, "[family_overrides.corner_a]"),
-    ({"generator_params": {"colour": "red"}}, "[generator_params] the generator rejected"),
+    ({"generator": "tests.nowhere:gen"}, "[generator] Value error, a config cannot name code to import or call"),
+    ({"families": ["corner_a", "corner_z"]},
+     "[families] unknown scene generator 'corner_z'; registered scene generators: corner_a, corner_b, corner_c"),
+    ({"family_overrides": {"corner_a": {"colour": "red"}}}, "[family_overrides.corner_a.colour] unknown key"),
+    ({"generator_params": {"colour": "red"}}, "[generator_params.colour] unknown key"),
+    ({"generator_params": {"rcs": -1.0}}, "[generator_params.rcs] Input should be greater than 0"),
     ({"radar": {"n_samples": -4}}, "radar.n_samples"),
 ])
 def test_bad_configs_are_located_errors(over, key):
     with pytest.raises(ConfigError) as err:
-        resolve(cfg(**over), "tiny.toml")
+        resolve(cfg(**over), "tiny.toml", registry=tiny_registry())
     assert "tiny.toml" in str(err.value) and key in str(err.value)
 
 
@@ -307,7 +302,6 @@ def _smoke_copy(tmp_path: Path, real_generators: bool) -> Path:
     """configs/datasets/smoke.toml in tmp_path; unless real_generators, on the tiny generator."""
     src = (ROOT / "configs/datasets/smoke.toml").read_text()
     if not real_generators:  # fast and independent of sims.generators' speed
-        src = src.replace('families = [', f'generator = "{GEN}"\nfamilies = [', 1)
         src = _replace_families(src)
     src = src.replace('preset = "../radar/', f'preset = "{ROOT}/configs/radar/')
     path = tmp_path / "smoke.toml"
@@ -338,7 +332,7 @@ def test_default_config_resolves_against_the_installed_plugins():
     assert c.radar["carrier_frequency"] == 10e9 and c.forward_model.params and len(c.weights()) == 6
 
 
-def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys):
+def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli):
     path = _smoke_copy(tmp_path, False)
     out = tmp_path / "smoke"
     assert main(["simulate", str(path), "--out", str(out), "--workers", "1", "-q"]) == 0

@@ -11,6 +11,7 @@ import pytest
 
 from sims.dataset import open_dataset, parse_dataset_config, simulate_dataset
 from tests.test_dataset import table as dataset_table
+from tests.tiny_scenes import tiny_registry
 from xnlos_core import LOS, MNLOS, Detections, GroundTruth
 from xnlos_core.cli import main
 from xnlos_core.config import expand_sweep
@@ -42,7 +43,7 @@ def tiny_dataset(tmp_path_factory) -> Path:
     """8 maps of the tiny corner generator of test_dataset (4 test maps), image forward model."""
     out = tmp_path_factory.mktemp("ds")
     cfg = parse_dataset_config(dataset_table(n_maps=8, split={"train": 0.25, "val": 0.25, "test": 0.5}), "tiny.toml")
-    simulate_dataset(cfg, out, workers=1, progress=False)
+    simulate_dataset(cfg, out, workers=1, progress=False, registry=tiny_registry())
     return out
 
 

@@ -41,10 +41,12 @@ def _params_for(kind, name, tmp_path):
     if (kind, name) == ("backend", "dataset"):  # a tiny simulated dataset (its default path needs `make dataset`)
         from sims.dataset import parse_dataset_config, simulate_dataset
         from tests.test_dataset import table
+        from tests.tiny_scenes import tiny_registry
 
         d = tmp_path / "dataset"
         if not d.exists():
-            simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), d, workers=1, progress=False)
+            simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), d, workers=1, progress=False,
+                             registry=tiny_registry())
         return {"path": str(d), "split": "all"}
     return {}
 

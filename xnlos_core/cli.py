@@ -151,10 +151,10 @@ def _cmd_plugins(args) -> int:
         print(json.dumps(rows, indent=2, default=str))
         return 0
     for r in rows:
-        print(f"{r['kind']:<15} {r['name']:<18} {r['provider']:<24} {r['description']}")
+        print(f"{r['kind']:<16} {r['name']:<18} {r['provider']:<24} {r['description']}")
         for pname, info in r["parameters"].items():
             extra = ", ".join(f"{k} {v}" for k, v in info.items() if k in ("gt", "ge", "lt", "le"))
-            print(f"{'':<17}- {pname} = {info['default']!r}" + (f"  ({extra})" if extra else ""))
+            print(f"{'':<18}- {pname} = {info['default']!r}" + (f"  ({extra})" if extra else ""))
     return 0
 
 
@@ -173,7 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 "estimate relay walls and reconstruct hidden objects.")
     p.add_argument("--version", action="version", version=f"xnlos {__version__}")
     p.add_argument("-p", "--plugin", action="append", default=[], metavar="MODULE",
-                   help="import and register an extra plugin module (repeatable)")
+                   help="import and register an extra plugin module (repeatable; your own act: a config "
+                        "file can name only installed entry points, in [plugins] load)")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="run a pipeline config, writing results.jsonl, summary.md and a PNG")

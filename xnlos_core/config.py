@@ -106,12 +106,16 @@ class RunConfig(BaseModel):
 
 
 class PluginsConfig(BaseModel):
-    """Plugin loading (mirrors XNLOS_DISABLE_PLUGIN_AUTOLOAD / XNLOS_PLUGINS)."""
+    """Plugin loading (mirrors XNLOS_DISABLE_PLUGIN_AUTOLOAD / XNLOS_PLUGINS). Every name is an
+    installed entry point of the ``xnlos.plugins`` group (entry-point or distribution name),
+    never a module: a config imports no code of its own choosing (``xnlos -p MODULE`` does)."""
 
     model_config = ConfigDict(extra="forbid")
     autoload: bool = True
     allow: list[str] | None = None
-    load: list[str] = Field(default_factory=list, description="extra plugin modules to import")
+    load: list[str] = Field(default_factory=list, description="installed xnlos.plugins entry points to load "
+                                                              "(entry-point or distribution names), e.g. with "
+                                                              "autoload = false")
 
 
 class PipelineConfig(BaseModel):

@@ -110,8 +110,7 @@ class Pipeline:
                 registry = get_registry()
             else:
                 mgr = PluginManager(autoload=p.autoload, allow=p.allow)
-                for mod in p.load:
-                    mgr.load_module(mod)
+                mgr.load_named(p.load, source)  # installed entry points only; never a module a config names
                 registry = mgr.registry
         self.registry = registry
         self.radar = load_radar(config.radar, source, config.base_dir)

@@ -3,7 +3,9 @@
 Loading follows pytest's conventions: every entry point of the ``xnlos.plugins`` group is
 loaded unless ``XNLOS_DISABLE_PLUGIN_AUTOLOAD`` is set; ``XNLOS_PLUGINS`` (comma-separated
 entry-point or distribution names) is an allow-list, and with autoload disabled it names the
-plugins to load explicitly.
+plugins to load explicitly. A config file can only name installed entry points
+(:meth:`PluginManager.load_named`); importing a module by name (:meth:`PluginManager.load_module`)
+is reserved for the user's own command line, ``xnlos -p MODULE``.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from typing import Any, Callable
 import pluggy
 
 from . import hookspecs
-from .errors import PluginError
+from .errors import ConfigError, PluginError
 from .interfaces import BASES, KINDS
 
 ENTRY_POINT_GROUP = "xnlos.plugins"
@@ -159,21 +161,46 @@ class PluginManager:
         if not autoload and not allow:
             return
         for ep in entry_points(group=ENTRY_POINT_GROUP):
-            dist = ep.dist.name if ep.dist is not None else "<unknown>"
-            if allow is not None and ep.name not in allow and dist not in allow:
-                continue
-            if self.pm.get_plugin(ep.name) is not None:
-                continue
-            try:
-                plugin = ep.load()
-            except Exception as exc:
-                raise PluginError(f"entry point {ep.name!r} ({ep.value}) of {dist} failed to import: {exc}") from exc
-            version = ep.dist.version if ep.dist is not None else ""
-            self.register(plugin, name=ep.name, provider=f"{dist} {version}".strip())
+            if allow is None or ep.name in allow or _dist(ep) in allow:
+                self._load(ep)
+
+    def load_named(self, names: list[str], source: str = "<config>", key: str = "plugins.load") -> None:
+        """Load the installed ``xnlos.plugins`` entry points named by entry-point or distribution
+        name, as a config's ``[plugins] load`` asks. A name that no installed entry point has is a
+        ConfigError naming ``source``, ``key`` and the installed ones: a config never imports a
+        module by its dotted name (that is :meth:`load_module`, for the command line)."""
+        eps = list(entry_points(group=ENTRY_POINT_GROUP))
+        for name in names:
+            found = [ep for ep in eps if name in (ep.name, _dist(ep))]
+            if not found:
+                installed = ", ".join(sorted(f"{ep.name} ({_dist(ep)})" for ep in eps)) or "(none)"
+                raise ConfigError(f"{source}: [{key}] {name!r} is not an installed xnlos plugin; a config can name "
+                                  f"only entry points of the {ENTRY_POINT_GROUP!r} group, by entry-point or "
+                                  f"distribution name. Installed: {installed}. To import a module of your own, "
+                                  f"give it on the command line: xnlos -p MODULE")
+            for ep in found:
+                self._load(ep)
+
+    def _load(self, ep) -> None:
+        if self.pm.get_plugin(ep.name) is not None:
+            return
+        dist = _dist(ep)
+        try:
+            plugin = ep.load()
+        except Exception as exc:
+            raise PluginError(f"entry point {ep.name!r} ({ep.value}) of {dist} failed to import: {exc}") from exc
+        version = ep.dist.version if ep.dist is not None else ""
+        self.register(plugin, name=ep.name, provider=f"{dist} {version}".strip())
 
     def load_module(self, dotted: str) -> None:
-        """Register a plugin module by import path (like ``pytest -p``)."""
-        self.register(importlib.import_module(dotted), name=dotted, provider=dotted)
+        """Register a plugin module by import path, for the command line's ``xnlos -p MODULE``
+        (like ``pytest -p``: the user's own act, never a config's). Loading it twice is a no-op."""
+        if self.pm.get_plugin(dotted) is None:
+            self.register(importlib.import_module(dotted), name=dotted, provider=dotted)
+
+
+def _dist(ep) -> str:
+    return ep.dist.name if ep.dist is not None else "<unknown>"
 
 
 _MANAGER: PluginManager | None = None
