@@ -70,4 +70,9 @@ def test_disable_autoload_and_allow_list(monkeypatch):
     monkeypatch.setenv("XNLOS_DISABLE_PLUGIN_AUTOLOAD", "1")
     assert PluginManager().registry.components() == []
     monkeypatch.setenv("XNLOS_PLUGINS", "xnlos-sims")
-    assert [c.name for c in PluginManager().registry.components()] == ["image", "raytrace"]
+    from sims.generators import FAMILIES
+
+    sims_only = PluginManager().registry
+    assert sims_only.names("forward_model") == ["image", "raytrace"]
+    assert sims_only.names("scene_generator") == sorted(FAMILIES)
+    assert {c.kind for c in sims_only.components()} == {"forward_model", "scene_generator"}
