@@ -3,58 +3,24 @@
     .venv/bin/python benchmarks/dataset_speed.py [--maps 200] [--workers 2] [--config PATH] [--keep DIR]
 
 Prints maps/s, s/map, the projected time for the full 2,160-map dataset at the same rate, the
-bytes per map, and which forward model and scene generator were used. When the config's forward
-model is not registered, the ``image`` model stands in; when its scene generator does not import
-yet, :func:`corner_scene` (randomised corners) stands in — the output says so.
+bytes per map, and which forward model and scene generators (registered components named in
+``families``) were used. When the config's forward model is not registered, the ``image`` model
+stands in — the output says so.
 """
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import platform
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # workers import corner_scene from here
-FALLBACK_GENERATOR = "dataset_speed:corner_scene"
-
-
-def corner_scene(family: str, seed: int):
-    """A randomised street corner (relay facade, occluding block, hidden car, a LOS car) [m]."""
-    from xnlos_core.scene import Scene
-
-    rng = np.random.default_rng(seed)
-    d = rng.uniform(18.0, 35.0)           # distance of the relay facade ahead
-    tilt = rng.uniform(-0.4, 0.4)         # facade yaw [rad]
-    side = rng.choice([-1.0, 1.0])        # cross street to the right or the left
-    half = 12.0
-    c, s = math.cos(tilt), math.sin(tilt)
-    facade = [[d - half * s, half * c], [d + half * s, -half * c]]
-    corner_x = d - rng.uniform(6.0, 8.0)
-    block = [[3.0, side * 4.0], [corner_x, side * 4.0], [corner_x, side * 30.0]]
-    hidden = [corner_x + rng.uniform(2.0, 5.0), side * rng.uniform(9.0, 20.0)]
-    los = [rng.uniform(6.0, corner_x - 1.0), -side * rng.uniform(1.0, 3.0)]
-    return Scene.model_validate({
-        "name": f"{family}-{seed}",
-        "walls": [{"name": "facade", "start": facade[0], "end": facade[1]},
-                  {"name": "block_front", "start": block[0], "end": block[1]},
-                  {"name": "block_side", "start": block[1], "end": block[2]}],
-        "objects": [{"name": "hidden_car", "center": hidden, "heading": math.pi / 2, "rcs": 10.0,
-                     "velocity": [0.0, -side * rng.uniform(0.0, 8.0)]},
-                    {"name": "los_car", "center": los, "heading": 0.0, "rcs": 10.0}],
-        "meta": {"family": family, "facade_distance": d, "tilt": tilt, "side": side},
-    })
 
 
 def main() -> None:
     from sims.dataset import load_dataset_config, resolve, simulate_dataset
-    from xnlos_core.errors import ConfigError
     from xnlos_core.io import read_jsonl
     from xnlos_core.registry import get_registry
 
@@ -71,14 +37,8 @@ def main() -> None:
         notes.append(f"forward model {cfg.forward_model.name!r} is not registered; using 'image'")
         cfg = cfg.model_copy(update={"forward_model": cfg.forward_model.model_copy(
             update={"name": "image", "params": {}})})
-    try:
-        resolve(cfg, args.config)
-    except ConfigError as exc:
-        if "[generator]" not in str(exc) and "[families]" not in str(exc):
-            raise
-        notes.append(f"scene generator {cfg.generator!r} unavailable; using {FALLBACK_GENERATOR} "
-                     "(randomised corners) for every family")
-        cfg = cfg.model_copy(update={"generator": FALLBACK_GENERATOR, "family_overrides": {}})
+    resolve(cfg, args.config)  # unknown families fail here, listing the registered scene generators
+    providers = {f: get_registry().get("scene_generator", f).provider for f in cfg.weights()}
 
     with tempfile.TemporaryDirectory() as tmp:
         out = args.keep or Path(tmp) / "ds"
@@ -90,7 +50,7 @@ def main() -> None:
         cpu = sum(r["cpu_seconds"] for r in recs)
     n = summary["maps_generated"]
     print(f"config: {args.config} (n_maps overridden to {cfg.n_maps})")
-    print(f"forward model: {cfg.forward_model.name}; generator: {cfg.generator}; workers: {args.workers} "
+    print(f"forward model: {cfg.forward_model.name}; scene generators: {', '.join(f'{f} ({p})' for f, p in providers.items())}; workers: {args.workers} "
           f"local processes; CPU: {os.cpu_count()} cores, {platform.processor() or platform.machine()}")
     for note in notes:
         print(f"note: {note}")

@@ -8,6 +8,9 @@ on a relay wall makes visible (a mirrored "mNLOS" echo inside the field of view)
     scene = generate_scene("crossroads", seed=3, hidden_distance=[20, 40], object_kinds=["car"],
                            materials=["metal", "glass"])
 
+Each family is also a registered ``scene_generator`` component (:mod:`sims.generators.components`,
+registered by :mod:`sims.plugin`), which is how dataset configs name them.
+
 The same seed and parameters give the same :class:`~xnlos_core.scene.Scene`; its ``meta`` records
 the family, the seed, the parameters and every drawn value. By default a hidden object counts only
 when its best mirror path reaches the detectability threshold (``min_snr_db``, default
