@@ -64,14 +64,17 @@ class FrameQueue:
             return self.size - len(self._q)
 
     def put(self, frame: Frame, stop: threading.Event | None = None) -> bool:
-        """Queue ``frame``; False when it was dropped (drop_newest) or ``stop`` ended a block wait."""
+        """Queue ``frame``; False when it was dropped (drop_newest, or ``stop`` set during a block wait;
+        both count it as overrun)."""
         with self._cond:
             self._attach(frame, self._carry_lost, self._carry_overrun)
             self._carry_lost, self._carry_overrun = [], []
             if len(self._q) >= self.size:
                 if self.policy == "block":
                     while len(self._q) >= self.size:
-                        if stop is not None and stop.is_set():
+                        if stop is not None and stop.is_set():  # the consumer left: the frame is not kept
+                            self._carry_lost, self._carry_overrun = self._reports(frame)
+                            self._overrun(frame)
                             return False
                         self._cond.wait(0.05)
                 elif self.policy == "drop_newest":
