@@ -439,9 +439,10 @@ class CANBackend(Backend):
                 if frame is not None:
                     yield self._with_truth(frame)
                     continue
+                alive = self._worker.is_alive()  # read first: a thread that ended has set its error already
                 if self._worker_error is not None:
                     raise self._worker_error
-                if not self._worker.is_alive():
+                if not alive:
                     raise LinkError(f"{self._where()}: the receive thread ended unexpectedly")
         finally:
             self._stop_worker()
