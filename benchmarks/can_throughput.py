@@ -19,6 +19,8 @@ phase (ESI, DLC, 512 data bits, stuff count, CRC-21 with its fixed stuff bits, C
 bits) at ``--data``; "best" without dynamic stuff bits, "worst" with the maximum (1 per 4 bits).
 An item of L bytes (4-byte sequence number + payload) takes 1 first frame (58 bytes, 32-bit length
 escape), ⌈(L − 58)/63⌉ consecutive frames, 1 flow control and 1 FrameHeader.
+
+Slow consumers and bursts (delivered / overrun / lost per overflow policy): benchmarks/can_consumer.py.
 """
 from __future__ import annotations
 
@@ -112,7 +114,7 @@ def bench_backend(radar: RadarConfig, fmt_name: str, n: int, render: bool) -> tu
     channel = private_channel("bench-backend")
     em = RadarEmulator(fm, scene, radar, BusSpec(channel=channel), pace=False).start()
     backend = CANBackend({"channel": channel, "emulate": "never", "payload": fmt_name, "frame_interval": 0.0,
-                          "chunk": 64, "timeout": 30, "frame_timeout": 30})
+                          "chunk": 64, "queue_size": 64, "timeout": 30, "frame_timeout": 30})
     try:
         backend.open(radar)
         it = backend.frames(n + 1)

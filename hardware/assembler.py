@@ -50,7 +50,10 @@ class LostFrame:
 class LinkStats:
     """Counters of one link (a backend instance). Frames counted once each, by outcome.
 
-    frames_ok: delivered; frames_dropped: nothing of the frame arrived (sequence gap);
+    frames_ok: arrived complete and intact (handed on to the consumer's queue); frames_delivered:
+    taken by the consumer; frames_overrun: intact but dropped by the queue's overflow policy
+    because the consumer fell behind (never counted as lost; their sequence numbers in
+    ``overrun_seqs``, latest 10 000); frames_dropped: nothing of the frame arrived (sequence gap);
     frames_incomplete: header or item missing, transfer cut off; frames_corrupted: complete but
     failing CRC-32 or header checks; frames_late: arrived after being reported lost or outside the
     request (discarded); frames_duplicate: extra copies (discarded); bytes_ok: payload bytes of
@@ -60,11 +63,15 @@ class LinkStats:
     other_sensor: messages of other sensor ids (ignored); bus_errors: exceptions raised by the
     interface; error_frames: CAN error frames seen; device_errors: RadarError messages and
     ERROR states; timeouts: the radar fell silent; reconnects: successful reconnections;
-    overruns: items dropped because the consumer fell behind; lost: every lost frame (latest
-    10 000) with its sequence number.
+    rx_overflows: ISO-TP items discarded because the receive thread itself fell behind (its
+    frame is then lost, not overrun); lost: every lost frame (latest 10 000) with its sequence
+    number. Once the consumer's queue is empty, every frame the radar sent is counted exactly once:
+    sent = frames_delivered + frames_overrun + frames_lost.
     """
 
     frames_ok: int = 0
+    frames_delivered: int = 0
+    frames_overrun: int = 0
     frames_dropped: int = 0
     frames_incomplete: int = 0
     frames_corrupted: int = 0
@@ -81,8 +88,9 @@ class LinkStats:
     device_errors: int = 0
     timeouts: int = 0
     reconnects: int = 0
-    overruns: int = 0
+    rx_overflows: int = 0
     lost: deque = field(default_factory=lambda: deque(maxlen=10_000))
+    overrun_seqs: deque = field(default_factory=lambda: deque(maxlen=10_000))
 
     @property
     def frames_lost(self) -> int:
@@ -95,12 +103,14 @@ class LinkStats:
         """Plain dict (JSON-ready); ``lost`` as a list of {seq, kind, reason, time}."""
         d = asdict(self)
         d["lost"] = [asdict(x) for x in self.lost]
+        d["overrun_seqs"] = list(self.overrun_seqs)
         d["frames_lost"] = self.frames_lost
         return d
 
     def summary(self) -> str:
-        """One line: ok / dropped / incomplete / corrupted / late / duplicate, plus link events."""
-        keys = ("frames_ok", "frames_dropped", "frames_incomplete", "frames_corrupted", "frames_late",
+        """One line: ok / delivered / overrun / dropped / incomplete / corrupted / late / duplicate, plus
+        link events."""
+        keys = ("frames_ok", "frames_delivered", "frames_overrun", "frames_dropped", "frames_incomplete", "frames_corrupted", "frames_late",
                 "frames_duplicate", "transfer_errors", "e2e_errors", "bus_errors", "timeouts", "reconnects")
         return ", ".join(f"{k.removeprefix('frames_')}={getattr(self, k)}" for k in keys)
 

@@ -3,11 +3,22 @@
 ``open(radar)`` opens the bus (and, for hardware-in-the-loop, starts an in-process
 :class:`~hardware.emulator.RadarEmulator`), sends RadarModeCfg + RadarCfg and waits for the radar's
 RadarState to confirm the configuration (ConfigId echoed, same RadarConfig hash).
-``frames(n)`` asks for frames in chunks (RadarCtrl START with a frame count, so at most ``chunk``
-frames are ever buffered) and yields each complete, checked frame once, in sequence order, as a
-:class:`~xnlos_core.types.Frame` whose RAMap carries ``radar`` (ADC cubes go through the shared
-signal chain). Lost frames are reported (``stats.lost``, the log, and ``meta["lost_before"]`` of the
-next delivered frame) and replaced by requesting more, so ``frames(n)`` yields n frames.
+``frames(n)`` starts a receive thread that runs the link independent of the consumer: it asks for
+frames in chunks (RadarCtrl START with a frame count), reassembles each frame as its bytes arrive
+(a frame's transfer time ends when its last byte arrived, however long the consumer takes) and
+puts each complete, checked frame into a bounded :class:`~hardware.frame_queue.FrameQueue` of
+``queue_size`` frames; the generator yields from that queue, in sequence order, each frame once,
+as a :class:`~xnlos_core.types.Frame` whose RAMap carries ``radar`` (ADC cubes go through the
+shared signal chain). Lost frames are reported (``stats.lost``, the log, and ``meta["lost_before"]``
+of the next delivered frame) and replaced by requesting more, so ``frames(n)`` yields n frames.
+
+A consumer slower than the radar fills the queue; ``overflow`` says what then happens:
+``block`` (default) asks the radar for no more frames than the queue has room for — the radar
+pauses while the consumer is behind, nothing is dropped, delivered frames are consecutive;
+``drop_oldest`` / ``drop_newest`` keep the radar streaming at its own rate and drop the oldest
+queued / the arriving frame. Dropped frames arrived intact and are counted as *overrun*
+(``stats.frames_overrun``, ``stats.overrun_seqs``, ``meta["overrun_before"]`` of the next
+delivered frame), never as lost. Every frame the radar sent is delivered once, overrun or lost.
 
 Frames from a real radar or a recording carry no ground truth; with the in-process emulator the
 backend attaches the emulator's ground truth of each frame (a side channel in this process, not
@@ -36,11 +47,14 @@ from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
 from .assembler import FrameAssembler, LinkStats, LostFrame
+from .frame_queue import FrameQueue
 from .link import BusSpec, CanLink
 from .protocol import (FORMAT_NAMES, Command, DeviceState, ErrorCode, LinkError, PayloadSpec, Protocol, code_name,
                        config_signals, radar_hash)
 
 log = logging.getLogger(__name__)
+
+RX_BACKLOG = 4096  # ISO-TP items waiting for the receive thread before new ones are discarded
 
 
 class EmulatorSpec(BaseModel):
@@ -76,7 +90,13 @@ class CANParams(BaseModel):
     frame_timeout: float = Field(2.0, gt=0, le=3600, description="a sent frame still incomplete after this is lost [s]")
     cf_timeout: float = Field(1.0, gt=0, le=60, description="ISO-TP N_Cr: gap between consecutive frames [s]")
     max_reconnects: int = Field(5, ge=0, le=1000, description="reconnection attempts in a row before LinkError")
-    chunk: int = Field(16, ge=1, le=4096, description="frames requested per START (bounds buffering)")
+    chunk: int = Field(16, ge=1, le=4096, description="frames requested per START at most [frames]")
+    queue_size: int = Field(16, ge=1, le=65536, description="complete frames held for a consumer that is behind "
+                            "[frames] (memory: queue_size × one RA map)")
+    overflow: Literal["block", "drop_oldest", "drop_newest"] = Field(
+        "block", description="consumer behind and queue full: block = request no more than fits (the radar "
+        "pauses; nothing dropped), drop_oldest / drop_newest = the radar keeps its rate and the oldest queued / "
+        "the arriving frame is dropped and counted as overrun (never as lost)")
     record: str | None = Field(None, description="record the bus to this python-can log (.blf, .asc) while open")
     emulate: Literal["auto", "always", "never"] = Field(
         "auto", description="run an in-process radar emulator on the bus (auto: only on the virtual interface)")
@@ -100,6 +120,10 @@ class CANBackend(Backend):
         self._asm: FrameAssembler | None = None
         self._events: queue.Queue = queue.Queue()
         self._queued_items = 0
+        self._queue = FrameQueue(self.params.queue_size, self.params.overflow, self.stats)
+        self._worker: threading.Thread | None = None
+        self._worker_stop = threading.Event()
+        self._worker_error: BaseException | None = None
         self._lock = threading.Lock()
         self._config_id = 0
         self._request_id = 0
@@ -139,6 +163,7 @@ class CANBackend(Backend):
         self._streak = 0
         self._events = queue.Queue()
         self._queued_items = 0
+        self._queue = FrameQueue(p.queue_size, p.overflow, self.stats)
         self._asm = FrameAssembler(radar, self.fmt, self.stats, p.frame_timeout, source="can", sensor_id=p.sensor_id)
         try:
             if p.record:
@@ -154,6 +179,7 @@ class CANBackend(Backend):
 
     def close(self) -> None:
         """Stop streaming, release the bus, stop the emulator and recorder; safe to call twice."""
+        self._stop_worker()
         if self._link is not None:
             if self._streaming and self._link.is_open:
                 try:
@@ -285,9 +311,13 @@ class CANBackend(Backend):
         self._events.put(("signal", name, sig, t))
 
     def _on_item(self, item: bytes, t: float) -> None:
+        # The receive thread drains these events within milliseconds whatever the consumer does; the
+        # cap only bounds memory should that thread itself be starved of CPU for long.
         with self._lock:
-            if self._queued_items >= 2 * self.params.chunk + 4:
-                self.stats.overruns += 1
+            if self._queued_items >= RX_BACKLOG:
+                self.stats.rx_overflows += 1
+                log.warning("%s: receive thread %d items behind; an item was discarded (its frame will be "
+                            "reported lost)", self._where(), self._queued_items)
                 return
             self._queued_items += 1
         self._events.put(("item", item, None, t))
@@ -356,7 +386,11 @@ class CANBackend(Backend):
         except queue.Empty:
             ev = None
         state = self._handle(ev) if ev is not None else None
-        self._asm.poll(time.time())
+        # Deadlines run on arrival times: while events are still waiting, everything up to the one just
+        # handled is known to have arrived, but not more (a frame whose last byte waits in the queue is
+        # complete, however late this thread gets to it).
+        now = ev[3] if ev is not None and not self._events.empty() else time.time()
+        self._asm.poll(now)
         self.stats.messages = self._rx_total + (self._link.rx_messages if self._link is not None else 0)
         return state
 
@@ -382,43 +416,51 @@ class CANBackend(Backend):
 
     # --- frames -----------------------------------------------------------------------------
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
-        """Yield ``max_frames`` complete frames (None: until closed) in sequence order."""
+        """Yield ``max_frames`` complete frames (None: until closed) in sequence order.
+
+        The link runs in a receive thread meanwhile (see the module doc); time the consumer spends
+        between two frames never counts against a frame's transfer. Frames queued but not taken
+        when the generator is closed are the first of the next call.
+        """
         if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
             raise InputError(f"CANBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
         if self._link is None:
             raise InputError("CANBackend.frames: call open(radar) first (the radar must be configured)")
-        p = self.params
-        delivered = 0
+        self._stop_worker()
+        self._worker_stop.clear()
+        self._worker_error = None
+        start = self._queue.taken
+        self._worker = threading.Thread(target=self._work, args=(max_frames, start), daemon=True,
+                                        name=f"xnlos-can-rx-{self.params.channel}")
+        self._worker.start()
         try:
-            while max_frames is None or delivered < max_frames:
-                out = self._asm.pop()
-                if isinstance(out, Frame):
-                    delivered += 1
-                    self._streak = 0
-                    yield self._with_truth(out)
+            while max_frames is None or self._queue.taken - start < max_frames:
+                frame = self._queue.get(timeout=0.05)
+                if frame is not None:
+                    yield self._with_truth(frame)
                     continue
-                if isinstance(out, LostFrame):
-                    continue
-                if self._need_reconnect:
-                    self._reconnect(self._need_reconnect)
-                    continue
-                now = time.time()
-                if now - max(self._link.last_rx, self._t_connected) > p.timeout:
-                    self.stats.timeouts += 1
-                    self._reconnect(f"no message for {p.timeout:g} s")
-                    continue
-                stall = p.timeout + p.frame_timeout + 2 * p.frame_interval
-                if self._streaming and now - self._last_progress > stall:
-                    self.stats.timeouts += 1
-                    self._reconnect(f"streaming, but no frame data for {stall:g} s")
-                    continue
-                if not self._streaming:
-                    want = p.chunk if max_frames is None else max_frames - delivered - self._asm.open_count
-                    if want > 0 and not self._request(min(p.chunk, want)):
-                        if not self._need_reconnect:
-                            self._need_reconnect = "START not confirmed"
-                        continue
-                self._step(0.05)
+                alive = self._worker.is_alive()  # read first: a thread that ended has set its error already
+                if self._worker_error is not None:
+                    raise self._worker_error
+                if not alive:
+                    raise LinkError(f"{self._where()}: the receive thread ended unexpectedly")
+        finally:
+            self._stop_worker()
+
+    def _stop_worker(self) -> None:
+        if self._worker is not None:
+            self._worker_stop.set()
+            self._queue.notify()
+            if self._worker is not threading.current_thread():
+                self._worker.join(timeout=10.0)
+            self._worker = None
+
+    def _work(self, max_frames: int | None, start: int) -> None:
+        """The receive thread: link events → assembler → queue, requests, reconnection."""
+        try:
+            self._serve(max_frames, start)
+        except BaseException as exc:  # handed to the consumer, which raises it
+            self._worker_error = exc
         finally:
             if self._streaming and self._link is not None and self._link.is_open:
                 try:
@@ -428,3 +470,58 @@ class CANBackend(Backend):
                 self._streaming = False
             if self._asm is not None:
                 self._asm.cancel(time.time())
+            self._queue.notify()
+
+    def _want(self, max_frames: int | None, start: int) -> int:
+        """Frames to request now: what the consumer still needs beyond what is queued or on its way,
+        under ``block`` also no more than the queue has room for; at most ``chunk``."""
+        p, q = self.params, self._queue
+        queued = len(q)
+        open_ = self._asm.open_count
+        need = p.chunk if max_frames is None else max_frames - (q.taken - start) - queued
+        want = need - open_
+        if p.overflow == "block":
+            want = min(want, p.queue_size - queued - open_)
+        return min(p.chunk, want)
+
+    def _hand_over(self) -> None:
+        """Resolved frames from the assembler into the queue (by policy); lost ones are already counted."""
+        while (out := self._asm.pop()) is not None:
+            if isinstance(out, LostFrame):
+                continue
+            self._streak = 0
+            if self._queue.free <= 0 and self.params.overflow == "block":
+                # not reached on a working link (requests fit the queue); waiting here pauses reception
+                log.info("%s: queue full, receive thread waits for the consumer", self._where())
+                self._queue.put(out, self._worker_stop)
+                self._last_progress = time.time()
+            else:
+                self._queue.put(out)
+
+    def _serve(self, max_frames: int | None, start: int) -> None:
+        p = self.params
+        while not self._worker_stop.is_set():
+            self._hand_over()
+            if max_frames is not None and self._queue.taken - start >= max_frames:
+                self._worker_stop.wait(0.05)
+                continue
+            if self._need_reconnect:
+                self._reconnect(self._need_reconnect)
+                continue
+            now = time.time()
+            if now - max(self._link.last_rx, self._t_connected) > p.timeout:
+                self.stats.timeouts += 1
+                self._reconnect(f"no message for {p.timeout:g} s")
+                continue
+            stall = p.timeout + p.frame_timeout + 2 * p.frame_interval
+            if self._streaming and now - self._last_progress > stall:
+                self.stats.timeouts += 1
+                self._reconnect(f"streaming, but no frame data for {stall:g} s")
+                continue
+            if not self._streaming:
+                want = self._want(max_frames, start)
+                if want > 0 and not self._request(want):
+                    if not self._need_reconnect:
+                        self._need_reconnect = "START not confirmed"
+                    continue
+            self._step(0.05)

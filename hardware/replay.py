@@ -198,6 +198,7 @@ class _Session:
             if not isinstance(out, LostFrame):
                 out.meta["source"] = "replay"
                 out.meta["file"] = str(self.path)
+                self.asm.stats.frames_delivered += 1  # a log has no overflow: delivered = ok
                 yield out
 
     def _set_format(self, fmt: PayloadFormat) -> None:
