@@ -4,7 +4,9 @@ Per LOS cluster (one wall): MAP of each wall model under the anisotropic, outlie
 likelihood (:mod:`estimators.likelihood`), warm-started from the ``lsq`` line; the model order
 is chosen by Laplace evidence (:mod:`estimators.selection`); the covariance is the inverse
 Hessian of the negative log posterior at the MAP (:mod:`estimators.map_solver`), marginalised
-over the noise scale. Flow and shared parameters: :mod:`estimators.robust`. ≈ 12 ms per wall
+over the noise scale: with the scale estimated, the wall block is that of the Student-t the
+scale's uncertainty leaves (×ν/(ν − 2), ν from the same Laplace fit; :func:`estimators.map_solver.
+student_t_cov`; ``info["t_dof"]``), so its credible regions are calibrated as emcee's. Flow and shared parameters: :mod:`estimators.robust`. ≈ 12 ms per wall
 (2–4 IPOPT solves of ≈ 2 ms) once the casadi problems are built (``warm_up``, or ≈ 50 ms on the
 first cluster of each padded size).
 """
@@ -15,7 +17,9 @@ import numpy as np
 from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import Detections, WallPosterior
 
+from .map_solver import student_t_cov
 from .robust import RobustWallParams, estimate_walls, fit_cluster, posterior_from_fit, warm_up
+from .wall_models import MODEL_PARAMS
 
 
 class CasadiMapParams(RobustWallParams):
@@ -30,7 +34,11 @@ class CasadiMapWallEstimator(WallEstimator):
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior of one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""
         fit = fit_cluster(points, point_cov, self.params, rng)
-        return posterior_from_fit(fit, "casadi_map")
+        if not self.params.estimate_noise_scale:  # known scale: the Gaussian is the posterior
+            return posterior_from_fit(fit, "casadi_map")
+        cov, nu = student_t_cov(fit.best.cov, len(MODEL_PARAMS[fit.chosen]))
+        return posterior_from_fit(fit, "casadi_map", cov=cov,
+                                  extra_info={"t_dof": nu, "t_inflation": nu / (nu - 2.0)})
 
     def warm_up(self, max_points: int = 64) -> int:
         """Build the casadi problems for clusters of up to ``max_points`` LOS points now, so that

@@ -168,3 +168,61 @@ def test_resumed_training_matches_an_uninterrupted_run(tmp_path):
     fit(resumed, data, None, opt, seed=1, state={**payload, "epoch": 2})
     for (name, a), b in zip(straight.state_dict().items(), resumed.state_dict().values()):
         assert torch.allclose(a, b, atol=1e-6), name
+
+
+def test_resume_state_is_sealed_and_rebuilds_metrics_after_a_crash(tmp_path, monkeypatch):
+    """Issue 26 #5 for the residual mirror's training (the shared plugins.detectors.resume): a crash
+    after last.pt but before its metrics line loses no line, best.pt is rebuilt from last.pt, the
+    resumed fit ends on the uninterrupted weights, and a flipped bit in the optimizer state is refused."""
+    import json
+
+    import plugins.detectors.resume as rs
+
+    data = {k: v[:40] for k, v in tiny_pairs().items()}
+    opt = RMOptim(epochs=4, batch_size=16, lr=3e-3)
+    straight = new_network(HParams(dim=8), seed=1)
+    fit(straight, data, None, opt, seed=1)
+    first = new_network(HParams(dim=8), seed=1)
+    meta = {"architecture": "residual_mirror", "hparams": HParams(dim=8).model_dump(mode="json")}
+    history, real_append = [], rs.append_jsonl
+
+    class Crash(Exception):
+        pass
+
+    def append_dies_in_epoch_2(path, record):
+        if record["epoch"] == 2:
+            raise Crash
+        real_append(path, record)
+
+    def on_epoch(epoch, rec, states):
+        history.append(rec)
+        rs.save_epoch(tmp_path, first, {**meta, "training": {"epoch": epoch}}, states["optimizer"],
+                      states["scheduler"], {"epoch": epoch}, history, rs.best_copy(first, meta))
+
+    monkeypatch.setattr(rs, "append_jsonl", append_dies_in_epoch_2)
+    rs.start_fresh(tmp_path)
+    with pytest.raises(Crash):
+        fit(first, data, None, opt, seed=1, on_epoch=on_epoch)
+    assert len((tmp_path / "metrics.jsonl").read_text().splitlines()) == 1
+    saved = rs.load_resume(tmp_path, "residual_mirror")
+    assert [r["epoch"] for r in saved.history] == [1, 2] and saved.progress == {"epoch": 2}
+    lines = [json.loads(x) for x in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in lines] == [1, 2]
+    assert load_checkpoint(tmp_path / "best.pt")[1]["architecture"] == "residual_mirror"
+    # the optimizer's moments (state dicts that training then updates in place)
+    moment = next(iter(saved.optimizer["state"].values()))["exp_avg_sq"].numpy().tobytes()
+    raw = (tmp_path / "last.pt").read_bytes()
+    resumed = new_network(HParams(dim=8), seed=99)
+    resumed.load_state_dict(saved.state_dict)
+    fit(resumed, data, None, opt, seed=1, state={"optimizer": saved.optimizer, "scheduler": saved.scheduler,
+                                                  "epoch": 2})
+    for (name, a), b in zip(straight.state_dict().items(), resumed.state_dict().values()):
+        assert torch.allclose(a, b, atol=1e-6), name
+
+    at = raw.find(moment)
+    assert at > 0
+    flipped = bytearray(raw)
+    flipped[at + len(moment) // 2] ^= 0x10
+    (tmp_path / "last.pt").write_bytes(bytes(flipped))
+    with pytest.raises(InputError, match=r"last\.pt.*corrupted"):
+        rs.load_resume(tmp_path, "residual_mirror")

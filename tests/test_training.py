@@ -3,6 +3,7 @@ validates, checkpoints, resumes to the same weights, and refuses bad configs wit
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import time
 from pathlib import Path
@@ -20,7 +21,8 @@ from plugins.detectors.tasks import default_head
 from plugins.detectors.train import Batcher
 from plugins.detectors.train_config import load_train_config, parse_train_config
 from xnlos_core.cli import main
-from xnlos_core.errors import ConfigError
+from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.io import read_jsonl
 from xnlos_core.radar import RadarConfig
 from xnlos_core.registry import get_registry
 from xnlos_core.scene import load_scene
@@ -207,3 +209,132 @@ def test_shipped_models_keep_the_digest_of_their_training_config():
         dump = plain.model_dump(exclude={"out", "export", "threads"})
         del dump["data"]["flip_azimuth"]
         assert plain.digest() == hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
+
+
+# --- resume integrity (issue 26, item 5) -------------------------------------------------------
+
+def _tiny_run(out: Path, epochs: int = 3) -> list[str]:
+    return ["train", str(TINY_TOML), "--out", str(out), "--epochs", str(epochs), "-q"]
+
+
+def _lines_without_seconds(path: Path) -> list[dict]:
+    """metrics.jsonl records without their timings (the only fields two identical runs differ in)."""
+    recs = [json.loads(line) for line in path.read_text().splitlines()]
+    return [{k: v for k, v in r.items() if not k.endswith("_seconds")} for r in recs]
+
+
+@pytest.fixture(scope="module")
+def straight_run(tmp_path_factory):
+    """An uninterrupted 3-epoch tiny run (one torch thread)."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("straight") / "run"
+    assert main(_tiny_run(out)) == 0
+    torch.set_num_threads(n)
+    return out
+
+
+class Crash(Exception):
+    """A stand-in for the process dying at a chosen point."""
+
+
+def _flip(data: bytes, bit: int) -> bytes:
+    b = bytearray(data)
+    b[bit // 8] ^= 1 << (bit % 8)
+    return bytes(b)
+
+
+def test_a_flipped_bit_anywhere_in_last_pt_is_refused(straight_run, tmp_path):
+    """Issue 26 #5: 5 of 12 bit flips in a mid-run last.pt (optimizer state) were accepted. Here
+    24 flips spread over the file and 8 inside the optimizer's tensors and the pickled progress /
+    history are each refused, naming the file; the optimizer flips pass the weights hash alone."""
+    from plugins.detectors.checkpoint import SEAL, weights_digest
+
+    data = (straight_run / "last.pt").read_bytes()
+    assert data.startswith(SEAL)
+    _, _, payload = load_checkpoint(straight_run / "last.pt", "swin_unet", sealed=True)
+    opt_state = payload["optimizer"]["state"]
+    big = max(opt_state.values(), key=lambda s: s["exp_avg_sq"].numel())
+    regions = []
+    for t in (big["exp_avg"], big["exp_avg_sq"]):
+        raw = t.numpy().tobytes()
+        start = data.find(raw)
+        assert start > 0 and data.find(raw, start + 1) < 0
+        regions.append((start, len(raw)))
+    for marker in (b"bad_epochs", b"train_loss"):  # progress and history in the pickled record
+        regions.append((data.find(marker), len(marker)))
+    assert all(start > 0 for start, _ in regions)
+    spread = [int(x) for x in np.linspace(0, 8 * len(data) - 1, 24)]
+    inside = [8 * (s + k * n // 2) + 3 for s, n in regions for k in (0, 1)]
+    target = tmp_path / "last.pt"
+    body_len = len(data) - (len(SEAL) + 65)
+    for bit in spread + inside:
+        target.write_bytes(_flip(data, bit))
+        with pytest.raises(InputError, match=r"last\.pt.*corrupted"):
+            load_checkpoint(target, "swin_unet", sealed=True)
+        if bit in inside[:4]:  # in the optimizer's tensors: the weights themselves are intact
+            body = _flip(data, bit)[-body_len:]
+            flipped = torch.load(io.BytesIO(body), weights_only=True)
+            assert weights_digest(flipped["state_dict"]) == json.loads(flipped["metadata_json"])["weights_sha256"]
+    # a resume checkpoint without the seal (an older xnlos) is refused too, not trusted
+    sd, meta, payload = load_checkpoint(straight_run / "last.pt", sealed=True)
+    save_checkpoint(target, sd, {k: v for k, v in meta.items() if k != "weights_sha256"}, sidecar=False,
+                    extra={k: payload[k] for k in ("optimizer", "scheduler", "progress")})
+    with pytest.raises(InputError, match="no whole-file hash"):
+        load_checkpoint(target, sealed=True)
+
+
+def test_resuming_from_a_corrupted_last_pt_stops_with_an_error_naming_it(straight_run, tmp_path, capsys):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(straight_run, run)
+    data = (run / "last.pt").read_bytes()
+    (run / "last.pt").write_bytes(_flip(data, 8 * (len(data) // 2)))
+    assert main(_tiny_run(run)) == 2
+    err = capsys.readouterr().err
+    assert "last.pt" in err and "corrupted" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("point", ["after_best", "after_last", "torn_line"])
+def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_run(straight_run, tmp_path, one_thread,
+                                                                               monkeypatch, point):
+    """Issue 26 #5: a crash between writing last.pt and appending metrics.jsonl lost the epoch's
+    line for good (epochs_run 39, stopped_early true instead of 40, false). Crashing in epoch 2
+    after best.pt, after last.pt, or halfway through the line, then resuming, gives the same
+    summary, metrics lines and weights as the uninterrupted run."""
+    import plugins.detectors.resume as rs
+
+    real_save, real_append = rs.save_epoch, rs.append_jsonl
+
+    def save_epoch(out, net, metadata, *args):
+        if metadata["training"]["epoch"] == 2 and point == "after_best":
+            raise Crash
+        return real_save(out, net, metadata, *args)
+
+    def append_jsonl(path, record):
+        if record["epoch"] == 2 and point != "after_best":
+            if point == "torn_line":
+                with open(path, "a") as fh:
+                    fh.write(json.dumps(record)[:40])
+            raise Crash
+        return real_append(path, record)
+
+    monkeypatch.setattr(rs, "save_epoch", save_epoch)
+    monkeypatch.setattr(rs, "append_jsonl", append_jsonl)
+    run = tmp_path / "run"
+    with pytest.raises(Crash):
+        main(_tiny_run(run))
+    assert not (run / "summary.json").exists()
+    assert [r["epoch"] for r in read_jsonl(run / "metrics.jsonl")] == [1]  # epoch 2's line is not there
+    monkeypatch.setattr(rs, "save_epoch", real_save)
+    monkeypatch.setattr(rs, "append_jsonl", real_append)
+    assert main(_tiny_run(run)) == 0
+    got, want = (json.loads((d / "summary.json").read_text()) for d in (run, straight_run))
+    assert (got["epochs_run"], got["stopped_early"], got["best_epoch"]) == (3, False, want["best_epoch"])
+    assert want["epochs_run"] == 3 and not want["stopped_early"]
+    assert _lines_without_seconds(run / "metrics.jsonl") == _lines_without_seconds(straight_run / "metrics.jsonl")
+    sd_a, _, _ = load_checkpoint(straight_run / "model.pt", "swin_unet")
+    sd_b, _, _ = load_checkpoint(run / "model.pt", "swin_unet")
+    for key in sd_a:
+        torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)

@@ -199,3 +199,28 @@ def test_sampler_params_are_validated():
         CasadiMapWallEstimator({"models": []})
     with pytest.raises(ConfigError, match="outlier_fraction"):
         CasadiMapWallEstimator({"outlier_fraction": 0.7})
+
+
+def test_casadi_map_reports_the_student_t_of_an_estimated_noise_scale():
+    """Issue 26 #7: with the noise scale estimated, the wall block is the Student-t's covariance
+    Σ·ν/(ν − 2); for the Gaussian line fit ν = n − p + 1/(2σ_s²) (σ_s = 0.5: + 2 points), read off
+    the Laplace variance of log s. With the scale known, the Gaussian is left as it is."""
+    from estimators.robust import fit_cluster, posterior_from_fit
+
+    sigma = 0.1
+    est = CasadiMapWallEstimator({"outlier_fraction": 0.0, "wall_roughness": 0.0, "models": ["line"]})
+    for n in (8, 16, 24):
+        nus = []
+        for seed in range(4):
+            pts = wall_points(np.random.default_rng(seed), n=n, sigma=sigma)
+            (w,) = est.estimate(isotropic_detections(pts, sigma))
+            nu = w.info["t_dof"]
+            assert w.info["t_inflation"] == pytest.approx(nu / (nu - 2))
+            fit = fit_cluster(pts, np.tile(sigma**2 * np.eye(2), (n, 1, 1)), est.params, np.random.default_rng(0))
+            laplace = posterior_from_fit(fit, "casadi_map")  # the Gaussian given s = ŝ
+            assert np.allclose(w.mean, laplace.mean, atol=1e-9)
+            assert np.allclose(w.cov, laplace.cov * nu / (nu - 2), rtol=1e-6)
+            nus.append(nu)
+        assert np.mean(nus) == pytest.approx(n - 2 + 2, rel=0.15), (n, nus)
+    (known,) = CasadiMapWallEstimator(EXACT).estimate(isotropic_detections(pts, sigma))
+    assert "t_dof" not in known.info

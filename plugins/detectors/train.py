@@ -8,9 +8,11 @@ continues from the last finished epoch and gives the same result as an uninterru
 
 Files in ``out``: ``run.json`` (config and its digest), ``metrics.jsonl`` (one fsync'd record per
 epoch: train loss, validation loss and Macro-F1 over the decoding grid, seconds), ``last.pt``
-(weights + optimizer + schedule + progress, for resuming), ``best.pt`` (best validation
-Macro-F1) and ``model.pt`` (the final model: best weights with tuned decoding and calibrated
-standard deviations; ``export`` copies it). All written atomically.
+(weights + optimizer + schedule + progress + RNG states + metrics history + best weights, sealed
+by one hash: the resume point, :mod:`.resume`; ``metrics.jsonl`` and ``best.pt`` are rebuilt from
+it on resume, so no crash separates an epoch's line from its checkpoint), ``best.pt`` (best
+validation Macro-F1) and ``model.pt`` (the final model: best weights with tuned decoding and
+calibrated standard deviations; ``export`` copies it). All written atomically.
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from xnlos_core.errors import ConfigError, InputError
-from xnlos_core.io import append_jsonl, atomic_write_text, read_jsonl
+from xnlos_core.io import atomic_write_text
 
 from .train_config import TrainConfig
 
@@ -182,10 +184,11 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     import torch
     from tqdm import tqdm
 
-    from .checkpoint import load_checkpoint, save_checkpoint
+    from .checkpoint import save_checkpoint
     from .data import dataset_record, load_split
     from .learned import resolve_device
     from .nets import architectures
+    from .resume import best_copy, load_resume, save_epoch, start_fresh
     from .tasks import default_head
 
     out = Path(cfg.out)
@@ -214,16 +217,20 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(cfg.optim.warmup_steps, steps * cfg.optim.epochs))
     state = {"epoch": 0, "best_f1": -1.0, "best_epoch": -1, "bad_epochs": 0}
     init = _initial_weights(cfg, net, hp, base_dir) if cfg.init else None
+    history: list[dict[str, Any]] = []
+    best_weights = None
     if resume:
-        sd, meta, payload = load_checkpoint(out / "last.pt", cfg.model.name, map_location=device)
-        net.load_state_dict(sd)
-        opt.load_state_dict(payload["optimizer"])
-        sched.load_state_dict(payload["scheduler"])
-        state = {k: payload["progress"][k] for k in state}
+        saved = load_resume(out, cfg.model.name, map_location=device)  # also restores torch's RNG
+        net.load_state_dict(saved.state_dict)
+        opt.load_state_dict(saved.optimizer)
+        sched.load_state_dict(saved.scheduler)
+        state = {k: saved.progress[k] for k in state}
+        history, best_weights = saved.history, saved.best
         log.info("resuming %s after epoch %d", out, state["epoch"])
+    else:
+        start_fresh(out)
     base_meta = {"architecture": cfg.model.name, "hparams": hp.model_dump(mode="json"), "head": head.describe(),
                  "features": FEATURES}
-    history = [r for r in read_jsonl(out / "metrics.jsonl") if r.get("epoch", 0) <= state["epoch"]]
     stopped = state["bad_epochs"] >= cfg.optim.patience
     epoch = state["epoch"]
     while epoch < cfg.optim.epochs and not stopped:
@@ -256,17 +263,15 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
             if best["macro_f1"] > state["best_f1"]:
                 state.update(best_f1=best["macro_f1"], best_epoch=epoch, bad_epochs=0)
                 dec = {"threshold": best["threshold"], "window": best["window"], "cells": best["cells"]}
-                save_checkpoint(out / "best.pt", net, {**base_meta, "decode": dec,
-                                                       "training": {"epoch": epoch, "val": best}})
+                best_weights = best_copy(net, {**base_meta, "decode": dec, "training": {"epoch": epoch, "val": best}})
+                save_checkpoint(out / "best.pt", *best_weights)
             else:
                 state["bad_epochs"] += 1
             stopped = state["bad_epochs"] >= cfg.optim.patience
         state["epoch"] = epoch
-        save_checkpoint(out / "last.pt", net, {**base_meta, "training": {"epoch": epoch}}, sidecar=False,
-                        extra={"optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                               "progress": dict(state)})
-        append_jsonl(out / "metrics.jsonl", rec)
         history.append(rec)
+        save_epoch(out, net, {**base_meta, "training": {"epoch": epoch}}, opt.state_dict(), sched.state_dict(),
+                   dict(state), history, best_weights)
         if progress:
             msg = f"epoch {epoch}: train loss {rec['train_loss']:.4f}"
             if "val" in rec:

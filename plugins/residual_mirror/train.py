@@ -10,8 +10,11 @@ global RNG state is left untouched). A rerun resumes after the last finished epo
 the same result as an uninterrupted run.
 
 Files in ``out`` (written atomically): ``run.json`` (config + digest), ``metrics.jsonl`` (one
-record per epoch), ``last.pt`` (weights + optimizer + progress), ``best.pt`` (lowest validation
-L_geo), ``model.pt`` (+ ``model.json``; the best weights with metadata), copied to ``export``.
+record per epoch), ``last.pt`` (weights + optimizer + scheduler + progress + RNG states + metrics
+history + best weights, sealed by one hash; ``metrics.jsonl`` and ``best.pt`` are rebuilt from it
+on resume: :mod:`plugins.detectors.resume`, shared with detector training), ``best.pt`` (lowest
+validation L_geo), ``model.pt`` (+ ``model.json``; the best weights with metadata), copied to
+``export``.
 Checkpoints use :mod:`plugins.detectors.checkpoint` (state_dict + JSON metadata, weights hash,
 ``torch.load(weights_only=True)``) with architecture ``residual_mirror``.
 
@@ -53,7 +56,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from xnlos_core.config import load_toml, validate_model
-from xnlos_core.io import append_jsonl, atomic_write_text, read_jsonl
+from xnlos_core.io import atomic_write_text
 
 from .data import NoiseConfig
 from .net import ARCHITECTURE, N_POINT, N_QUERY, HParams
@@ -224,6 +227,7 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
     from tqdm import tqdm
 
     from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+    from plugins.detectors.resume import best_copy, load_resume, save_epoch, start_fresh
     from plugins.detectors.train import _prepare_out  # same run.json / resume rule as detector training
     from sims.dataset import open_dataset
 
@@ -256,25 +260,29 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
                  "noise": cfg.data.noise.model_dump(), "features": {"version": 1, "query": N_QUERY, "point": N_POINT}}
     progress_state = {"best": float("inf"), "best_epoch": 0, "bad": 0}
     state = None
+    history: list[dict[str, Any]] = []
+    best_weights = None
     if resume:
-        sd, meta, payload = load_checkpoint(out / "last.pt")
-        net.load_state_dict(sd)
-        progress_state = dict(payload["progress"]["state"])
-        state = {"optimizer": payload["optimizer"], "scheduler": payload["scheduler"],
-                 "epoch": int(payload["progress"]["epoch"])}
-    history = [r for r in read_jsonl(out / "metrics.jsonl") if state is None or r.get("epoch", 0) <= state["epoch"]]
+        saved = load_resume(out, ARCHITECTURE)  # also restores torch's RNG states
+        net.load_state_dict(saved.state_dict)
+        progress_state = dict(saved.progress["state"])
+        state = {"optimizer": saved.optimizer, "scheduler": saved.scheduler, "epoch": int(saved.progress["epoch"])}
+        history, best_weights = saved.history, saved.best
+    else:
+        start_fresh(out)
 
     def on_epoch(epoch, rec, states):
+        nonlocal best_weights
         v = rec["val"]
         if v["l_geo"] < progress_state["best"]:
             progress_state.update(best=v["l_geo"], best_epoch=epoch, bad=0)
-            save_checkpoint(out / "best.pt", net, {**base_meta, "training": {"epoch": epoch, "val": v}})
+            best_weights = best_copy(net, {**base_meta, "training": {"epoch": epoch, "val": v}})
+            save_checkpoint(out / "best.pt", *best_weights)
         else:
             progress_state["bad"] += 1
-        save_checkpoint(out / "last.pt", net, {**base_meta, "training": {"epoch": epoch}}, sidecar=False,
-                        extra={**states, "progress": {"epoch": epoch, "state": dict(progress_state)}})
-        append_jsonl(out / "metrics.jsonl", rec)
         history.append(rec)
+        save_epoch(out, net, {**base_meta, "training": {"epoch": epoch}}, states["optimizer"], states["scheduler"],
+                   {"epoch": epoch, "state": dict(progress_state)}, history, best_weights)
         if progress:
             tqdm.write(f"epoch {epoch}: train L_geo {rec['train_l_geo']:.3f} m, val L_geo {v['l_geo']:.3f} m, "
                        f"NLL {v['nll']:.3f}, error {v['error_m']:.3f} m (mirror {v['mirror_error_m']:.3f} m)")
