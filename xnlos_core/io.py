@@ -49,6 +49,12 @@ def append_jsonl(path: str | Path, record: dict) -> None:
         os.fsync(fh.fileno())
 
 
+def _json_type(obj) -> str:
+    """JSON's name for the type of a parsed value (for messages)."""
+    return {dict: "object", list: "array", str: "string", bool: "boolean", int: "number",
+            float: "number", type(None): "null"}.get(type(obj), type(obj).__name__)
+
+
 def read_json_object(path: str | Path, what: str = "file") -> dict:
     """The JSON object in ``path`` (e.g. provenance.json); InputError naming the file when it is not
     valid UTF-8, not valid JSON or not an object (a bare traceback would hide which file is bad)."""
@@ -63,7 +69,7 @@ def read_json_object(path: str | Path, what: str = "file") -> dict:
     except (ValueError, RecursionError) as exc:
         raise InputError(f"{path}: {what} is not valid JSON ({exc}); expected an object written by xnlos") from None
     if not isinstance(obj, dict):
-        raise InputError(f"{path}: {what} holds a JSON {type(obj).__name__}, expected an object")
+        raise InputError(f"{path}: {what} holds a JSON {_json_type(obj)}, expected an object")
     return obj
 
 
@@ -100,7 +106,7 @@ def _jsonl_lines(path: Path) -> list[tuple[int, dict]]:
             raise InputError(f"{path}: line {i + 1} is not valid JSON ({exc}); expected one JSON object "
                              "per line") from None
         if not isinstance(obj, dict):
-            raise InputError(f"{path}: line {i + 1} holds a JSON {type(obj).__name__} ({text[:40]!r}), "
+            raise InputError(f"{path}: line {i + 1} holds a JSON {_json_type(obj)} ({text[:40]!r}), "
                              "expected an object")
         out.append((i + 1, obj))
     return out

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .config import PipelineConfig
-from .errors import ConfigError, InputError
+from .errors import ConfigError
 from .io import (append_jsonl, atomic_write_text, json_default, read_json_object, read_keyed_jsonl,
                  write_jsonl)
 from .pipeline import Pipeline
@@ -43,9 +43,6 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
             raise ConfigError(f"{out}: holds results of another configuration (config hash "
                               f"{str(old.get('config_sha256', '?'))[:12]} ≠ {prov['config_sha256'][:12]}); "
                               "choose another --out or pass --overwrite")
-        if not isinstance(old.get("state_sha256", {}), dict):
-            raise InputError(f"{prov_path}: state_sha256 = {old['state_sha256']!r}; expected an object "
-                             "(stage → hash)")
         require_same_state(out, old.get("state_sha256"), prov["state_sha256"], "results")
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
