@@ -76,7 +76,8 @@ def _cmd_simulate(args) -> int:
         return 0 if report.healthy else 1
     if config is None and args.max_maps is not None:
         raise ConfigError("simulate: --max-maps needs the CONFIG file (the dataset in --out keeps its own size)")
-    cfg = manifest_config(out) if config is None else load_dataset_config(config, n_maps=args.max_maps)
+    cfg = (manifest_config(out, repair=args.repair) if config is None
+           else load_dataset_config(config, n_maps=args.max_maps))
     s = simulate_dataset(cfg, out, source=str(config or out / "manifest.json"), workers=args.workers,
                          scheduler=args.scheduler, overwrite=args.overwrite, repair=args.repair,
                          progress=not args.quiet)

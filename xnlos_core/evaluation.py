@@ -32,7 +32,7 @@ import numpy as np
 
 from .config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
 from .errors import ConfigError, InputError
-from .io import append_jsonl, atomic_write_text, read_jsonl
+from .io import append_jsonl, atomic_write_text, read_json_object, read_keyed_jsonl, write_jsonl
 from .provenance import require_same_state
 
 DEFAULT_DATASET = "out/data/default"
@@ -229,14 +229,15 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     info_path, log = out / "run.json", out / "frames.jsonl"
     done: list[dict] = []
     if info_path.exists() and not overwrite:
-        old = json.loads(info_path.read_text())
+        old = read_json_object(info_path, "evaluation record")
         if old.get("resume_sha256") != digest:
             raise ConfigError(f"{out}: holds an evaluation of another configuration (hash "
                               f"{str(old.get('resume_sha256'))[:12]} ≠ {digest[:12]}); choose another --out "
                               "or pass --overwrite")
         require_same_state(out, old.get("state_sha256"), state, "an evaluation")
-        done = read_jsonl(log)
-        atomic_write_text(log, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))  # drop a torn line
+        # Keyed on the map's position: repeated lines are dropped, bad ones refused naming the line.
+        done = list(read_keyed_jsonl(log, "position").values())
+        write_jsonl(log, done)  # the repairs (a torn last line, repeats) made durable before appending
     else:
         log.unlink(missing_ok=True)
         for f in out.glob("map_*.png"):

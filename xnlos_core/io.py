@@ -6,7 +6,9 @@ import os
 import tempfile
 import zipfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -47,23 +49,116 @@ def append_jsonl(path: str | Path, record: dict) -> None:
         os.fsync(fh.fileno())
 
 
-def read_jsonl(path: str | Path) -> list[dict]:
-    """Records of a JSON-lines file; a torn last line (crash mid-write) is ignored."""
-    out = []
+def _json_type(obj) -> str:
+    """JSON's name for the type of a parsed value (for messages)."""
+    return {dict: "object", list: "array", str: "string", bool: "boolean", int: "number",
+            float: "number", type(None): "null"}.get(type(obj), type(obj).__name__)
+
+
+def read_json_object(path: str | Path, what: str = "file") -> dict:
+    """The JSON object in ``path`` (e.g. provenance.json); InputError naming the file when it is not
+    valid UTF-8, not valid JSON or not an object (a bare traceback would hide which file is bad)."""
     path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: {what} is not valid UTF-8 (byte {exc.start}); expected JSON written by "
+                         "xnlos") from None
+    try:
+        obj = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise InputError(f"{path}: {what} is not valid JSON ({exc}); expected an object written by xnlos") from None
+    if not isinstance(obj, dict):
+        raise InputError(f"{path}: {what} holds a JSON {_json_type(obj)}, expected an object")
+    return obj
+
+
+def _jsonl_lines(path: Path) -> list[tuple[int, dict]]:
+    """(line number, object) of every record of an append-only JSON-lines file.
+
+    Repaired: blank lines (skipped) and a torn last line — bytes after the last newline that are
+    not a complete JSON object, what a crash in the middle of :func:`append_jsonl` leaves (dropped).
+    Refused (InputError naming file and line): invalid UTF-8, invalid JSON or a value that is not
+    an object on any newline-terminated line; :func:`append_jsonl` writes a line and its newline in
+    one write, so a terminated line that does not parse is damage, not a crash.
+    """
     if not path.exists():
-        return out
-    lines = path.read_text(encoding="utf-8").splitlines()
-    for i, line in enumerate(lines):
-        if not line.strip():
+        return []
+    raw = path.read_bytes().split(b"\n")
+    tail = raw.pop()  # b"" when the file ends with a newline
+    out = []
+    for i, line in enumerate([*raw, tail]):
+        torn = i == len(raw)
+        try:
+            text = line.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            if torn:
+                break
+            raise InputError(f"{path}: line {i + 1} is not valid UTF-8 (byte {exc.start} of the line); "
+                             "expected one JSON object per line") from None
+        if not text.strip():
             continue
         try:
-            out.append(json.loads(line))
-        except json.JSONDecodeError:
-            if i == len(lines) - 1:
+            obj = json.loads(text)
+        except (ValueError, RecursionError) as exc:
+            if torn:
                 break
-            raise InputError(f"{path}: line {i + 1} is not valid JSON") from None
+            raise InputError(f"{path}: line {i + 1} is not valid JSON ({exc}); expected one JSON object "
+                             "per line") from None
+        if not isinstance(obj, dict):
+            raise InputError(f"{path}: line {i + 1} holds a JSON {_json_type(obj)} ({text[:40]!r}), "
+                             "expected an object")
+        out.append((i + 1, obj))
     return out
+
+
+def read_jsonl(path: str | Path) -> list[dict]:
+    """Records of a JSON-lines file in file order; a torn last line (crash mid-write) is ignored,
+    any other bad line is an InputError naming file and line (see :func:`_jsonl_lines`)."""
+    return [obj for _, obj in _jsonl_lines(Path(path))]
+
+
+def _index_ok(value) -> str | None:
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 0:
+        return None
+    return "an integer ≥ 0"
+
+
+def read_keyed_jsonl(path: str | Path, key: str, *, check: Callable[[Any], str | None] = _index_ok,
+                     supersede: bool = False) -> dict[Any, dict]:
+    """Records of an append-only JSON-lines log keyed by ``record[key]`` (frame index, point id,
+    shard name), sorted by key: what a resume needs to know which items are done.
+
+    Lines are read as :func:`read_jsonl` does (torn last line dropped, other bad lines refused).
+    ``check(value)`` returns None for an acceptable key or what was expected (default: an integer
+    ≥ 0); a missing or unacceptable key is an InputError naming file and line. A repeated key whose
+    record is identical to the first is dropped (a repeated append); one with another record is
+    refused naming both lines — which one holds the result is unknowable — unless ``supersede``
+    (a log whose later line replaces an earlier one, e.g. a sweep point rerun after its config
+    changed). Callers rewrite the log from the returned records, so repairs are made durable.
+    """
+    path = Path(path)
+    out: dict[Any, dict] = {}
+    where: dict[Any, int] = {}
+    for line, rec in _jsonl_lines(path):
+        if key not in rec:
+            raise InputError(f"{path}: line {line} has no {key!r} field; expected a record with {key!r}")
+        value = rec[key]
+        expected = check(value)
+        if expected is not None:
+            raise InputError(f"{path}: line {line}: {key} = {value!r}; expected {expected}")
+        if value in out and out[value] != rec and not supersede:
+            raise InputError(f"{path}: lines {where[value]} and {line} hold different records for {key} "
+                             f"{value!r}; remove the wrong line or start afresh (--overwrite)")
+        if value not in out or out[value] != rec:
+            out[value], where[value] = rec, line
+    return {k: out[k] for k in sorted(out)}
+
+
+def write_jsonl(path: str | Path, records) -> None:
+    """Replace ``path`` atomically with one JSON line per record (the same bytes as
+    :func:`append_jsonl` writes line by line)."""
+    atomic_write_text(path, "".join(json.dumps(r, sort_keys=True, default=json_default) + "\n" for r in records))
 
 
 def json_default(o):

@@ -6,7 +6,7 @@ Every random draw derives from ``config.seed``: frame k is simulated with a gene
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -143,13 +143,18 @@ class Pipeline:
     def provenance(self) -> dict:
         return provenance(self.config, self.plugin_info(), self.state_sha256())
 
-    def frames(self, start: int = 0) -> Iterator[Frame]:
-        """Frames ``start`` … ``run.frames``−1 from the forward model or the backend."""
+    def frames(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[Frame]:
+        """Frames ``start`` … ``run.frames``−1 from the forward model or the backend, leaving out
+        those whose index is in ``skip`` (simulated frames are then not even drawn: frame k's
+        generator is child k of the seed, so any subset is the same frames as a full run)."""
         n = self.config.run.frames
+        skip = frozenset(skip)
         if "forward_model" in self.stages:
             fm = self.stages["forward_model"]
             seeds = np.random.SeedSequence(self.config.seed).spawn(n)
             for k in range(start, n):
+                if k in skip:
+                    continue
                 t = k * self.config.run.frame_interval
                 yield fm.simulate(self.scene, self.radar, np.random.default_rng(seeds[k]), timestamp=t, index=k)
         else:
@@ -157,7 +162,7 @@ class Pipeline:
             backend.open(self.radar)
             try:
                 for k, frame in enumerate(backend.frames(n)):
-                    if k >= start:
+                    if k >= start and frame.index not in skip:
                         yield frame
             finally:
                 backend.close()
@@ -203,18 +208,21 @@ class Pipeline:
                            "hidden": metrics.reconstruction_metrics(hidden, resolved, r)}
         return res
 
-    def run(self, start: int = 0) -> Iterator[FrameResult]:
-        """Yield results of frames ``start`` … in order; the source's time is stage 'source'.
+    def run(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[FrameResult]:
+        """Yield results of frames ``start`` … in order, except those whose index is in ``skip``
+        (the frames a resumed run already holds); the source's time is stage 'source'.
 
-        A tracker carries state, so with one configured a resumed run replays frames < start
-        through all stages without yielding them.
+        A tracker carries state from frame to frame, so with one configured every frame from 0 is
+        replayed through all stages and only the wanted ones are yielded: a resumed or gap-filled
+        frame gets the tracks an uninterrupted run would have given it.
         """
-        skip = 0
-        if "tracker" in self.stages:
+        skip = frozenset(skip)
+        replay = "tracker" in self.stages
+        if replay:
             self.stages["tracker"].reset()
-            start, skip = 0, start
-        for frame, src in timed_frames(self.frames(start)):
+        frames = self.frames(0) if replay else self.frames(start, skip)
+        for frame, src in timed_frames(frames):
             res = self.process(frame)
             res.timings = {"source": src, **res.timings}
-            if frame.index >= skip:
+            if not replay or (frame.index >= start and frame.index not in skip):
                 yield res

@@ -25,7 +25,7 @@ def package_versions(names=PACKAGES) -> dict[str, str | None]:
 def state_change(old: dict[str, str] | None, new: dict[str, str]) -> str | None:
     """'detector 1a2b3c4d5e6f ≠ 0f9e8d7c6b5a, …' for each stage whose learned-state hash differs
     between a recorded run (``old``; None: recorded before hashes were kept) and now; None if equal."""
-    old = old or {}
+    old = old if isinstance(old, dict) else {}  # a damaged record compares as "unrecorded"
     diff = [f"{k} {str(old.get(k, 'unrecorded'))[:12]} ≠ {str(new.get(k, 'none'))[:12]}"
             for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
     return ", ".join(diff) or None

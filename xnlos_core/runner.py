@@ -2,6 +2,13 @@
 
 Writes ``provenance.json`` (once), ``results.jsonl`` (one fsync'd line per frame, so a killed
 run resumes after the last complete frame), ``summary.md`` and ``frame_NNNN.png`` figures.
+
+A resume keys on the frame index, not on the number of lines: it computes exactly the frames
+whose index is not recorded (a lost line in the middle included; frame k's random draws come
+from child k of the seed, so it is the frame an uninterrupted run computes) and leaves
+``results.jsonl`` holding each index once, in order. A torn last line and a repeated identical
+line are repaired; a line that is not a JSON object, bytes that are not UTF-8, a frame index out
+of range or two different records of one frame are refused with an InputError naming the line.
 """
 from __future__ import annotations
 
@@ -14,7 +21,8 @@ import numpy as np
 
 from .config import PipelineConfig
 from .errors import ConfigError
-from .io import append_jsonl, atomic_write_text, read_jsonl
+from .io import (append_jsonl, atomic_write_text, json_default, read_json_object, read_keyed_jsonl,
+                 write_jsonl)
 from .pipeline import Pipeline
 from .provenance import require_same_state
 
@@ -27,36 +35,41 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     pipe = Pipeline(config, registry=registry, source=source)
     prov = pipe.provenance()
     prov_path, res_path = out / "provenance.json", out / "results.jsonl"
-    done = []
+    n = config.run.frames
+    done: dict[int, dict] = {}
     if prov_path.exists() and not overwrite:
-        old = json.loads(prov_path.read_text())
+        old = read_json_object(prov_path, "provenance")
         if old.get("config_sha256") != prov["config_sha256"]:
             raise ConfigError(f"{out}: holds results of another configuration (config hash "
-                              f"{old.get('config_sha256', '?')[:12]} ≠ {prov['config_sha256'][:12]}); "
+                              f"{str(old.get('config_sha256', '?'))[:12]} ≠ {prov['config_sha256'][:12]}); "
                               "choose another --out or pass --overwrite")
         require_same_state(out, old.get("state_sha256"), prov["state_sha256"], "results")
-        done = read_jsonl(res_path)
-        # Drop a torn last line (crash mid-write) before appending after the complete records.
-        atomic_write_text(res_path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in done))
-        prov = {**old, "resumed": old.get("resumed", 0) + 1}
+        done = read_results(res_path, n if "forward_model" in pipe.stages else None)
+        # Make the repairs durable (torn last line, repeated lines dropped) before appending.
+        write_jsonl(res_path, done.values())
+        resumed = old.get("resumed", 0)
+        prov = {**old, "resumed": (resumed if isinstance(resumed, int) and not isinstance(resumed, bool) else 0) + 1}
     else:
         res_path.unlink(missing_ok=True)
     atomic_write_text(prov_path, json.dumps(prov, indent=2, sort_keys=True))
 
-    n = config.run.frames
-    start = len(done)
-    records = list(done)
-    bar = _progress(total=n, initial=start, enabled=progress, desc=f"run {config.name}")
+    records = dict(done)
+    bar = _progress(total=n, initial=len(done), enabled=progress, desc=f"run {config.name}")
     last = None
-    for res in pipe.run(start=start):
-        rec = res.record()
+    # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
+    for res in pipe.run(skip=done):
+        rec = json.loads(json.dumps(res.record(), default=json_default))
         append_jsonl(res_path, rec)
-        records.append(json.loads(json.dumps(rec, default=float)))
+        records[rec["frame"]] = rec
         last = res
         bar.update(1)
     bar.close()
-    if last is None and config.run.figure and n:
-        # Resumed after every frame was done: re-make the last frame for the figure.
+    ordered = [records[k] for k in sorted(records)]
+    if list(records) != sorted(records):  # a gap was filled after later frames: store in frame order
+        write_jsonl(res_path, ordered)
+    records = ordered
+    if config.run.figure and n and (last is None or last.frame.index != records[-1]["frame"]):
+        # Resumed after every frame was done (or only a gap was filled): re-make the last frame.
         last = next(pipe.run(start=n - 1), None)
     fig_path = None
     if config.run.figure and last is not None:
@@ -70,6 +83,20 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
     return summary
+
+
+def read_results(path: str | Path, n: int | None = None) -> dict[int, dict]:
+    """frame index → record of a results.jsonl (see :func:`xnlos_core.io.read_keyed_jsonl` for what
+    is repaired and what refused); ``n``: the run's frame count when indices must be 0 … n−1 (a
+    simulated source; a recorded one keeps its frames' own indices)."""
+    if n is None:
+        return read_keyed_jsonl(path, "frame")
+
+    def check(v):
+        ok = isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n
+        return None if ok else f"a frame index in 0 … {n - 1} (run.frames = {n})"
+
+    return read_keyed_jsonl(path, "frame", check=check)
 
 
 def _progress(total, initial, enabled, desc):

@@ -3,7 +3,8 @@
 Each grid point runs in ``OUT/point-NNN/`` like ``xnlos run``; ``sweep.jsonl`` gets one line
 per finished point, so a killed sweep resumes with the points still missing (a point is done when
 its config and its stages' learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`, are
-those recorded; ``overwrite`` runs every point again). ``sweep.md`` tabulates the assignment of
+those recorded and its own ``results.jsonl`` still holds every frame; ``overwrite`` runs every
+point again). sweep.jsonl is read by :func:`xnlos_core.io.read_keyed_jsonl` keyed on the point. ``sweep.md`` tabulates the assignment of
 every point beside its metrics and per-stage time.
 """
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any
 from .config import expand_sweep, load_toml, parse_pipeline
 from .errors import ConfigError
 from .executor import map_unordered
-from .io import append_jsonl, atomic_write_text, read_jsonl
+from .io import append_jsonl, atomic_write_text, read_keyed_jsonl, write_jsonl
 from .pipeline import Pipeline
 
 COLUMNS = (
@@ -55,16 +56,22 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
 
     def current(r: dict[str, Any]) -> bool:
         """A recorded point is done when its config and its stages' learned weights are today's (the
-        pipeline, which loads the weights, is built only for records whose config matches)."""
+        pipeline, which loads the weights, is built only for records whose config matches) and its
+        own results are still complete in its directory."""
         i = r["point"]
-        return (i < len(jobs) and r.get("config_sha256") == jobs[i]["digest"]
-                and r["summary"].get("state_sha256", {}) == Pipeline(cfgs[i], source=jobs[i]["source"]).state_sha256())
+        if i >= len(jobs) or r.get("config_sha256") != jobs[i]["digest"] or not isinstance(r.get("summary"), dict):
+            return False
+        return (r["summary"].get("state_sha256", {}) == Pipeline(cfgs[i], source=jobs[i]["source"]).state_sha256()
+                and point_intact(Path(jobs[i]["out"]), cfgs[i], r["summary"]))
 
     out.mkdir(parents=True, exist_ok=True)
     log = out / "sweep.jsonl"
     if overwrite:
         log.unlink(missing_ok=True)
-    done = {r["point"]: r for r in read_jsonl(log) if current(r)}
+    # A later line of a point supersedes an earlier one: a point rerun (config, weights or results
+    # changed) appends its new record. The log is rewritten with the points still done.
+    done = {i: r for i, r in read_keyed_jsonl(log, "point", supersede=True).items() if current(r)}
+    write_jsonl(log, done.values())
     todo = [j for j in jobs if j["point"] not in done]
     bar = tqdm(total=len(jobs), initial=len(done), disable=not progress, desc="sweep", unit="point")
     for _, rec in map_unordered(_run_point, todo, scheduler=scheduler, workers=workers):
@@ -75,6 +82,21 @@ def run_sweep(path: str | Path, out: str | Path, *, scheduler: str | None = None
     records = [done[i] for i in sorted(done)]
     atomic_write_text(out / "sweep.md", render_table(records, table.get("name", path.stem)))
     return records
+
+
+def point_intact(point_dir: Path, cfg, summary: dict[str, Any]) -> bool:
+    """Whether ``point_dir`` still holds the results its sweep record summarises: its provenance,
+    summary.json and a results.jsonl with the recorded number of frames (frames 0 … n−1 for a
+    simulated source). Damaged results are an InputError naming the file (from the reader)."""
+    from .runner import read_results
+
+    if not all((point_dir / f).is_file() for f in ("provenance.json", "summary.json", "results.jsonl")):
+        return False
+    n = cfg.run.frames if cfg.forward_model is not None else None
+    got = read_results(point_dir / "results.jsonl", n)
+    if n is not None and list(got) != list(range(n)):
+        return False
+    return len(got) == summary.get("frames")
 
 
 def render_table(records: list[dict[str, Any]], name: str) -> str:

@@ -86,7 +86,11 @@ class Dataset:
 
     def _frames(self, s: dict[str, Any]) -> list[Frame]:
         if self._cache is None or self._cache[0] != s["name"]:
-            self._cache = (s["name"], frames_from_arrays(self.load_shard(s["name"]), self.radar))
+            frames = frames_from_arrays(self.load_shard(s["name"]), self.radar)
+            if len(frames) != s["n_maps"]:  # len() counts the manifest's n_maps: they must agree
+                raise DatasetError(f"{self.path / SHARD_DIR / s['name']}: holds {len(frames)} maps but the manifest "
+                                   f"records {s['n_maps']}; check with: xnlos simulate --verify {self.path}")
+            self._cache = (s["name"], frames)
         return self._cache[1]
 
 

@@ -24,12 +24,13 @@ from typing import Any
 
 from xnlos_core.errors import ConfigError
 from xnlos_core.executor import map_unordered
-from xnlos_core.io import append_jsonl, atomic_write_bytes, atomic_write_text, read_jsonl
+from xnlos_core.io import append_jsonl, atomic_write_bytes, atomic_write_text
 
 from .config import SPLITS, DatasetConfig, generator_classes, resolve
-from .manifest import FORMAT, LOG, MANIFEST, SHARD_DIR, check_files, describe, write_manifest
+from .manifest import (FORMAT, LOG, MANIFEST, SHARD_DIR, check_files, describe, integrity_problems, read_log,
+                       write_manifest)
 from .plan import make_plan
-from .shard import SCHEMA_VERSION, DatasetError, run_shard_job
+from .shard import READABLE_VERSIONS, SCHEMA_VERSION, DatasetError, run_shard_job
 
 
 def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<config>",
@@ -53,14 +54,14 @@ def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<
     plan = make_plan(cfg)
     out = Path(out)
     shard_dir = out / SHARD_DIR
-    _check_existing(out, digest, overwrite)
+    _check_existing(out, digest, overwrite, repair)
     shard_dir.mkdir(parents=True, exist_ok=True)
     for pattern in (f"{SHARD_DIR}/.*.tmp", f".{MANIFEST}.*.tmp", f".{LOG}.*.tmp"):
         for tmp in out.glob(pattern):  # left by a kill during a write; never a complete file
             tmp.unlink(missing_ok=True)
     names = {s.name for s in plan.shards}
-    done = {r["shard"]: r for r in read_jsonl(out / LOG)
-            if r.get("config_sha256") == digest and r.get("shard") in names}
+    done = {n: r for n, r in read_log(out).items() if r.get("config_sha256") == digest and n in names
+            and r.get("n_maps") == plan.shard(n).n_maps}
     bad = check_files(shard_dir, done)
     if bad and not repair:
         raise DatasetError(f"{out}: {describe(bad)}; rerun with --repair (repair=True) to rebuild "
@@ -102,13 +103,20 @@ def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<
             "splits": {sp: sum(s.n_maps for s in plan.shards if s.split == sp) for sp in SPLITS}}
 
 
-def _check_existing(out: Path, digest: str, overwrite: bool) -> None:
+def _check_existing(out: Path, digest: str, overwrite: bool, repair: bool = False) -> None:
+    """Stop unless ``out`` is empty or holds this config's dataset with an intact manifest (a
+    damaged one only with ``repair``: it is rebuilt from the config and the verified shards)."""
     path = out / MANIFEST
     if not path.exists():
         return
     try:
-        old = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
+        text = path.read_bytes().decode("utf-8")
+        old = json.loads(text)
+        if not isinstance(old, dict):
+            raise ValueError(f"a JSON {type(old).__name__}, not an object")
+    except (OSError, ValueError, RecursionError) as exc:
+        if repair and not overwrite:
+            return  # rebuilt from the config; only shards logged under this config's digest are kept
         if not overwrite:
             raise DatasetError(f"{path}: unreadable manifest ({exc}); pass --overwrite to start afresh") from None
         old = {}
@@ -116,6 +124,12 @@ def _check_existing(out: Path, digest: str, overwrite: bool) -> None:
         raise DatasetError(f"{path}: not an xnlos dataset manifest (format {old.get('format')!r}); "
                            "choose another --out")
     same = old.get("schema_version") == SCHEMA_VERSION and old.get("config_sha256") == digest
+    problems = integrity_problems(old, text) if old.get("schema_version") in READABLE_VERSIONS else []
+    if problems and repair and not overwrite:
+        return  # rebuilt from the config; only shards logged under this config's digest are kept
+    if same and problems and not overwrite:
+        raise DatasetError(f"{path}: {'; '.join(problems)}; rerun with --repair (repair=True) to rebuild the "
+                           "manifest from the config and the verified shards")
     if same:
         return
     if not overwrite:
