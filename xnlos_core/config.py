@@ -113,6 +113,10 @@ def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: st
         return model.model_validate(data)
     except ValidationError as exc:
         raise ConfigError(_format_errors(model, exc, source, prefix)) from None
+    except ConfigError:
+        raise
+    except ValueError as exc:  # raised by a model_post_init, which pydantic does not wrap
+        raise ConfigError(f"{source}: [{prefix or model.__name__}] {exc}") from None
 
 
 class StageConfig(BaseModel):

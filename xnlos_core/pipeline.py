@@ -138,6 +138,18 @@ class Pipeline:
         self.scene = None
         if "forward_model" in self.stages:
             self.scene = load_scene(config.scene, source, config.base_dir)
+        self.validate()
+
+    def validate(self) -> None:
+        """The checks a run would fail on, without running (called on construction, so ``xnlos check``
+        and ``xnlos run`` refuse the same configs): the radar's measured coupling matrix is read
+        and checked, the forward model checks the scene (:meth:`ForwardModel.check`)."""
+        from .antenna import coupling_matrix
+
+        if self.radar.coupling_file is not None:
+            coupling_matrix(self.radar)
+        if self.scene is not None:
+            self.stages["forward_model"].check(self.scene, self.radar)
 
     def plugin_info(self) -> dict[str, dict]:
         """kind → {name, provider, params} for provenance."""
