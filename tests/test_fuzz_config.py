@@ -11,6 +11,7 @@ from the ``fuzz_cases`` fixture (200 in ``make test``, 10,000 in ``make fuzz``).
 """
 from __future__ import annotations
 
+import copy
 import json
 import math
 import random
@@ -88,6 +89,10 @@ def _has_nan(t) -> bool:
     return any(isinstance(v, float) and v != v for _, v in _nodes({"": t}))
 
 
+def _pick(rng: random.Random, pool: list):
+    return copy.deepcopy(rng.choice(pool))  # a fresh value: the pools must not be mutated or shared
+
+
 def mutate(table: dict, rng: random.Random) -> tuple[dict | None, bytes | None, str]:
     """One mutation of ``table``: (new table, None, kind) or (None, raw file bytes, kind)."""
     op = rng.choice(["replace", "replace", "replace", "delete", "add", "number", "path", "path", "nest", "bytes",
@@ -97,18 +102,18 @@ def mutate(table: dict, rng: random.Random) -> tuple[dict | None, bytes | None, 
         for _ in range(rng.randint(2, 5)):
             nodes = list(_nodes(table))
             p, _ = rng.choice(nodes)
-            _set(table, p, rng.choice(WEIRD))
+            _set(table, p, _pick(rng, WEIRD))
         return table, None, op
     if op == "replace":
         p, _ = rng.choice(nodes)
-        _set(table, p, rng.choice(WEIRD))
+        _set(table, p, _pick(rng, WEIRD))
     elif op == "delete":
         p, _ = rng.choice(nodes)
         _set(table, p, None, delete=True)
     elif op == "add":
         dicts = [{"": table}[""]] + [v for _, v in nodes if isinstance(v, dict)]
         rng.choice(dicts)[rng.choice(["extra", "preset", "file", "builtin", "coupling_file", "base_dir"])] = \
-            rng.choice(WEIRD + PATH_VALUES)
+            _pick(rng, WEIRD + PATH_VALUES)
     elif op == "number":
         nums = [(p, v) for p, v in nodes if isinstance(v, (int, float)) and not isinstance(v, bool)]
         if nums:
@@ -122,7 +127,7 @@ def mutate(table: dict, rng: random.Random) -> tuple[dict | None, bytes | None, 
             if not isinstance(node.get(k), dict):
                 node[k] = {}
             node = node[k]
-        node[keys[-1]] = rng.choice(PATH_VALUES)
+        node[keys[-1]] = _pick(rng, PATH_VALUES)
         if keys[:1] == ("scene",):
             for other in ("file", "builtin"):
                 if other != keys[-1]:

@@ -72,18 +72,19 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
     if not path.is_absolute():
         path = Path(base_dir) / path
     try:
-        real = path.resolve(strict=True)
+        # the roots are checked before existence: a config cannot probe which files exist elsewhere
+        real = path.resolve()
+        roots = config_roots(root_dir if root_dir is not None else base_dir)
+        if not any(real.is_relative_to(r) for r in roots):
+            raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
+                              f"({', '.join(map(str, roots))}); a config may only name files inside the folder "
+                              "of the top-level config or the working directory")
         mode = real.stat().st_mode
     except FileNotFoundError:
         raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None
     except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop on older Pythons
         reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
         raise ConfigError(f"{where} cannot use file {value[:200]!r}: {reason}") from None
-    roots = config_roots(root_dir if root_dir is not None else base_dir)
-    if not any(real.is_relative_to(r) for r in roots):
-        raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
-                          f"({', '.join(map(str, roots))}); a config may only name files inside the folder of "
-                          "the top-level config or the working directory")
     if not stat.S_ISREG(mode):
         raise ConfigError(f"{where} {value!r} ({real}) is {_kind(mode)}; expected a regular file")
     return real

@@ -296,8 +296,10 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: s
             raise ConfigError(f"{source}: [scene.builtin] unknown scene {name!r}; built-in scenes: "
                               f"{', '.join(builtin_scenes())}")
         path = BUILTIN_DIR / f"{name}.toml"
-        scene = validate_model(Scene, {**load_toml(path), **table}, source=str(path), prefix="scene")
-        src = str(path)
+        # meshes added in the [scene] table are relative to the config that adds them
+        scene = validate_model(Scene, {**load_toml(path), **table, "base_dir": str(base_dir)}, source=str(path),
+                               prefix="scene")
+        src = source
     elif "file" in table:
         path = resolve_config_path(table.pop("file"), source=source, key="scene.file", base_dir=base_dir,
                                    root_dir=root_dir, suffixes=(".toml",))
