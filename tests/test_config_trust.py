@@ -235,3 +235,18 @@ def test_dataset_and_training_preset_escape_is_refused(proj):
         """)
     with pytest.raises(ConfigError, match=r"radar\.preset"):
         check_file(write(proj, text))
+
+
+def test_config_cannot_move_its_own_base_dir(proj):
+    """base_dir = "/" would make every absolute path a path inside the config root."""
+    with pytest.raises(ConfigError, match=r"\[base_dir\] is set by the loader"):
+        check_file(write(proj, 'base_dir = "/"\n' + PIPELINE.format(radar='preset = "etc/passwd.toml"',
+                                                                   scene='builtin = "corner"')))
+
+
+def test_nan_target_width_is_refused(proj):
+    text = (ROOT / "configs" / "training" / "unet.toml").read_text()
+    text = text.replace("sigma = [0.7, 1.0]", "sigma = [nan, 1.0]")
+    assert "sigma = [nan" in text
+    with pytest.raises(ConfigError, match=r"model\.sigma"):
+        check_file(write(proj, text))

@@ -190,8 +190,9 @@ class PipelineConfig(BaseModel):
 
 def parse_pipeline(table: dict[str, Any], source: str, base_dir: str | Path = ".") -> PipelineConfig:
     """Validate a pipeline table; errors name ``source`` and the key."""
-    table = dict(table)
-    table.setdefault("base_dir", str(base_dir))
+    if "base_dir" in table:  # relative paths and the config roots follow from where the file is
+        raise ConfigError(f"{source}: [base_dir] is set by the loader (the config file's folder); remove it")
+    table = {**table, "base_dir": str(base_dir)}
     try:
         return PipelineConfig.model_validate(table)
     except ValidationError as exc:
