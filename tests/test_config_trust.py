@@ -246,7 +246,7 @@ def test_config_cannot_move_its_own_base_dir(proj):
 
 def test_nan_target_width_is_refused(proj):
     text = (ROOT / "configs" / "training" / "unet.toml").read_text()
-    text = text.replace("sigma = [0.7, 1.0]", "sigma = [nan, 1.0]")
-    assert "sigma = [nan" in text
+    text = text.replace("sigma = [0.7, 1.0]", "sigma = [0.7, nan]")
+    assert "sigma = [0.7, nan]" in text
     with pytest.raises(ConfigError, match=r"model\.sigma"):
         check_file(write(proj, text))
