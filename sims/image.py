@@ -98,6 +98,13 @@ class ImageForwardModel(ForwardModel):
         """Which optional components this scene and radar need: name → "on" or "off: reason"."""
         return components_needed(self.params, scene, radar)
 
+    def check(self, scene, radar: RadarConfig) -> None:
+        """InputError for a scene with meshes (the image method models walls and objects only)."""
+        if scene.meshes:
+            raise InputError(f"image forward model: scene {scene.name!r} has {len(scene.meshes)} mesh(es); the "
+                             "image method handles walls and objects only (use the 'raytrace' forward model)")
+        self.components(scene, radar)
+
     def simulate(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                  index: int = 0) -> Frame:
         """Render ``scene`` at ``timestamp`` [s] into a Frame with its RA map and ground truth."""
@@ -114,9 +121,7 @@ class ImageForwardModel(ForwardModel):
             radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
         else:
             radar_syn = radar
-        if scene.meshes:
-            raise InputError(f"image forward model: scene {scene.name!r} has {len(scene.meshes)} mesh(es); the "
-                             "image method handles walls and objects only (use the 'raytrace' forward model)")
+        self.check(scene, radar)
         planar = scene.planar_walls()  # curved walls as planar facets, each its own mirror
         segs = tuple(w.segment() for w in planar)
         objs = [o.scatterers(timestamp) for o in scene.objects]  # (pos (K,2), normal (K,2), rcs (K,))

@@ -11,12 +11,17 @@ constants ``reflectivity``/``backscatter_db``, material None). Part tags are
   file name for single-mesh formats).
 
 Loading is data-only (trimesh parsers; no pickles, no remote resources). Files are cached by
-path, modification time and size, so checking many scenes that share a mesh stays cheap.
+path, modification time and size, so checking many scenes that share a mesh stays cheap. Every
+file is read through :func:`xnlos_core.files.read_file_bytes` (regular files only, never blocking
+on a FIFO); files a mesh references (an OBJ's ``mtllib``, textures, glTF buffers) must sit in the
+mesh file's folder or below it, symlinks resolved (:class:`ConfinedResolver`), so a mesh cannot
+read ``../../../etc/passwd``.
 """
 from __future__ import annotations
 
 import difflib
 import functools
+import io
 import math
 import re
 from pathlib import Path
@@ -24,7 +29,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from xnlos_core.errors import InputError
+from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.files import read_file_bytes
 from xnlos_core.scene import MeshSpec, Scene
 
 from .generators import geometry as g
@@ -49,12 +55,64 @@ def mesh_path(spec: MeshSpec, base_dir: str | Path = ".") -> Path:
     return path
 
 
+class ConfinedResolver(trimesh.resolvers.Resolver):
+    """The assets a mesh file references, read only from the mesh's folder (and below it).
+
+    trimesh's FilePathResolver confines paths only from trimesh 5 on and reads FIFOs blockingly;
+    this one refuses any name that resolves outside ``folder`` and reads regular files only.
+    A refusal is an OSError, which trimesh treats as a missing asset (the part tags then lack the
+    material names; :func:`load_user_mesh` checks ``mtllib`` lines itself to name the cause).
+    """
+
+    def __init__(self, folder: str | Path):
+        self.parent = Path(folder).resolve()
+
+    def absolute(self, name: str) -> Path:
+        """The resolved path of asset ``name``; OSError when it leaves the folder or cannot be resolved."""
+        try:
+            path = (self.parent / str(name).strip()).resolve()
+        except (OSError, RuntimeError, ValueError) as exc:
+            raise OSError(f"asset {name!r}: {exc}") from None
+        if not path.is_relative_to(self.parent):
+            raise OSError(f"asset {name!r} resolves to {path}, outside the mesh's folder {self.parent}")
+        return path
+
+    def get(self, name: str) -> bytes:
+        try:
+            return read_file_bytes(self.absolute(name), what=f"mesh asset {name!r}")
+        except ConfigError as exc:
+            raise OSError(str(exc)) from None
+
+    def write(self, name: str, data):
+        raise OSError("a ConfinedResolver only reads")
+
+    def namespaced(self, namespace: str) -> "ConfinedResolver":
+        return ConfinedResolver(self.absolute(namespace))
+
+    def keys(self):
+        return (str(p.relative_to(self.parent)) for p in self.parent.rglob("*") if p.is_file())
+
+
+def _check_mtllib(spec: MeshSpec, path: Path, data: bytes) -> None:
+    """InputError when an OBJ's ``mtllib`` names a file outside the mesh's folder."""
+    resolver = ConfinedResolver(path.parent)
+    for lib in re.findall(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*$", data, flags=re.MULTILINE):
+        name = lib.decode("utf-8", errors="replace")
+        try:
+            resolver.absolute(name)
+        except OSError:
+            raise InputError(f"mesh {spec.name!r} ({path}): mtllib {name!r} leaves the mesh's folder; the material "
+                             "library must sit beside the OBJ file (or in a folder below it)") from None
+
+
 @functools.lru_cache(maxsize=32)
 def _read(path: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, trimesh.Trimesh], ...]:
     """(tag, node, mesh in file coordinates) for every triangle mesh instance in the file; the key
     includes mtime and size so an edited file is read again. Raises what trimesh raises."""
     ext = Path(path).suffix.lower()
-    scene = trimesh.load_scene(path, file_type=SUPPORTED[ext])
+    data = read_file_bytes(path, what=f"mesh file {path}")
+    # file_type as the whole path: trimesh then names single-mesh geometry after the file (the part tag)
+    scene = trimesh.load_scene(io.BytesIO(data), file_type=str(path), resolver=ConfinedResolver(Path(path).parent))
     parts = []
     for node in scene.graph.nodes_geometry:
         transform, geom_name = scene.graph[node]
@@ -151,9 +209,13 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
     path = mesh_path(spec, base_dir)
     stat = path.stat()
     try:
+        if path.suffix.lower() == ".obj":
+            _check_mtllib(spec, path, read_file_bytes(path, what=f"mesh {spec.name!r}: file {path}"))
         parts = _read(str(path.resolve()), stat.st_mtime_ns, stat.st_size)
     except InputError:
         raise
+    except ConfigError as err:
+        raise InputError(str(err)) from None
     except Exception as err:  # trimesh raises many kinds on malformed data
         raise InputError(f"mesh {spec.name!r}: cannot read {path} as {SUPPORTED[path.suffix.lower()].upper()}: "
                          f"{type(err).__name__}: {err}") from None

@@ -24,6 +24,8 @@ A plane wave from (θ, ε) has direction u = (cos ε cos θ, cos ε sin θ, sin 
 from __future__ import annotations
 
 import functools
+import io
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -231,17 +233,24 @@ def coupling_matrix(radar: RadarConfig) -> np.ndarray | None:
 
 
 def _load_coupling(radar: RadarConfig) -> np.ndarray:
-    path = Path(radar.coupling_file).expanduser()
+    """The measured matrix; the file is read whole through :func:`xnlos_core.files.read_file_bytes`
+    (regular files only, never blocking on a FIFO), then parsed from memory without pickle."""
+    from .errors import ConfigError
+    from .files import decode_utf8, read_file_bytes
+
+    path = Path(radar.coupling_file)
     m = radar.n_channels
     try:
+        data = read_file_bytes(path, what=f"coupling_file {str(path)!r}")
         if path.suffix == ".csv":
-            c = np.loadtxt(path, delimiter=",", dtype=np.complex128, ndmin=2)
+            c = np.loadtxt(io.StringIO(decode_utf8(data, f"coupling_file {str(path)!r}")), delimiter=",",
+                           dtype=np.complex128, ndmin=2)
         elif path.suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
+            with np.load(io.BytesIO(data), allow_pickle=False) as z:
                 c = np.asarray(z["coupling"])
         else:
-            c = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, KeyError) as exc:
+            c = np.load(io.BytesIO(data), allow_pickle=False)
+    except (ConfigError, OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         raise InputError(f"coupling_file {str(path)!r}: cannot read a coupling matrix "
                          f"(.npy, .npz with 'coupling', or .csv of complex): {exc}") from None
     c = np.asarray(c, dtype=np.complex128)

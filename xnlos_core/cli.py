@@ -112,33 +112,55 @@ def _cmd_train(args) -> int:
     return 0
 
 
-def _cmd_check(args) -> int:
+def check_file(path: str | Path) -> str:
+    """Validate a pipeline, dataset or training config without running it; returns the one-line verdict.
+
+    Runs what ``run`` / ``simulate`` / ``train`` run before their first frame (for a pipeline: every
+    sweep point's :class:`~xnlos_core.pipeline.Pipeline`, which reads the files it names and lets
+    the forward model check the scene). Every refusal is an :class:`~xnlos_core.errors.XnlosError`.
+    """
     from .config import expand_sweep, load_toml, parse_pipeline
     from .pipeline import Pipeline
 
-    path = Path(args.config)
+    path = Path(path)
     table = load_toml(path)
     if "families" in table and "detector" not in table:  # a dataset config (xnlos simulate)
         from sims.dataset import parse_dataset_config, resolve
 
         cfg = resolve(parse_dataset_config(table, str(path), path.resolve().parent), str(path))
-        print(f"{path}: valid dataset config ({cfg.n_maps} maps, forward model {cfg.forward_model.name})")
-        return 0
+        return f"{path}: valid dataset config ({cfg.n_maps} maps, forward model {cfg.forward_model.name})"
     if "data" in table and "model" in table and "detector" not in table:  # a training config (xnlos train)
         from plugins.residual_mirror.train import check_config, is_residual_config
 
         if is_residual_config(table):
-            print(check_config(table, path))
-            return 0
+            return check_config(table, path)
         from plugins.detectors.train_config import parse_train_config
 
         tcfg = parse_train_config(table, str(path))
-        print(f"{path}: valid training config (model {tcfg.model.name}, {tcfg.optim.epochs} epochs)")
-        return 0
+        if tcfg.data.generate is not None:
+            _check_generate(tcfg.data.generate, f"{path}: [data.generate]")
+        return f"{path}: valid training config (model {tcfg.model.name}, {tcfg.optim.epochs} epochs)"
     points = expand_sweep(table, str(path))
     for assignment, t in points:
         Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
-    print(f"{path}: valid ({len(points)} pipeline(s))")
+    return f"{path}: valid ({len(points)} pipeline(s))"
+
+
+def _check_generate(gen, source: str) -> None:
+    """What ``xnlos train`` builds from ``[data.generate]`` before simulating (relative paths from the
+    working directory, as the trainer takes them)."""
+    from .pipeline import load_radar
+    from .registry import get_registry
+    from .scene import load_scene
+
+    radar = load_radar(gen.radar, source, ".")
+    fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
+    if gen.scene is not None:
+        fm.check(load_scene(gen.scene, source, "."), radar)
+
+
+def _cmd_check(args) -> int:
+    print(check_file(args.config))
     return 0
 
 

@@ -45,16 +45,44 @@ from .errors import ConfigError
 STAGE_KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker")
 
 
+MAX_DEPTH = 32  # nested tables/arrays; the shipped configs use ≤ 4
+
+
+def _depth(value: Any) -> int:
+    """Nesting depth of tables and arrays (iterative: a deep value cannot overflow the stack)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        node, d = stack.pop()
+        if isinstance(node, dict):
+            node = list(node.values())
+        if isinstance(node, list):
+            deepest = max(deepest, d + 1)
+            stack.extend((v, d + 1) for v in node if isinstance(v, (dict, list)))
+    return deepest
+
+
 def load_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file; a syntax error names the file and line."""
+    """Parse a TOML file; errors (ConfigError) name the file and say what is wrong.
+
+    Only a regular file of at most 16 MiB is read (a FIFO or device is refused without blocking,
+    :mod:`xnlos_core.files`); it must be UTF-8 (the error gives the offending byte's offset), valid
+    TOML (the error gives line and column) and nested at most ``MAX_DEPTH`` levels deep.
+    """
+    from .files import MAX_CONFIG_BYTES, decode_utf8, read_file_bytes
+
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such configuration file")
+    what = f"{path}: configuration file"
+    text = decode_utf8(read_file_bytes(path, what=what, max_bytes=MAX_CONFIG_BYTES), str(path))
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays / inline tables recursively
+        raise ConfigError(f"{path}: invalid TOML: arrays or inline tables nested too deeply "
+                          f"(at most {MAX_DEPTH} levels)") from None
+    if _depth(table) > MAX_DEPTH:
+        raise ConfigError(f"{path}: tables and arrays nested {_depth(table)} levels deep; at most {MAX_DEPTH}")
+    return table
 
 
 def _format_errors(model: type[BaseModel], exc: ValidationError, source: str, prefix: str) -> str:
@@ -85,6 +113,10 @@ def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: st
         return model.model_validate(data)
     except ValidationError as exc:
         raise ConfigError(_format_errors(model, exc, source, prefix)) from None
+    except ConfigError:
+        raise
+    except ValueError as exc:  # raised by a model_post_init, which pydantic does not wrap
+        raise ConfigError(f"{source}: [{prefix or model.__name__}] {exc}") from None
 
 
 class StageConfig(BaseModel):
@@ -162,8 +194,9 @@ class PipelineConfig(BaseModel):
 
 def parse_pipeline(table: dict[str, Any], source: str, base_dir: str | Path = ".") -> PipelineConfig:
     """Validate a pipeline table; errors name ``source`` and the key."""
-    table = dict(table)
-    table.setdefault("base_dir", str(base_dir))
+    if "base_dir" in table:  # relative paths and the config roots follow from where the file is
+        raise ConfigError(f"{source}: [base_dir] is set by the loader (the config file's folder); remove it")
+    table = {**table, "base_dir": str(base_dir)}
     try:
         return PipelineConfig.model_validate(table)
     except ValidationError as exc:

@@ -69,6 +69,11 @@ class ForwardModel(Plugin, abc.ABC):
                  index: int = 0) -> Frame:
         """Render ``scene`` (an :class:`xnlos_core.scene.Scene`) at ``timestamp`` [s] into a Frame."""
 
+    def check(self, scene, radar: RadarConfig) -> None:
+        """Raise the typed error (InputError, ConfigError) that :meth:`simulate` would raise for this
+        scene and radar at t = 0, without simulating; cheap. ``xnlos check`` and every run call it
+        through :meth:`xnlos_core.pipeline.Pipeline.validate`. The default accepts everything."""
+
 
 class Backend(Plugin, abc.ABC):
     """A source of measured frames (hardware, a recording). Used as a context manager."""

@@ -16,6 +16,7 @@ import numpy as np
 from . import metrics
 from .config import PipelineConfig, load_toml, validate_model
 from .errors import ConfigError, InsufficientDataError
+from .files import resolve_config_path
 from .provenance import provenance
 from .radar import RadarConfig
 from .registry import PluginManager, Registry, get_registry
@@ -80,16 +81,32 @@ def timed_frames(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float]]:
 
 
 def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
-    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides."""
-    table = dict(table or {})
+    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides.
+
+    ``preset`` and ``coupling_file`` are files inside the config roots (:mod:`xnlos_core.files`):
+    the preset relative to ``base_dir`` (the config's folder), a coupling file relative to the
+    file that names it; the returned config holds the coupling file's resolved absolute path.
+    """
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: [radar] expected a table of RadarConfig fields, got {table!r}")
+    table = dict(table)
     preset = table.pop("preset", None)
+    coupling_dir = base_dir
     if preset is not None:
-        path = Path(base_dir) / preset
-        if not path.is_file():
-            raise ConfigError(f"{source}: [radar.preset] file {str(path)!r} does not exist")
+        path = resolve_config_path(preset, source=source, key="radar.preset", base_dir=base_dir,
+                                   suffixes=(".toml",))
         base = load_toml(path)
-        table = {**base.get("radar", base), **table}
+        base = base.get("radar", base)
+        if not isinstance(base, dict):
+            raise ConfigError(f"{path}: [radar] expected a table of RadarConfig fields, got {base!r}")
+        if "coupling_file" in base and "coupling_file" not in table:
+            coupling_dir = path.parent
+        table = {**base, **table}
         source = f"{source} (preset {path})"
+    if table.get("coupling_file") is not None:
+        table["coupling_file"] = str(resolve_config_path(
+            table["coupling_file"], source=source, key="radar.coupling_file", base_dir=coupling_dir,
+            root_dir=base_dir, suffixes=(".npy", ".npz", ".csv")))
     try:
         return validate_model(RadarConfig, table, source=source, prefix="radar")
     except ConfigError:
@@ -120,6 +137,18 @@ class Pipeline:
         self.scene = None
         if "forward_model" in self.stages:
             self.scene = load_scene(config.scene, source, config.base_dir)
+        self.validate()
+
+    def validate(self) -> None:
+        """The checks a run would fail on, without running (called on construction, so ``xnlos check``
+        and ``xnlos run`` refuse the same configs): the radar's measured coupling matrix is read
+        and checked, the forward model checks the scene (:meth:`ForwardModel.check`)."""
+        from .antenna import coupling_matrix
+
+        if self.radar.coupling_file is not None:
+            coupling_matrix(self.radar)
+        if self.scene is not None:
+            self.stages["forward_model"].check(self.scene, self.radar)
 
     def plugin_info(self) -> dict[str, dict]:
         """kind → {name, provider, params} for provenance."""

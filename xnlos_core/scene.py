@@ -20,15 +20,24 @@ Example (see ``xnlos_core/defaults/corner.toml``)::
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from .types import WallSegment
 
-Vec2 = tuple[float, float]
+MAX_COORD = 10_000.0  # m: a scene is metres to kilometres around the radar
+MAX_SPEED = 1_000.0  # m/s
+MAX_SCATTERERS = 1_000_000  # per wall or object outline (length / spacing): bounds the forward models' arrays
+# Finite and bounded: 1e308 overflows the image model's squares, 2**31 m walls allocate 64 GiB of scatterers.
+Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
+Vec2 = tuple[Coord, Coord]
+Velocity = tuple[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=False)],
+                 Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=False)]]
+Size = Annotated[float, Field(gt=0, le=1_000, allow_inf_nan=False)]
 
 
 class WallSpec(BaseModel):
@@ -59,7 +68,7 @@ class WallSpec(BaseModel):
     lobe_exponent: int = Field(4, ge=1, le=100, description="α_R of the directive lobe")
     relay: bool = Field(True, description="acts as a mirror for hidden objects")
     spacing: float = Field(0.25, gt=0.005, le=10, description="scatterer spacing along the wall [m]")
-    radius: float | None = Field(None, description="curved wall: circular arc start→end of this radius [m]; "
+    radius: float | None = Field(None, ge=-1e6, le=1e6, allow_inf_nan=False, description="curved wall: circular arc start→end of this radius [m]; "
                                                    "> 0 bulges to the left of start→end, < 0 to the right")
     facet_length: float = Field(0.5, gt=0.01, le=50, description="a curved wall is cut into planar facets "
                                                                  "of about this length [m]")
@@ -68,6 +77,9 @@ class WallSpec(BaseModel):
     def _length(self):
         if math.dist(self.start, self.end) <= 0:
             raise ValueError(f"wall {self.name!r}: start and end coincide; a wall needs length > 0")
+        if math.dist(self.start, self.end) / self.spacing > MAX_SCATTERERS:
+            raise ValueError(f"wall {self.name!r}: {math.dist(self.start, self.end):.6g} m at spacing {self.spacing} m "
+                             f"is more than {MAX_SCATTERERS} scatterers; raise spacing")
         if self.radius is not None and abs(self.radius) < 0.5 * math.dist(self.start, self.end) * (1 + 1e-9):
             raise ValueError(f"wall {self.name!r}: |radius| = {abs(self.radius)} m is below half the chord "
                              f"({0.5 * math.dist(self.start, self.end):.3f} m); no arc joins start and end")
@@ -134,11 +146,18 @@ class ObjectSpec(BaseModel):
         "generic", description="object class (ground truth label; sizes and RCS come from the fields)")
     height: float = Field(1.5, gt=0, le=50, description="height above ground [m] (3-D occlusion)")
     center: Vec2
-    size: Vec2 = Field((4.5, 1.8), description="(length, width) [m] for a box")
+    size: tuple[Size, Size] = Field((4.5, 1.8), description="(length, width) [m] for a box")
     heading: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="[rad] from +x")
     rcs: float = Field(10.0, gt=0, le=1e6, description="total radar cross-section [m²]")
-    velocity: Vec2 = (0.0, 0.0)
+    velocity: Velocity = (0.0, 0.0)
     spacing: float = Field(0.3, gt=0.005, le=10, description="scatterer spacing on a box outline [m]")
+
+    @model_validator(mode="after")
+    def _outline(self):
+        if self.shape == "box" and 2 * sum(self.size) / self.spacing > MAX_SCATTERERS:
+            raise ValueError(f"object {self.name!r}: a {self.size} m box at spacing {self.spacing} m is more than "
+                             f"{MAX_SCATTERERS} scatterers; raise spacing")
+        return self
 
     @field_validator("size")
     @classmethod
@@ -200,7 +219,7 @@ class MeshSpec(BaseModel):
     backscatter_db: float | None = Field(None, ge=-80, le=20)
     roughness: float = Field(0.0, ge=0, le=0.5, description="rms surface height σ_h [m]")
     relay: bool = True
-    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    translation: tuple[Coord, Coord, Coord] = (0.0, 0.0, 0.0)
     yaw: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="rotation about z [rad]")
     scale: float = Field(1.0, gt=0, le=1e4)
 
@@ -241,23 +260,59 @@ class Scene(BaseModel):
 BUILTIN_DIR = Path(__file__).with_name("defaults")
 
 
-def load_scene(table: dict, source: str, base_dir: str | Path = ".") -> Scene:
-    """Scene from a pipeline's ``[scene]`` table: ``builtin = NAME``, ``file = PATH`` or inline."""
+BUILTIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]{0,63}")
+MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf")  # sims.meshes.SUPPORTED
+
+
+def builtin_scenes() -> list[str]:
+    """Names of the built-in scenes (``xnlos_core/defaults/*.toml`` but the demo pipeline)."""
+    return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml") if p.stem != "demo")
+
+
+def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: str | Path | None = None) -> Scene:
+    """Scene from a pipeline's ``[scene]`` table: ``builtin = NAME``, ``file = PATH`` or inline.
+
+    ``file`` and every mesh ``file`` are regular files inside the config roots of ``root_dir``
+    (default ``base_dir``, the top-level config's folder; :mod:`xnlos_core.files`): a scene file
+    relative to ``base_dir``, its meshes relative to the scene file. ``builtin`` is a name of
+    :func:`builtin_scenes`, never a path.
+    """
     from .config import load_toml, validate_model
     from .errors import ConfigError
+    from .files import resolve_config_path
 
-    table = dict(table or {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: [scene] expected a table (builtin = NAME, file = PATH or inline walls/"
+                          f"objects), got {table!r}")
+    root_dir = base_dir if root_dir is None else root_dir
+    table = dict(table)
     if "builtin" in table and "file" in table:
         raise ConfigError(f"{source}: [scene] give either 'builtin' or 'file', not both")
+    if "base_dir" in table:  # where meshes are looked up follows from where the scene is written
+        raise ConfigError(f"{source}: [scene.base_dir] is set by the loader (the scene file's folder); remove it")
     if "builtin" in table:
         name = table.pop("builtin")
+        if not (isinstance(name, str) and BUILTIN_NAME.fullmatch(name) and name in builtin_scenes()):
+            raise ConfigError(f"{source}: [scene.builtin] unknown scene {name!r}; built-in scenes: "
+                              f"{', '.join(builtin_scenes())}")
         path = BUILTIN_DIR / f"{name}.toml"
-        if not path.is_file():
-            known = sorted(p.stem for p in BUILTIN_DIR.glob("*.toml") if p.stem != "demo")
-            raise ConfigError(f"{source}: [scene.builtin] unknown scene {name!r}; built-in scenes: {', '.join(known)}")
-        return validate_model(Scene, {**load_toml(path), **table}, source=str(path), prefix="scene")
-    if "file" in table:
-        path = Path(base_dir) / table.pop("file")
-        return validate_model(Scene, {"base_dir": str(path.parent), **load_toml(path), **table}, source=str(path),
-                              prefix="scene")
-    return validate_model(Scene, {"base_dir": str(base_dir), **table}, source=source, prefix="scene")
+        # meshes added in the [scene] table are relative to the config that adds them
+        scene = validate_model(Scene, {**load_toml(path), **table, "base_dir": str(base_dir)}, source=str(path),
+                               prefix="scene")
+        src = source
+    elif "file" in table:
+        path = resolve_config_path(table.pop("file"), source=source, key="scene.file", base_dir=base_dir,
+                                   root_dir=root_dir, suffixes=(".toml",))
+        content = load_toml(path)
+        if "base_dir" in content:
+            raise ConfigError(f"{path}: [base_dir] is set by the loader (this file's folder); remove it")
+        scene = validate_model(Scene, {**content, **table, "base_dir": str(path.parent)}, source=str(path),
+                               prefix="scene")
+        src = str(path)
+    else:
+        scene = validate_model(Scene, {**table, "base_dir": str(base_dir)}, source=source, prefix="scene")
+        src = source
+    for i, mesh in enumerate(scene.meshes):
+        resolve_config_path(mesh.file, source=src, key=f"scene.meshes.{i}.file", base_dir=scene.base_dir,
+                            root_dir=root_dir, suffixes=MESH_SUFFIXES)
+    return scene

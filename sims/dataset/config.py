@@ -161,6 +161,8 @@ class DatasetConfig(BaseModel):
 def parse_dataset_config(table: dict[str, Any], source: str, base_dir: str | Path = ".",
                          n_maps: int | None = None) -> DatasetConfig:
     """Validate a dataset table (``n_maps`` overrides the file's); errors name ``source`` and the key."""
+    if "base_dir" in table:  # relative paths and the config roots follow from where the file is
+        raise ConfigError(f"{source}: [base_dir] is set by the loader (the config file's folder); remove it")
     table = {**table, "base_dir": str(base_dir)}
     if n_maps is not None:
         table["n_maps"] = n_maps

@@ -67,6 +67,13 @@ class RaytraceForwardModel(ForwardModel):
         """Optional components this scene and radar need: name → "on" or "off: reason"."""
         return components_needed(self.params, scene, radar)
 
+    def check(self, scene, radar: RadarConfig) -> None:
+        """What :meth:`trace` refuses at t = 0: unreadable or unsupported meshes, the radar inside a
+        wall or mesh, objects against walls (InputError)."""
+        self.components(scene, radar)
+        world = build_world(scene, 0.0, self.params.backend)
+        check_radar_outside(world, np.array([0.0, 0.0, self.params.radar_height]), scene)
+
     def simulate(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                  index: int = 0) -> Frame:
         """Render ``scene`` at ``timestamp`` [s] into a Frame with ground truth."""

@@ -91,7 +91,8 @@ def main(argv=None) -> int:
 
         scene = generate_scene(args.family, args.seed)
     elif args.scene:
-        scene = load_scene({"file": str(args.scene)}, str(args.scene))
+        # the file named on the command line is trusted: its folder is the config root
+        scene = load_scene({"file": Path(args.scene).name}, str(args.scene), Path(args.scene).resolve().parent)
     else:
         scene = load_scene({"builtin": "corner"}, "corner")
     out = plot_trace(scene, RadarConfig(), args.out, seed=args.seed)

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import torch
 import torch.nn.functional as F
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
@@ -38,10 +40,14 @@ class SwinUNetParams(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     embed_dim: int = Field(32, ge=4, le=256, description="channels C of the first stage")
-    depths: tuple[int, ...] = Field((2, 2, 2), min_length=1, max_length=5, description="Swin blocks per stage")
-    heads: tuple[int, ...] = Field((2, 4, 8), min_length=1, max_length=5, description="attention heads per stage")
-    window: tuple[int, int] = Field((8, 8), description="attention window (range, azimuth) [tokens]")
-    patch: tuple[int, int] = Field((4, 4), description="patch size (range, azimuth) [bins], even")
+    depths: tuple[Annotated[int, Field(ge=1, le=32)], ...] = Field((2, 2, 2), min_length=1, max_length=5,
+                                                                   description="Swin blocks per stage")
+    heads: tuple[Annotated[int, Field(ge=1, le=64)], ...] = Field((2, 4, 8), min_length=1, max_length=5,
+                                                                  description="attention heads per stage")
+    window: tuple[Annotated[int, Field(ge=1, le=256)], Annotated[int, Field(ge=1, le=256)]] = Field(
+        (8, 8), description="attention window (range, azimuth) [tokens]")
+    patch: tuple[Annotated[int, Field(ge=1, le=256)], Annotated[int, Field(ge=1, le=256)]] = Field(
+        (4, 4), description="patch size (range, azimuth) [bins], even")
     mlp_ratio: float = Field(2.0, gt=0, le=8, description="MLP hidden width / channels")
     stem_channels: int = Field(8, ge=1, le=128, description="conv stem channels at full resolution")
     head_channels: int = Field(16, ge=1, le=128, description="conv stem / decoder channels at half resolution "

@@ -1,0 +1,132 @@
+"""Reading the files a configuration names, without trusting the configuration.
+
+The rule (README, "Configs"): a path written in a config is resolved against the folder of the
+file that names it and, after every symlink is resolved, must lie inside a *config root*: the
+folder of the top-level config file or the current working directory (the project a user runs
+``xnlos`` from, which holds the shipped ``configs/``). Absolute paths obey the same rule; there
+is no way for a file to widen it, so a downloaded config cannot read ``~/.ssh`` or
+``/etc/passwd`` (``../../../etc/passwd`` or a symlink out of the folder is refused alike).
+Only regular files are read: a FIFO, a device or a directory is refused before it is opened,
+and the file is opened with ``O_NONBLOCK`` and checked again with ``fstat`` so that a FIFO
+swapped in between cannot block the reader. Every refusal is a :class:`ConfigError` naming the
+config, the key, the value and what was expected.
+
+Hand-written rather than a library: the standard library has every piece (``os.open``,
+``os.fstat``, ``Path.resolve``) and no package implements this rule.
+"""
+from __future__ import annotations
+
+import errno
+import os
+import stat
+from pathlib import Path
+
+from .errors import ConfigError
+
+MAX_CONFIG_BYTES = 16 * 2**20  # a TOML config or preset; the shipped ones are < 10 kB
+MAX_DATA_BYTES = 2**30  # a mesh or coupling matrix read whole into memory
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _os_reason(exc: OSError) -> str:
+    if exc.errno == errno.ENAMETOOLONG:
+        return "the path or one of its names is too long for the file system"
+    if exc.errno == errno.ELOOP:
+        return "too many levels of symbolic links"
+    return exc.strerror or type(exc).__name__
+
+
+def config_roots(root_dir: str | Path) -> tuple[Path, ...]:
+    """The folders paths in a config may point into: ``root_dir`` (the top-level config's folder)
+    and the current working directory, both with symlinks resolved."""
+    roots = []
+    for d in (root_dir, Path.cwd()):
+        try:
+            r = Path(d).resolve()
+        except (OSError, RuntimeError, ValueError):
+            continue
+        if r not in roots:
+            roots.append(r)
+    return tuple(roots)
+
+
+def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
+                        root_dir: str | Path | None = None, suffixes: tuple[str, ...] | None = None) -> Path:
+    """The regular file a config names at ``key``: resolved against ``base_dir`` (the folder of the
+    file that names it), symlinks resolved, inside :func:`config_roots` of ``root_dir`` (default
+    ``base_dir``). ``suffixes``: allowed lower-case extensions. Raises ConfigError otherwise."""
+    where = f"{source}: [{key}]"
+    if not isinstance(value, str) or not value or "\0" in value:
+        raise ConfigError(f"{where} expected a non-empty file path string, got {value!r}")
+    if suffixes is not None and Path(value).suffix.lower() not in suffixes:
+        raise ConfigError(f"{where} {value!r}: expected a file ending in {', '.join(suffixes)}")
+    path = Path(value)
+    if not path.is_absolute():
+        path = Path(base_dir) / path
+    try:
+        # the roots are checked before existence: a config cannot probe which files exist elsewhere
+        real = path.resolve()
+        roots = config_roots(root_dir if root_dir is not None else base_dir)
+        if not any(real.is_relative_to(r) for r in roots):
+            raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
+                              f"({', '.join(map(str, roots))}); a config may only name files inside the folder "
+                              "of the top-level config or the working directory")
+        mode = real.stat().st_mode
+    except FileNotFoundError:
+        raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None
+    except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop on older Pythons
+        reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise ConfigError(f"{where} cannot use file {value[:200]!r}: {reason}") from None
+    if not stat.S_ISREG(mode):
+        raise ConfigError(f"{where} {value!r} ({real}) is {_kind(mode)}; expected a regular file")
+    return real
+
+
+def read_file_bytes(path: str | Path, *, what: str, max_bytes: int = MAX_DATA_BYTES) -> bytes:
+    """The bytes of the regular file ``path``; ``what`` names it in errors (e.g. "config file x.toml").
+
+    Opened with O_NONBLOCK and checked with fstat, so a FIFO or device is refused without blocking
+    even when it replaced a checked file. Raises ConfigError for anything but a readable regular
+    file of at most ``max_bytes``."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise ConfigError(f"{what}: no such file") from None
+    except (OSError, TypeError, ValueError) as exc:
+        reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise ConfigError(f"{what}: cannot open: {reason}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ConfigError(f"{what} is {_kind(st.st_mode)}; expected a regular file")
+        if st.st_size > max_bytes:
+            raise ConfigError(f"{what} is {st.st_size} bytes; at most {max_bytes} are read")
+        chunks, total = [], 0
+        while chunk := os.read(fd, min(1 << 20, max_bytes + 1 - total)):
+            chunks.append(chunk)
+            total += len(chunk)
+            if total > max_bytes:
+                raise ConfigError(f"{what} grew beyond {max_bytes} bytes while being read")
+        return b"".join(chunks)
+    except OSError as exc:
+        raise ConfigError(f"{what}: cannot read: {_os_reason(exc)}") from None
+    finally:
+        os.close(fd)
+
+
+def decode_utf8(data: bytes, what: str) -> str:
+    """``data`` as UTF-8 text; invalid bytes give a ConfigError naming ``what`` and the byte offset."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise ConfigError(f"{what}: not UTF-8 text: byte {exc.start} (line {line}) is "
+                          f"{data[exc.start:exc.start + 1]!r} ({exc.reason})") from None
