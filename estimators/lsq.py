@@ -28,6 +28,12 @@ from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import LOS, Detections, WallPosterior
 
 
+# Largest |x|, |y| [m] of a LOS point the wall estimators accept: a thousand times any radar's reach
+# (RadarConfig.max_range ≤ the unambiguous range, ~100 m), yet far from where squared distances
+# (linkage, scatter matrices, likelihoods) overflow — a point at 1e300 m made scipy raise.
+MAX_COORDINATE = 1e6
+
+
 class ClusterParams(BaseModel):
     """How LOS points are split into walls; shared by every wall estimator."""
 
@@ -120,8 +126,9 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
     names the caller in errors. Returns (idx (K,): indices of the LOS rows in ``detections``,
     points (K, 2) [m], their covariances (K, 2, 2) [m²], clusters: index arrays into points,
     largest first, each with ≥ min_points members — or the largest cluster alone if none reaches
-    min_points but it has ≥ 2). Raises InputError for non-Detections and InsufficientDataError
-    with < 2 LOS points or no usable cluster.
+    min_points but it has ≥ 2). Raises InputError for non-Detections, for LOS points beyond
+    ±MAX_COORDINATE [m] and for position covariances that overflow, InsufficientDataError with
+    < 2 LOS points or no usable cluster.
     """
     if not isinstance(detections, Detections):
         raise InputError(f"{who}.estimate: expected Detections, got {type(detections).__name__}")
@@ -131,7 +138,22 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
             f"{who}: {len(idx)} LOS detection(s) among {len(detections)} detections; "
             "a wall line needs at least 2 LOS points")
     pts = detections.position[idx]
-    cov = detections.position_cov()[idx]
+    far = np.flatnonzero(np.abs(pts).max(axis=1) > MAX_COORDINATE)
+    if len(far):
+        i = int(idx[far[0]])
+        raise InputError(
+            f"{who}: LOS detection {i} lies at {detections.position[i].tolist()} m (range "
+            f"{detections.range[i]:.6g} m); {len(far)} LOS point(s) exceed |x|, |y| ≤ {MAX_COORDINATE:g} m, "
+            "the largest coordinate the wall estimators accept")
+    with np.errstate(over="ignore", invalid="ignore"):
+        cov = detections.position_cov()[idx]
+    bad = np.flatnonzero(~np.isfinite(cov).all(axis=(1, 2)))
+    if len(bad):
+        i = int(idx[bad[0]])
+        raise InputError(
+            f"{who}: the position covariance of LOS detection {i} overflows (range_std "
+            f"{detections.range_std[i]:.6g} m, azimuth_std {detections.azimuth_std[i]:.6g} rad at range "
+            f"{detections.range[i]:.6g} m); {len(bad)} LOS point(s) have standard deviations too large to square")
     labels = single_linkage(pts, params.cluster_distance)
     groups = _merge_collinear(pts, labels, params.merge_tolerance)
     chosen = [g for g in groups if len(g) >= params.min_points]
