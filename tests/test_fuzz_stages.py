@@ -199,7 +199,7 @@ def test_learned_detectors_on_random_maps(name, learned, fuzz_cases):
 def random_points(rng: np.random.Generator) -> Detections:
     """LOS (and some mNLOS) detections of one of several degenerate or extreme geometries."""
     kind = rng.integers(9)
-    n = int(rng.integers(0, 16))
+    n = int(rng.integers(3, 24)) if rng.random() < 0.8 else int(rng.integers(0, 3))
     scale = 10.0 ** rng.uniform(-6, 6.3)
     if kind == 0:  # a cloud
         pts = rng.standard_normal((n, 2)) * scale

@@ -146,3 +146,58 @@ def test_random_geometry_is_finite_or_a_clear_error(dist, incidence, azimuth, n,
     for w in walls:
         check_finite(w)
         assert w.info["solver_status"]
+
+
+ALL_ESTIMATORS = ("lsq", "casadi_map", "emcee")
+
+
+def _estimator(name):
+    from xnlos_core.registry import get_registry
+
+    return get_registry().create("wall_estimator", name, FAST_EMCEE if name == "emcee" else {})
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_points_beyond_a_million_metres_are_a_clear_error(name):
+    # Issue #26: 1e300-m point sets crashed all three estimators inside scipy (linkage: "the
+    # condensed distance matrix must contain only finite values").
+    from xnlos_core import InputError
+
+    y = np.linspace(-3, 3, 6)
+    for far in (1e300, 2e6):
+        det = polar_detections(np.c_[np.full(6, far), y * far], 0.05, 0.005)
+        with pytest.raises(InputError, match=r"LOS detection 0 lies at .*≤ 1e\+06 m"):
+            run(_estimator(name), det)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_covariances_that_overflow_are_a_clear_error(name):
+    from xnlos_core import InputError
+
+    det = polar_detections(np.c_[np.full(6, 8.0), np.linspace(-3, 3, 6)], 1e160, 0.005)
+    with pytest.raises(InputError, match=r"position covariance of LOS detection 0 overflows \(range_std 1e\+160"):
+        run(_estimator(name), det)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_non_finite_points_cannot_reach_an_estimator(name):
+    from xnlos_core import InputError
+
+    with pytest.raises(InputError, match="NaN or infinite"):
+        polar_detections([[8.0, np.nan], [8.0, 1.0]], 0.05, 0.005)
+    det = polar_detections([[8.0, -1.0], [8.0, 0.0], [8.0, 1.0]], 0.05, 0.005)
+    with pytest.raises(ValueError, match="read-only"):
+        det.range[0] = np.inf  # validated arrays are read-only: no corruption after the check
+    (w,) = run(_estimator(name), det)
+    check_finite(w)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_a_wall_at_the_coordinate_bound_is_finite(name):
+    # Just inside 1e6 m, the largest coordinate accepted, with huge but finite stated errors: finite numbers.
+    for range_std in (0.05, 1e100):
+        det = polar_detections(np.c_[np.full(9, 0.999e6), np.linspace(-8, 8, 9)], range_std, 1e-7)
+        (w,) = run(_estimator(name), det)
+        check_finite(w)
+        if range_std < 1:  # with 1e100-m range errors the data say nothing about b: finite is all
+            assert w.offset == pytest.approx(0.999e6, rel=1e-6)

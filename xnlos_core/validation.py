@@ -34,7 +34,8 @@ def as_array(
             raise InputError(f"{name}: expected numeric (complex) values, got dtype {arr.dtype}")
         if kind in "fi" and arr.dtype.kind not in "fiub":
             raise InputError(f"{name}: expected numeric values, got dtype {arr.dtype}")
-        arr = arr.astype(dtype, copy=False)
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow becomes inf: refused below
+            arr = arr.astype(dtype, copy=False)
     if ndim is not None and arr.ndim != ndim:
         raise InputError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
     if shape is not None:
