@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import pdist
 
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
@@ -54,14 +55,16 @@ def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
     pts = np.asarray(points, dtype=np.float64)
     if len(pts) < 2:
         return np.zeros(len(pts), dtype=np.int64)
-    return fcluster(linkage(pts, method="single"), t=distance, criterion="distance").astype(np.int64) - 1
+    # condensed distances, not the points: a 2 × 2 point array can look like a distance matrix to linkage
+    return fcluster(linkage(pdist(pts), method="single"), t=distance, criterion="distance").astype(np.int64) - 1
 
 
 def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPosterior:
     """TLS line through ``points`` (n ≥ 2, (n, 2) [m]) with its (φ, b) covariance (module doc).
 
     point_cov (n, 2, 2) [m²]: position covariances, used for σ² when n = 2.
-    Raises InsufficientDataError when the points coincide (no direction).
+    Raises InsufficientDataError when the points coincide (no direction) or when the covariance
+    overflows (errors so large against the points' spread that they say nothing about the line).
     """
     x = np.asarray(points, dtype=np.float64)
     n_pts = len(x)
@@ -85,7 +88,12 @@ def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPos
         sigma2 = float(np.mean(np.einsum("i,kij,j->k", nrm, np.asarray(point_cov, float), nrm)))
     else:
         sigma2 = 0.0
-    cov = sigma2 * np.array([[1.0 / stt, -sbar / stt], [-sbar / stt, 1.0 / n_pts + sbar**2 / stt]])
+    with np.errstate(over="ignore", invalid="ignore"):
+        cov = sigma2 * np.array([[1.0 / stt, -sbar / stt], [-sbar / stt, 1.0 / n_pts + sbar**2 / stt]])
+    if not np.all(np.isfinite(cov)):
+        raise InsufficientDataError(
+            f"fit_line: the {n_pts} points spread {np.sqrt(stt):.3g} m along the line but their normal "
+            f"variance is σ² = {sigma2:.3g} m²; the (φ, b) covariance overflows, so they do not determine a line")
     extent = c + np.array([t.min(), t.max()])[:, None] * u
     info = {"residual_rms": float(np.sqrt(np.mean(d**2))), "cluster_size": n_pts, "sigma2": sigma2}
     return WallPosterior("line", np.array([phi, b]), cov, n_points=n_pts, extent=extent, info=info)

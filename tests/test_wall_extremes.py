@@ -201,3 +201,15 @@ def test_a_wall_at_the_coordinate_bound_is_finite(name):
         check_finite(w)
         if range_std < 1:  # with 1e100-m range errors the data say nothing about b: finite is all
             assert w.offset == pytest.approx(0.999e6, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_stated_errors_far_beyond_the_points_spread(name):
+    # Found by tests/test_fuzz_stages.py (lsq, case 796): two LOS points 2.6 µm apart with 1e150-m
+    # range errors made the (φ, b) covariance σ²/Σt² overflow, and WallPosterior refused its inf.
+    pts = [[5.3195702504717297e-07, 2.2044942112221658e-06], [-4.9367819161480194e-07, 2.2905021169838597e-06]]
+    r, a = cartesian_to_polar(np.asarray(pts))
+    det = Detections(r, a, np.zeros(2, np.int8), np.ones(2), [2.533681660412863e150, 2.110085718768139e147],
+                     [0.005, 0.005])
+    with pytest.raises(InsufficientDataError, match="covariance overflows"):
+        run(_estimator(name), det)
