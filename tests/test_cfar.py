@@ -156,7 +156,7 @@ def test_large_training_windows_that_fit_the_map(train):
 def test_window_larger_than_the_map_is_a_clear_error(train):
     # The default radar's map is 401 × 121: an azimuth window 2·(train + 4) + 1 > 121 does not fit.
     with pytest.raises(InputError, match=rf"train_cells = \({train[0]}, {train[1]}\).*121 azimuth bins.*"
-                                         r"train_cells\[1\] ≤ 56"):
+                                         r"train_cells\[1\] \+ guard_cells\[1\] ≤ 60 \(train_cells\[1\] ≤ 56 with guard_cells\[1\] = 4\)"):
         CFARDetector({"train_cells": train}).detect(frame(np.ones((H, W))))
     CFARDetector({"train_cells": (3, 56)}).detect(frame(np.ones((H, W))))  # 2·(56 + 4) + 1 = 121 fits
 
@@ -166,11 +166,26 @@ def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
     # `xnlos check` builds the Pipeline, which checks the detector against the radar's map size
     # (small_table's radar: 121 azimuth bins), so check refuses what run would.
     t = small_table(detector={"name": name, "params": {"train_cells": [160, 160]}})
-    with pytest.raises(ConfigError, match=r"<t>: \[detector\] '.*cfar'.*train_cells = \(160, 160\).*"
-                                          r"must be ≤ \d+, so train_cells\[0\] ≤ \d+"):
+    with pytest.raises(ConfigError, match=r"<t>: \[detector\] (nlos_)?cfar: train_cells = \(160, 160\).*"
+                                          r"must be ≤ 241, so train_cells\[0\] \+ guard_cells\[0\] ≤ 120 \(train_cells\[0\] ≤ 117"):
         Pipeline(parse_pipeline(t, "<t>"), source="<t>")
     t["detector"]["params"]["train_cells"] = [8, 8]
     Pipeline(parse_pipeline(t, "<t>"), source="<t>")
+
+
+def test_xnlos_check_and_run_refuse_the_window_alike(tmp_path, capsys):
+    # Issue #26: train_cells (160, 160) passed `xnlos check` and then ran out of memory in `run`.
+    from xnlos_core.cli import main
+
+    p = tmp_path / "big_window.toml"
+    p.write_text("[radar]\nn_samples = 256\nmax_range = 60.0\nn_azimuth_bins = 121\n[scene]\nbuiltin = 'corner'\n"
+                 "[forward_model]\nname = 'image'\n[detector]\nname = 'cfar'\nparams = { train_cells = [160, 160] }\n"
+                 "[wall_estimator]\nname = 'lsq'\n[reconstructor]\nname = 'mirror'\n[run]\nframes = 1\nfigure = false\n")
+    for cmd in (["check", str(p)], ["run", str(p), "--out", str(tmp_path / "o"), "-q"]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err
+        assert "big_window.toml" in err and "train_cells = (160, 160)" in err and "241 range bins" in err, err
+    assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
 def test_detect_requires_frame():

@@ -46,7 +46,7 @@ class CFARParams(BaseModel):
         bad = window_error(self.guard_cells, self.train_cells, (radar.n_range_bins, radar.n_azimuth_bins),
                            f"the radar's RA map ({radar.n_range_bins} × {radar.n_azimuth_bins} bins)")
         if bad:
-            raise ConfigError(f"[detector.params] {bad}")
+            raise ConfigError(bad)
 
 
 class CFARDetector(Detector):

@@ -64,8 +64,9 @@ def window_error(guard, train, shape: tuple[int, int], where: str) -> str | None
         if 2 * (g + t) + 1 > n:
             return (f"train_cells = {tuple(train)}, guard_cells = {tuple(guard)}: the CFAR window along "
                     f"{name} is 2·({t} + {g}) + 1 = {2 * (g + t) + 1} cells but {where} has {n} {name} bins; "
-                    f"2·(train + guard) + 1 must be ≤ {n}, so train_cells[{axis}] ≤ {max((n - 1) // 2 - g, 0)} "
-                    f"with guard_cells[{axis}] = {g}")
+                    f"2·(train + guard) + 1 must be ≤ {n}, so train_cells[{axis}] + guard_cells[{axis}] ≤ "
+                    f"{(n - 1) // 2}" + (f" (train_cells[{axis}] ≤ {(n - 1) // 2 - g} with guard_cells[{axis}] = {g})"
+                                         if (n - 1) // 2 >= g else ""))
     return None
 
 
