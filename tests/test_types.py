@@ -103,3 +103,19 @@ def test_arrays_are_read_only_after_validation():
     gt = GroundTruth(los_points=np.zeros((1, 2)))
     for arr in (h.mean, h.cov, h.source_index, h.wall_index, gt.los_points, gt.mnlos_points, gt.los_snr_db):
         assert not arr.flags.writeable
+
+
+def test_arrays_stay_read_only_through_pickle_and_deepcopy():
+    import copy
+    import pickle
+
+    radar = small_radar()
+    ra = RAMap.from_radar(np.ones((radar.n_range_bins, radar.n_azimuth_bins)), radar)
+    det = Detections([10.0], [0.0], [LOS], [0.5])
+    w = WallPosterior.line([1.0, 0.0], -5.0)
+    for obj, names in ((ra, ("data", "range_axis")), (det, ("range", "position")), (w, ("mean", "cov"))):
+        for clone in (pickle.loads(pickle.dumps(obj)), copy.deepcopy(obj)):
+            for name in names:
+                arr = getattr(clone, name)
+                np.testing.assert_array_equal(arr, getattr(obj, name))
+                assert not arr.flags.writeable, name

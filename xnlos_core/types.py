@@ -23,13 +23,26 @@ def _set(obj, name, value):
     object.__setattr__(obj, name, value)
 
 
+class _ReadOnlyArrays:
+    """Keeps a validated type's arrays read-only through pickle and copy.deepcopy, which rebuild the
+    object from its ``__dict__`` (bypassing ``__post_init__``) with writable array copies."""
+
+    def __setstate__(self, state):
+        for k, v in state.items():
+            if isinstance(v, np.ndarray):
+                v = frozen(v)
+            elif isinstance(v, tuple) and any(isinstance(x, np.ndarray) for x in v):
+                v = tuple(frozen(x) if isinstance(x, np.ndarray) else x for x in v)
+            object.__setattr__(self, k, v)
+
+
 def _points(name: str, value) -> np.ndarray:
     arr = as_array(name, np.empty((0, 2)) if value is None else value, shape=(None, 2), readonly=True)
     return arr
 
 
 @dataclass(frozen=True, eq=False)
-class RAMap:
+class RAMap(_ReadOnlyArrays):
     """Complex range–azimuth map κ ∈ ℂ^{H×W} (Sec. 3.2).
 
     data: complex64 (n_range, n_azimuth); range_axis: float64 (n_range,) [m], ascending;
@@ -82,7 +95,7 @@ class RAMap:
 
 
 @dataclass(frozen=True, eq=False)
-class WallSegment:
+class WallSegment(_ReadOnlyArrays):
     """A vertical planar relay wall seen from above: the segment start→end [m], each (2,)."""
 
     start: np.ndarray
@@ -111,7 +124,7 @@ class WallSegment:
 
 
 @dataclass(frozen=True, eq=False)
-class GroundTruth:
+class GroundTruth(_ReadOnlyArrays):
     """What a simulator knows about a frame; only returns a radar could see are included.
 
     los_points (N, 2): visible scatterers of LOS surfaces (walls, LOS objects) [m];
@@ -181,7 +194,7 @@ class Frame:
 
 
 @dataclass(frozen=True, eq=False)
-class Detections:
+class Detections(_ReadOnlyArrays):
     """Peaks found in an RA map.
 
     range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
@@ -265,7 +278,7 @@ class Detections:
 
 
 @dataclass(frozen=True, eq=False)
-class WallPosterior:
+class WallPosterior(_ReadOnlyArrays):
     """Estimate of one relay wall with its uncertainty.
 
     model: name of the wall model, with n = (cos φ, sin φ) the unit normal and u = (−sin φ, cos φ)
@@ -396,7 +409,7 @@ class WallPosterior:
 
 
 @dataclass(frozen=True, eq=False)
-class HiddenPoints:
+class HiddenPoints(_ReadOnlyArrays):
     """Reconstructed hidden points o with uncertainty.
 
     mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
@@ -428,7 +441,7 @@ class HiddenPoints:
 
 
 @dataclass(frozen=True, eq=False)
-class Tracks:
+class Tracks(_ReadOnlyArrays):
     """Tracked objects after a frame: id (T,), position (T, 2) [m], velocity (T, 2) [m/s],
     predicted (T, 2) [m] position at the next expected timestamp, timestamp [s]."""
 
