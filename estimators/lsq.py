@@ -29,9 +29,11 @@ from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import LOS, Detections, WallPosterior
 
 
-# Largest |x|, |y| [m] of a LOS point the wall estimators accept: a thousand times any radar's reach
-# (RadarConfig.max_range ≤ the unambiguous range, ~100 m), yet far from where squared distances
-# (linkage, scatter matrices, likelihoods) overflow — a point at 1e300 m made scipy raise.
+# Largest |x|, |y| [m] of a LOS point, and largest position standard deviation [m], the wall
+# estimators accept: a thousand times any radar's reach (RadarConfig.max_range ≤ the unambiguous
+# range, ~100 m), yet far from where squared distances and variances (linkage, scatter matrices,
+# likelihood Hessians) overflow — a point at 1e300 m made scipy raise, stated errors of 1e150 m
+# made the casadi Hessian non-finite.
 MAX_COORDINATE = 1e6
 
 
@@ -135,7 +137,7 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
     points (K, 2) [m], their covariances (K, 2, 2) [m²], clusters: index arrays into points,
     largest first, each with ≥ min_points members — or the largest cluster alone if none reaches
     min_points but it has ≥ 2). Raises InputError for non-Detections, for LOS points beyond
-    ±MAX_COORDINATE [m] and for position covariances that overflow, InsufficientDataError with
+    ±MAX_COORDINATE [m] or with position errors above MAX_COORDINATE, InsufficientDataError with
     < 2 LOS points or no usable cluster.
     """
     if not isinstance(detections, Detections):
@@ -155,13 +157,15 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
             "the largest coordinate the wall estimators accept")
     with np.errstate(over="ignore", invalid="ignore"):
         cov = detections.position_cov()[idx]
-    bad = np.flatnonzero(~np.isfinite(cov).all(axis=(1, 2)))
+        sd = np.sqrt(np.trace(cov, axis1=1, axis2=2))  # overall position error [m]; inf/NaN on overflow
+    bad = np.flatnonzero(~(sd <= MAX_COORDINATE))
     if len(bad):
         i = int(idx[bad[0]])
         raise InputError(
-            f"{who}: the position covariance of LOS detection {i} overflows (range_std "
+            f"{who}: the position error of LOS detection {i} is {sd[bad[0]]:.6g} m (range_std "
             f"{detections.range_std[i]:.6g} m, azimuth_std {detections.azimuth_std[i]:.6g} rad at range "
-            f"{detections.range[i]:.6g} m); {len(bad)} LOS point(s) have standard deviations too large to square")
+            f"{detections.range[i]:.6g} m); {len(bad)} LOS point(s) exceed {MAX_COORDINATE:g} m, the largest "
+            "position standard deviation the wall estimators accept (such a point says nothing about a wall)")
     labels = single_linkage(pts, params.cluster_distance)
     groups = _merge_collinear(pts, labels, params.merge_tolerance)
     chosen = [g for g in groups if len(g) >= params.min_points]
