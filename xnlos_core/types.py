@@ -2,6 +2,9 @@
 
 Conventions (DESIGN.md): SI units, ego frame x forward / y left, azimuth θ = atan2(y, x).
 Points are (N, 2) float64 arrays of bird's-eye (x, y) positions in metres.
+Every array a type stores is read-only once validated (``flags.writeable = False``; the caller's
+own arrays are copied, not locked), so what was checked — finiteness above all — stays true: a stage
+that needs to edit one works on a copy.
 """
 from __future__ import annotations
 

@@ -19,14 +19,14 @@ block, pieces left and right of it), each a separable box, so the sums only ever
 non-negative numbers. A running-sum or cumulative-sum difference (``scipy.ndimage.uniform_filter``,
 summed-area tables) would cancel catastrophically next to strong peaks with 200 dB of dynamic
 range, and a direct correlation with the ring kernel (``scipy.ndimage.correlate``) costs
-O(H·W·kernel area): 63 s per frame for train_cells (128, 128) and a MemoryError at (160, 160).
+O(H·W·kernel area) (issue #26: 63 s per frame at train_cells (128, 128), a MemoryError at (160, 160)).
 :func:`box_sum` is the van Herk / Gil-Werman block trick (usually used for running maxima) applied
 to sums: cumulative sums within blocks of the window length, so each window sum is one suffix sum
 plus one prefix sum — O(H·W) whatever the window, with the rounding of a direct sum (relative error
 ≤ window·ε). scipy has no cancellation-free running sum, hence this hand-written one.
 
 Window size: the CFAR window, 2·(guard + train) + 1 cells along each axis, must fit in the map
-(:func:`check_window`): a ring wider than the map has no training cells on at least one side of
+(:func:`window_error`): a ring wider than the map has no training cells on at least one side of
 every cell, so its noise estimate would not be the one configured.
 """
 from __future__ import annotations
