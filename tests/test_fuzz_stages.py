@@ -174,19 +174,25 @@ def test_detectors_on_random_maps(name, fuzz_cases):
     report(name, tally)
 
 
+# The checkpoint's decoding, and an extreme one: every peak above 0.001, the widest window, one per cell.
+LEARNED_VARIANTS = ({}, {"threshold": 0.001, "window": (31, 31), "cells": True, "max_detections": 5})
+
+
 @pytest.fixture(scope="module")
 def learned():
-    return {n: get_registry().create("detector", n, {"device": "cpu", "threads": 1}) for n in DETECTORS
-            if n in LEARNED}
+    reg = get_registry()
+    return {n: [reg.create("detector", n, {"device": "cpu", "threads": 1, **v}) for v in LEARNED_VARIANTS]
+            for n in DETECTORS if n in LEARNED}
 
 
 @pytest.mark.parametrize("name", [n for n in DETECTORS if n in LEARNED])
 def test_learned_detectors_on_random_maps(name, learned, fuzz_cases):
-    """Shipped checkpoints on small odd-sized maps: always finite detections and heatmaps in [0, 1]."""
+    """Shipped checkpoints on small odd-sized maps, decoded as the checkpoint says and at extremes:
+    always finite detections and heatmaps in [0, 1]."""
     rng = np.random.default_rng(262)
     tally = collections.Counter()
-    det = learned[name]
-    for _ in range(max(fuzz_cases // 10, 10)):
+    for case in range(max(fuzz_cases // 10, 10)):
+        det = learned[name][case % len(LEARNED_VARIANTS)]
         frame = random_frame(rng, random_map(rng, 48), with_walls=False)
         out = det.detect(frame)
         check_detections(out, frame)
