@@ -226,3 +226,22 @@ def test_stated_errors_far_beyond_the_points_spread(name):
     # fit_line itself (public, given the covariances directly) refuses to return an infinite covariance
     with pytest.raises(InsufficientDataError, match="covariance overflows"):
         fit_line(pts, np.eye(2)[None].repeat(2, 0) * 1e300)
+
+
+def test_emcee_on_a_blob_whose_map_leaves_the_support_is_a_clear_error():
+    # Found by tests/test_fuzz_stages.py (emcee, case 6086): nine LOS points within 0.6 mm of the
+    # radar. IPOPT's MAP turned ≥ 90° from the TLS line, outside the sampler's support, and emcee
+    # raised a bare ValueError ("Initial state has a large condition number").
+    pts = np.array([[2.6709842817221525e-04, 4.4382918458732791e-05], [6.6193499597254281e-05, 2.5670146477869163e-04],
+                    [1.3096358330089858e-04, 3.8977203734151887e-05], [-2.8448779267700226e-04, -9.8973445567192804e-05],
+                    [6.8044033748190495e-05, 6.8894549206060317e-05], [-1.3545164855301584e-04, 2.1897173030350502e-04],
+                    [2.6537689987098280e-04, -2.9591640451331864e-04], [3.6570515711415335e-05, 1.0308891958959924e-04],
+                    [2.4497223234772817e-04, -3.0503936854529753e-04]])
+    az = [2.5253818587084143e-12, 1.0918204620729659e-10, 1.1677066344300853, 2.0014306423796018e-07,
+          1.6080438077999854e-07, 2.9078707989593550e-01, 2.3920272978733361e-07, 3.7103972840044097e-11,
+          2.0599552802074648e-10]
+    r, a = cartesian_to_polar(pts)
+    det = Detections(r, a, np.zeros(9, np.int8), np.ones(9), np.full(9, 0.05), az)
+    est = EmceeWallEstimator({"n_walkers": 8, "n_steps": 40, "burn": 10, "min_tau_multiple": 0.0})
+    with pytest.raises(InsufficientDataError, match="outside the sampler's support.*do not determine a wall direction"):
+        run(est, det)
