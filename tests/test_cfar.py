@@ -156,7 +156,8 @@ def test_large_training_windows_that_fit_the_map(train):
 def test_window_larger_than_the_map_is_a_clear_error(train):
     # The default radar's map is 401 × 121: an azimuth window 2·(train + 4) + 1 > 121 does not fit.
     with pytest.raises(InputError, match=rf"train_cells = \({train[0]}, {train[1]}\).*121 azimuth bins.*"
-                                         r"train_cells\[1\] \+ guard_cells\[1\] ≤ 60 \(train_cells\[1\] ≤ 56 with guard_cells\[1\] = 4\)"):
+                                         r"train_cells\[1\] \+ guard_cells\[1\] ≤ 60 "
+                                         r"\(train_cells\[1\] ≤ 56 with guard_cells\[1\] = 4\)"):
         CFARDetector({"train_cells": train}).detect(frame(np.ones((H, W))))
     CFARDetector({"train_cells": (3, 56)}).detect(frame(np.ones((H, W))))  # 2·(56 + 4) + 1 = 121 fits
 
@@ -164,10 +165,11 @@ def test_window_larger_than_the_map_is_a_clear_error(train):
 @pytest.mark.parametrize("name", ["cfar", "nlos_cfar"])
 def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
     # `xnlos check` builds the Pipeline, which checks the detector against the radar's map size
-    # (small_table's radar: 121 azimuth bins), so check refuses what run would.
+    # (small_table's radar: 241 × 121 bins), so check refuses what run would.
     t = small_table(detector={"name": name, "params": {"train_cells": [160, 160]}})
     with pytest.raises(ConfigError, match=r"<t>: \[detector\] (nlos_)?cfar: train_cells = \(160, 160\).*"
-                                          r"must be ≤ 241, so train_cells\[0\] \+ guard_cells\[0\] ≤ 120 \(train_cells\[0\] ≤ 117"):
+                                          r"must be ≤ 241, so train_cells\[0\] \+ guard_cells\[0\] ≤ 120 "
+                                          r"\(train_cells\[0\] ≤ 117"):
         Pipeline(parse_pipeline(t, "<t>"), source="<t>")
     t["detector"]["params"]["train_cells"] = [8, 8]
     Pipeline(parse_pipeline(t, "<t>"), source="<t>")
