@@ -36,6 +36,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from xnlos_core.errors import InsufficientDataError
 from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import Detections, WallPosterior
 
@@ -91,8 +92,11 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
 
     Returns (chain after burn-in (n_walkers·(n_steps − burn), P), thinned samples (≤ max_samples,
     P), diagnostics {tau, ess, acceptance_fraction, n_walkers, n_steps, burn, moves, sample_time_s}).
+    Raises InsufficientDataError when the MAP lies outside the sampler's support or no independent
+    initial ensemble fits inside it (points that do not determine a wall direction).
     """
     import emcee
+    from emcee.ensemble import walkers_independent  # the check run_mcmc would fail with a bare ValueError
 
     t0 = time.perf_counter()
     p = lik.n_params
@@ -102,7 +106,19 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
         moves = emcee.moves.DEMove()
     sampler = emcee.EnsembleSampler(n_walkers, p, lik.log_prob, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**32 - 1))).get_state()
+    if not np.isfinite(lik.log_prob(fit.theta[None])[0]):
+        # IPOPT is unconstrained: on points that do not pin down a direction (a blob) the MAP can
+        # turn ≥ 90° from the TLS line, outside the sampler's support, where no walker can start.
+        raise InsufficientDataError(
+            f"emcee wall posterior ({lik.model}): the MAP θ = {np.round(fit.theta, 6).tolist()} lies outside the "
+            f"sampler's support (|φ − φ_ref| < π/2, the line within {lik.support_halfwidth:.3g} m of the points' "
+            f"centroid); the {len(lik.points)} points (spread {float(np.ptp(lik.points, axis=0).max()):.3g} m) "
+            "do not determine a wall direction")
     start = _initial_ball(lik, fit, n_walkers, params.init_scale, rng)
+    if not walkers_independent(start):
+        raise InsufficientDataError(
+            f"emcee wall posterior ({lik.model}): could not place {n_walkers} linearly independent walkers "
+            f"inside the posterior's support around the MAP θ = {np.round(fit.theta, 6).tolist()}")
     sampler.run_mcmc(start, params.n_steps, progress=False)
     chain = sampler.get_chain(discard=params.burn, flat=True)
     n_kept = params.n_steps - params.burn

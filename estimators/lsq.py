@@ -21,11 +21,20 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import pdist
 
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
 from xnlos_core.interfaces import WallEstimator
 from xnlos_core.types import LOS, Detections, WallPosterior
+
+
+# Largest |x|, |y| [m] of a LOS point, and largest position standard deviation [m], the wall
+# estimators accept: a thousand times any radar's reach (RadarConfig.max_range ≤ the unambiguous
+# range, ~100 m), yet far from where squared distances and variances (linkage, scatter matrices,
+# likelihood Hessians) overflow — a point at 1e300 m made scipy raise, stated errors of 1e150 m
+# made the casadi Hessian non-finite.
+MAX_COORDINATE = 1e6
 
 
 class ClusterParams(BaseModel):
@@ -48,14 +57,16 @@ def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
     pts = np.asarray(points, dtype=np.float64)
     if len(pts) < 2:
         return np.zeros(len(pts), dtype=np.int64)
-    return fcluster(linkage(pts, method="single"), t=distance, criterion="distance").astype(np.int64) - 1
+    # condensed distances, not the points: a 2 × 2 point array can look like a distance matrix to linkage
+    return fcluster(linkage(pdist(pts), method="single"), t=distance, criterion="distance").astype(np.int64) - 1
 
 
 def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPosterior:
     """TLS line through ``points`` (n ≥ 2, (n, 2) [m]) with its (φ, b) covariance (module doc).
 
     point_cov (n, 2, 2) [m²]: position covariances, used for σ² when n = 2.
-    Raises InsufficientDataError when the points coincide (no direction).
+    Raises InsufficientDataError when the points coincide (no direction) or when the covariance
+    overflows (errors so large against the points' spread that they say nothing about the line).
     """
     x = np.asarray(points, dtype=np.float64)
     n_pts = len(x)
@@ -79,7 +90,12 @@ def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPos
         sigma2 = float(np.mean(np.einsum("i,kij,j->k", nrm, np.asarray(point_cov, float), nrm)))
     else:
         sigma2 = 0.0
-    cov = sigma2 * np.array([[1.0 / stt, -sbar / stt], [-sbar / stt, 1.0 / n_pts + sbar**2 / stt]])
+    with np.errstate(over="ignore", invalid="ignore"):
+        cov = sigma2 * np.array([[1.0 / stt, -sbar / stt], [-sbar / stt, 1.0 / n_pts + sbar**2 / stt]])
+    if not np.all(np.isfinite(cov)):
+        raise InsufficientDataError(
+            f"fit_line: the {n_pts} points spread {np.sqrt(stt):.3g} m along the line but their normal "
+            f"variance is σ² = {sigma2:.3g} m²; the (φ, b) covariance overflows, so they do not determine a line")
     extent = c + np.array([t.min(), t.max()])[:, None] * u
     info = {"residual_rms": float(np.sqrt(np.mean(d**2))), "cluster_size": n_pts, "sigma2": sigma2}
     return WallPosterior("line", np.array([phi, b]), cov, n_points=n_pts, extent=extent, info=info)
@@ -120,8 +136,9 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
     names the caller in errors. Returns (idx (K,): indices of the LOS rows in ``detections``,
     points (K, 2) [m], their covariances (K, 2, 2) [m²], clusters: index arrays into points,
     largest first, each with ≥ min_points members — or the largest cluster alone if none reaches
-    min_points but it has ≥ 2). Raises InputError for non-Detections and InsufficientDataError
-    with < 2 LOS points or no usable cluster.
+    min_points but it has ≥ 2). Raises InputError for non-Detections, for LOS points beyond
+    ±MAX_COORDINATE [m] or with position errors above MAX_COORDINATE, InsufficientDataError with
+    < 2 LOS points or no usable cluster.
     """
     if not isinstance(detections, Detections):
         raise InputError(f"{who}.estimate: expected Detections, got {type(detections).__name__}")
@@ -131,7 +148,24 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
             f"{who}: {len(idx)} LOS detection(s) among {len(detections)} detections; "
             "a wall line needs at least 2 LOS points")
     pts = detections.position[idx]
-    cov = detections.position_cov()[idx]
+    far = np.flatnonzero(np.abs(pts).max(axis=1) > MAX_COORDINATE)
+    if len(far):
+        i = int(idx[far[0]])
+        raise InputError(
+            f"{who}: LOS detection {i} lies at {detections.position[i].tolist()} m (range "
+            f"{detections.range[i]:.6g} m); {len(far)} LOS point(s) exceed |x|, |y| ≤ {MAX_COORDINATE:g} m, "
+            "the largest coordinate the wall estimators accept")
+    with np.errstate(over="ignore", invalid="ignore"):
+        cov = detections.position_cov()[idx]
+        sd = np.sqrt(np.trace(cov, axis1=1, axis2=2))  # overall position error [m]; inf/NaN on overflow
+    bad = np.flatnonzero(~(sd <= MAX_COORDINATE))
+    if len(bad):
+        i = int(idx[bad[0]])
+        raise InputError(
+            f"{who}: the position error of LOS detection {i} is {sd[bad[0]]:.6g} m (range_std "
+            f"{detections.range_std[i]:.6g} m, azimuth_std {detections.azimuth_std[i]:.6g} rad at range "
+            f"{detections.range[i]:.6g} m); {len(bad)} LOS point(s) exceed {MAX_COORDINATE:g} m, the largest "
+            "position standard deviation the wall estimators accept (such a point says nothing about a wall)")
     labels = single_linkage(pts, params.cluster_distance)
     groups = _merge_collinear(pts, labels, params.merge_tolerance)
     chosen = [g for g in groups if len(g) >= params.min_points]

@@ -3,9 +3,15 @@ import numpy as np
 import pytest
 
 from plugins.detectors.cfar import CFARDetector
-from plugins.detectors.peaks import cfar_scale, cfar_threshold
+from scipy import ndimage
+
+from plugins.detectors.peaks import box_sum, cfar_scale, cfar_threshold, ring_kernel, ring_sum
 from xnlos_core import UNCLASSIFIED, ConfigError, Frame, InputError, RadarConfig, RAMap
+from xnlos_core.config import parse_pipeline
+from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import PluginManager
+
+from .conftest import small_table
 
 RADAR = RadarConfig()
 H, W = RADAR.n_range_bins, RADAR.n_azimuth_bins
@@ -104,6 +110,84 @@ def test_params_validated():
         CFARDetector({"train_cells": (0, 0)})
     with pytest.raises(ConfigError, match="Allowed keys"):
         CFARDetector({"pfaa": 1e-3})
+
+
+def test_ring_sums_equal_the_direct_correlation_over_60_decades():
+    # Issue #26: the O(H·W) ring sums must match ndimage.correlate with the ring kernel to rounding,
+    # also next to 1e30 peaks on a 1e-30 floor (where a running-sum difference would cancel).
+    rng = np.random.default_rng(26)
+    for _ in range(40):
+        h, w = rng.integers(2, 40, 2)
+        x = 10.0 ** rng.uniform(-30, 30, (h, w))
+        guard, train = tuple(rng.integers(0, 6, 2)), tuple(rng.integers(1, 9, 2))
+        ref = ndimage.correlate(x, ring_kernel(guard, train), mode="constant", cval=0.0)
+        np.testing.assert_allclose(ring_sum(x, guard, train), ref, rtol=1e-12, atol=0)
+
+
+def test_box_sum_matches_explicit_windows():
+    rng = np.random.default_rng(27)
+    for _ in range(100):
+        n = int(rng.integers(1, 25))
+        lo = int(rng.integers(-30, 30))
+        hi = lo + int(rng.integers(0, 30))
+        x = rng.random((2, n))
+        ref = [[x[r, max(0, i + lo):max(0, min(n, i + hi + 1))].sum() for i in range(n)] for r in range(2)]
+        np.testing.assert_allclose(box_sum(x, lo, hi, axis=1), ref, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(box_sum(x.T, lo, hi, axis=0), np.transpose(ref), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("train", [(128, 128), (160, 160)])
+def test_large_training_windows_that_fit_the_map(train):
+    # Issue #26: (128, 128) took 63 s per frame and (160, 160) raised MemoryError (a direct
+    # correlation with a (2·163+1)² kernel). On a map they fit, the threshold is the closed form:
+    # a constant map of power 1 has mean 1, so thr = a(N) with N the ring's cells inside the map.
+    guard = (3, 4)
+    side = 2 * (train[0] + max(guard)) + 1
+    thr, mean, n = cfar_threshold(np.ones((side, side)), guard, train, 1e-5)
+    full = (2 * (guard[0] + train[0]) + 1) * (2 * (guard[1] + train[1]) + 1) - (2 * guard[0] + 1) * (2 * guard[1] + 1)
+    c = side // 2
+    assert n[c, c - (side // 2 - guard[1] - train[1])] == full  # a cell whose whole ring lies inside
+    np.testing.assert_allclose(mean, 1.0, rtol=1e-12)
+    np.testing.assert_allclose(thr, cfar_scale(n, 1e-5), rtol=1e-12)
+    assert n[0, 0] == (guard[0] + train[0] + 1) * (guard[1] + train[1] + 1) - (guard[0] + 1) * (guard[1] + 1)
+
+
+@pytest.mark.parametrize("train", [(128, 128), (160, 160), (3, 57)])
+def test_window_larger_than_the_map_is_a_clear_error(train):
+    # The default radar's map is 401 × 121: an azimuth window 2·(train + 4) + 1 > 121 does not fit.
+    with pytest.raises(InputError, match=rf"train_cells = \({train[0]}, {train[1]}\).*121 azimuth bins.*"
+                                         r"train_cells\[1\] \+ guard_cells\[1\] ≤ 60 "
+                                         r"\(train_cells\[1\] ≤ 56 with guard_cells\[1\] = 4\)"):
+        CFARDetector({"train_cells": train}).detect(frame(np.ones((H, W))))
+    CFARDetector({"train_cells": (3, 56)}).detect(frame(np.ones((H, W))))  # 2·(56 + 4) + 1 = 121 fits
+
+
+@pytest.mark.parametrize("name", ["cfar", "nlos_cfar"])
+def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
+    # `xnlos check` builds the Pipeline, which checks the detector against the radar's map size
+    # (small_table's radar: 241 × 121 bins), so check refuses what run would.
+    t = small_table(detector={"name": name, "params": {"train_cells": [160, 160]}})
+    with pytest.raises(ConfigError, match=r"<t>: \[detector\] (nlos_)?cfar: train_cells = \(160, 160\).*"
+                                          r"must be ≤ 241, so train_cells\[0\] \+ guard_cells\[0\] ≤ 120 "
+                                          r"\(train_cells\[0\] ≤ 117"):
+        Pipeline(parse_pipeline(t, "<t>"), source="<t>")
+    t["detector"]["params"]["train_cells"] = [8, 8]
+    Pipeline(parse_pipeline(t, "<t>"), source="<t>")
+
+
+def test_xnlos_check_and_run_refuse_the_window_alike(tmp_path, capsys):
+    # Issue #26: train_cells (160, 160) passed `xnlos check` and then ran out of memory in `run`.
+    from xnlos_core.cli import main
+
+    p = tmp_path / "big_window.toml"
+    p.write_text("[radar]\nn_samples = 256\nmax_range = 60.0\nn_azimuth_bins = 121\n[scene]\nbuiltin = 'corner'\n"
+                 "[forward_model]\nname = 'image'\n[detector]\nname = 'cfar'\nparams = { train_cells = [160, 160] }\n"
+                 "[wall_estimator]\nname = 'lsq'\n[reconstructor]\nname = 'mirror'\n[run]\nframes = 1\nfigure = false\n")
+    for cmd in (["check", str(p)], ["run", str(p), "--out", str(tmp_path / "o"), "-q"]):
+        assert main(cmd) == 2
+        err = capsys.readouterr().err
+        assert "big_window.toml" in err and "train_cells = (160, 160)" in err and "241 range bins" in err, err
+    assert not (tmp_path / "o" / "results.jsonl").exists()
 
 
 def test_detect_requires_frame():

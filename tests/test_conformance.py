@@ -39,8 +39,18 @@ def test_kit_catches_a_broken_detector():
             frame.ra_map.data[:] = 0
             return Detections.empty()
 
-    with pytest.raises(AssertionError, match="modified the RA map in place"):
+    # RAMap.data is read-only after validation: a plain in-place write fails at once …
+    with pytest.raises(ValueError, match="read-only"):
         check_detector(Mutating())
+
+    class Unlocking(Detector):
+        def detect(self, frame):
+            frame.ra_map.data.flags.writeable = True  # … so only a deliberate unlock can mutate it
+            frame.ra_map.data[:] = 0
+            return Detections.empty()
+
+    with pytest.raises(AssertionError, match="modified the RA map in place"):
+        check_detector(Unlocking())
 
     class Blind(Detector):
         def detect(self, frame):

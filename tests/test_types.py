@@ -74,3 +74,48 @@ def test_radar_derived_quantities():
     assert r.max_unambiguous_range >= 100
     assert len(r.virtual_positions) == 32
     np.testing.assert_allclose(np.diff(r.virtual_positions), r.wavelength / 2)
+
+
+def test_arrays_are_read_only_after_validation():
+    # Issue #26: RAMap.data stayed writable after its finiteness check; one cell set to inf
+    # afterwards made cfar return 33 detections. Validated arrays are now read-only, and the
+    # caller's own array is copied rather than locked, so editing it changes nothing validated.
+    from plugins.detectors.cfar import CFARDetector
+
+    radar = small_radar()
+    user = np.random.default_rng(0).standard_normal((radar.n_range_bins, radar.n_azimuth_bins)).astype(np.complex64)
+    ra = RAMap.from_radar(user, radar)
+    before = len(CFARDetector().detect(Frame(ra)))
+    with pytest.raises(ValueError, match="read-only"):
+        ra.data[3, 4] = np.inf
+    user[3, 4] = np.inf  # the caller's array stays writable and is not the map's storage
+    assert np.all(np.isfinite(ra.data)) and len(CFARDetector().detect(Frame(ra))) == before
+    for arr in (ra.range_axis, ra.azimuth_axis):
+        assert not arr.flags.writeable
+    det = Detections([10.0, 20.0], [0.0, 0.5], [LOS, MNLOS], [0.5, 1.0], [0.1, 0.1], [0.01, 0.01])
+    for name in ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std", "position"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(det, name)[0] = np.nan
+    w = WallPosterior.line([1.0, 0.0], -5.0, cov=np.eye(2), extent=[[5, -1], [5, 1]], samples=np.zeros((3, 2)))
+    for arr in (w.mean, w.cov, w.extent, w.samples):
+        assert not arr.flags.writeable
+    h = HiddenPoints(np.zeros((1, 2)), np.eye(2)[None], [0], [0])
+    gt = GroundTruth(los_points=np.zeros((1, 2)))
+    for arr in (h.mean, h.cov, h.source_index, h.wall_index, gt.los_points, gt.mnlos_points, gt.los_snr_db):
+        assert not arr.flags.writeable
+
+
+def test_arrays_stay_read_only_through_pickle_and_deepcopy():
+    import copy
+    import pickle
+
+    radar = small_radar()
+    ra = RAMap.from_radar(np.ones((radar.n_range_bins, radar.n_azimuth_bins)), radar)
+    det = Detections([10.0], [0.0], [LOS], [0.5])
+    w = WallPosterior.line([1.0, 0.0], -5.0)
+    for obj, names in ((ra, ("data", "range_axis")), (det, ("range", "position")), (w, ("mean", "cov"))):
+        for clone in (pickle.loads(pickle.dumps(obj)), copy.deepcopy(obj)):
+            for name in names:
+                arr = getattr(clone, name)
+                np.testing.assert_array_equal(arr, getattr(obj, name))
+                assert not arr.flags.writeable, name

@@ -146,3 +146,102 @@ def test_random_geometry_is_finite_or_a_clear_error(dist, incidence, azimuth, n,
     for w in walls:
         check_finite(w)
         assert w.info["solver_status"]
+
+
+ALL_ESTIMATORS = ("lsq", "casadi_map", "emcee")
+
+
+def _estimator(name):
+    from xnlos_core.registry import get_registry
+
+    return get_registry().create("wall_estimator", name, FAST_EMCEE if name == "emcee" else {})
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_points_beyond_a_million_metres_are_a_clear_error(name):
+    # Issue #26: 1e300-m point sets crashed all three estimators inside scipy (linkage: "the
+    # condensed distance matrix must contain only finite values").
+    from xnlos_core import InputError
+
+    y = np.linspace(-3, 3, 6)
+    for far in (1e300, 2e6):
+        det = polar_detections(np.c_[np.full(6, far), y * far], 0.05, 0.005)
+        with pytest.raises(InputError, match=r"LOS detection 0 lies at .*≤ 1e\+06 m"):
+            run(_estimator(name), det)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_position_errors_beyond_a_million_metres_are_a_clear_error(name):
+    from xnlos_core import InputError
+
+    det = polar_detections(np.c_[np.full(6, 8.0), np.linspace(-3, 3, 6)], 1e160, 0.005)
+    with pytest.raises(InputError, match=r"position error of LOS detection 0 is inf m \(range_std 1e\+160"):
+        run(_estimator(name), det)
+    # Found by the fuzz suite (casadi_map): finite errors of 1e5 … 1e154 m made the Hessian non-finite.
+    rs = [1.3150e53, 6.6427e133, 2.6735e74, 1.1865e32, 9.9909e153, 1.0461e36]
+    r, a = cartesian_to_polar(np.array([[5.94, -3.77], [5.88, -3.08], [6.03, -2.64], [6.01, -1.44], [5.97, -0.89],
+                                        [6.0, -0.44]]))
+    det = Detections(r, a, np.zeros(6, np.int8), np.ones(6), rs, np.full(6, 0.005))
+    with pytest.raises(InputError, match=r"position error of LOS detection 0 is 1.315e\+53 m .* exceed 1e\+06 m"):
+        run(_estimator(name), det)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_non_finite_points_cannot_reach_an_estimator(name):
+    from xnlos_core import InputError
+
+    with pytest.raises(InputError, match="NaN or infinite"):
+        polar_detections([[8.0, np.nan], [8.0, 1.0]], 0.05, 0.005)
+    det = polar_detections([[8.0, -1.0], [8.0, 0.0], [8.0, 1.0]], 0.05, 0.005)
+    with pytest.raises(ValueError, match="read-only"):
+        det.range[0] = np.inf  # validated arrays are read-only: no corruption after the check
+    (w,) = run(_estimator(name), det)
+    check_finite(w)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_a_wall_at_the_coordinate_bound_is_finite(name):
+    # Just inside 1e6 m, the largest coordinate accepted, with errors up to the 1e6-m bound: finite numbers.
+    for range_std in (0.05, 0.9e6):
+        det = polar_detections(np.c_[np.full(9, 0.999e6), np.linspace(-8, 8, 9)], range_std, 1e-7)
+        (w,) = run(_estimator(name), det)
+        check_finite(w)
+        if range_std < 1:  # with 1e6-m range errors the data say little about b: finite is all
+            assert w.offset == pytest.approx(0.999e6, rel=1e-6)
+
+
+@pytest.mark.parametrize("name", ALL_ESTIMATORS)
+def test_stated_errors_far_beyond_the_points_spread(name):
+    # Found by tests/test_fuzz_stages.py (lsq, case 796): two LOS points 2.6 µm apart with 1e150-m
+    # range errors made the (φ, b) covariance σ²/Σt² overflow, and WallPosterior refused its inf.
+    from estimators.lsq import fit_line
+    from xnlos_core import InputError
+
+    pts = np.array([[5.3195702504717297e-07, 2.2044942112221658e-06], [-4.9367819161480194e-07, 2.2905021169838597e-06]])
+    r, a = cartesian_to_polar(pts)
+    det = Detections(r, a, np.zeros(2, np.int8), np.ones(2), [2.533681660412863e150, 2.110085718768139e147],
+                     [0.005, 0.005])
+    with pytest.raises(InputError, match="largest position standard deviation"):
+        run(_estimator(name), det)
+    # fit_line itself (public, given the covariances directly) refuses to return an infinite covariance
+    with pytest.raises(InsufficientDataError, match="covariance overflows"):
+        fit_line(pts, np.eye(2)[None].repeat(2, 0) * 1e300)
+
+
+def test_emcee_on_a_blob_whose_map_leaves_the_support_is_a_clear_error():
+    # Found by tests/test_fuzz_stages.py (emcee, case 6086): nine LOS points within 0.6 mm of the
+    # radar. IPOPT's MAP turned ≥ 90° from the TLS line, outside the sampler's support, and emcee
+    # raised a bare ValueError ("Initial state has a large condition number").
+    pts = np.array([[2.6709842817221525e-04, 4.4382918458732791e-05], [6.6193499597254281e-05, 2.5670146477869163e-04],
+                    [1.3096358330089858e-04, 3.8977203734151887e-05], [-2.8448779267700226e-04, -9.8973445567192804e-05],
+                    [6.8044033748190495e-05, 6.8894549206060317e-05], [-1.3545164855301584e-04, 2.1897173030350502e-04],
+                    [2.6537689987098280e-04, -2.9591640451331864e-04], [3.6570515711415335e-05, 1.0308891958959924e-04],
+                    [2.4497223234772817e-04, -3.0503936854529753e-04]])
+    az = [2.5253818587084143e-12, 1.0918204620729659e-10, 1.1677066344300853, 2.0014306423796018e-07,
+          1.6080438077999854e-07, 2.9078707989593550e-01, 2.3920272978733361e-07, 3.7103972840044097e-11,
+          2.0599552802074648e-10]
+    r, a = cartesian_to_polar(pts)
+    det = Detections(r, a, np.zeros(9, np.int8), np.ones(9), np.full(9, 0.05), az)
+    est = EmceeWallEstimator({"n_walkers": 8, "n_steps": 40, "burn": 10, "min_tau_multiple": 0.0})
+    with pytest.raises(InsufficientDataError, match="outside the sampler's support.*do not determine a wall direction"):
+        run(est, det)

@@ -48,6 +48,14 @@ class Plugin:
         """Parameters as a plain dict (for provenance and cloning)."""
         return self.params.model_dump()
 
+    def check_radar(self, radar: RadarConfig) -> None:
+        """Check the parameters against the radar they will run with — bounds that depend on the RA
+        map's size (``radar.n_range_bins`` × ``radar.n_azimuth_bins``), e.g. a detector's window —
+        and raise :class:`xnlos_core.errors.ConfigError` naming the parameter, its value, the map
+        size and the allowed maximum. :class:`xnlos_core.pipeline.Pipeline` calls it for every stage
+        on construction, so ``xnlos check`` refuses what ``xnlos run`` would. Default: nothing to check.
+        """
+
     def state_sha256(self) -> str | None:
         """Hash of what, besides the parameters, decides this stage's output — learned weights read
         from a file — or None when the parameters decide it all (the default).

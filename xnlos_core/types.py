@@ -2,6 +2,9 @@
 
 Conventions (DESIGN.md): SI units, ego frame x forward / y left, azimuth θ = atan2(y, x).
 Points are (N, 2) float64 arrays of bird's-eye (x, y) positions in metres.
+Every array a type stores is read-only once validated (``flags.writeable = False``; the caller's
+own arrays are copied, not locked), so what was checked — finiteness above all — stays true: a stage
+that needs to edit one works on a copy.
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import numpy as np
 from .errors import InputError
 from .geometry import cartesian_to_polar, canonical_line, line_from_points, polar_to_cartesian
 from .radar import RadarConfig
-from .validation import as_array, check_ascending, check_length
+from .validation import as_array, check_ascending, check_length, frozen
 
 LOS, MNLOS, UNCLASSIFIED = 0, 1, 2
 CLASS_NAMES = ("LOS", "mNLOS", "unclassified")
@@ -23,13 +26,26 @@ def _set(obj, name, value):
     object.__setattr__(obj, name, value)
 
 
+class _ReadOnlyArrays:
+    """Keeps a validated type's arrays read-only through pickle and copy.deepcopy, which rebuild the
+    object from its ``__dict__`` (bypassing ``__post_init__``) with writable array copies."""
+
+    def __setstate__(self, state):
+        for k, v in state.items():
+            if isinstance(v, np.ndarray):
+                v = frozen(v)
+            elif isinstance(v, tuple) and any(isinstance(x, np.ndarray) for x in v):
+                v = tuple(frozen(x) if isinstance(x, np.ndarray) else x for x in v)
+            object.__setattr__(self, k, v)
+
+
 def _points(name: str, value) -> np.ndarray:
-    arr = as_array(name, np.empty((0, 2)) if value is None else value, shape=(None, 2))
+    arr = as_array(name, np.empty((0, 2)) if value is None else value, shape=(None, 2), readonly=True)
     return arr
 
 
 @dataclass(frozen=True, eq=False)
-class RAMap:
+class RAMap(_ReadOnlyArrays):
     """Complex range–azimuth map κ ∈ ℂ^{H×W} (Sec. 3.2).
 
     data: complex64 (n_range, n_azimuth); range_axis: float64 (n_range,) [m], ascending;
@@ -42,11 +58,11 @@ class RAMap:
     radar: RadarConfig
 
     def __post_init__(self):
-        data = as_array("RAMap.data", self.data, dtype=np.complex64, ndim=2)
+        data = as_array("RAMap.data", self.data, dtype=np.complex64, ndim=2, readonly=True)
         if min(data.shape) < 2:
             raise InputError(f"RAMap.data: expected at least 2×2 cells, got shape {data.shape}")
-        r = as_array("RAMap.range_axis", self.range_axis, ndim=1)
-        a = as_array("RAMap.azimuth_axis", self.azimuth_axis, ndim=1)
+        r = as_array("RAMap.range_axis", self.range_axis, ndim=1, readonly=True)
+        a = as_array("RAMap.azimuth_axis", self.azimuth_axis, ndim=1, readonly=True)
         check_length("RAMap.range_axis", r, data.shape[0], "RAMap.data axis 0")
         check_length("RAMap.azimuth_axis", a, data.shape[1], "RAMap.data axis 1")
         check_ascending("RAMap.range_axis", r)
@@ -82,7 +98,7 @@ class RAMap:
 
 
 @dataclass(frozen=True, eq=False)
-class WallSegment:
+class WallSegment(_ReadOnlyArrays):
     """A vertical planar relay wall seen from above: the segment start→end [m], each (2,)."""
 
     start: np.ndarray
@@ -90,10 +106,10 @@ class WallSegment:
     name: str = "wall"
 
     def __post_init__(self):
-        _set(self, "start", as_array(f"{self.name}.start", self.start, shape=(2,)))
-        _set(self, "end", as_array(f"{self.name}.end", self.end, shape=(2,)))
+        _set(self, "start", as_array(f"{self.name}.start", self.start, shape=(2,), readonly=True))
+        _set(self, "end", as_array(f"{self.name}.end", self.end, shape=(2,), readonly=True))
         n, b = line_from_points(self.start, self.end)
-        _set(self, "_line", (n, b))
+        _set(self, "_line", (frozen(np.asarray(n, dtype=np.float64)), b))
 
     @property
     def normal(self) -> np.ndarray:
@@ -111,7 +127,7 @@ class WallSegment:
 
 
 @dataclass(frozen=True, eq=False)
-class GroundTruth:
+class GroundTruth(_ReadOnlyArrays):
     """What a simulator knows about a frame; only returns a radar could see are included.
 
     los_points (N, 2): visible scatterers of LOS surfaces (walls, LOS objects) [m];
@@ -139,7 +155,7 @@ class GroundTruth:
         h = _points("GroundTruth.hidden_points", self.hidden_points)
         check_length("GroundTruth.hidden_points", h, len(m), "GroundTruth.mnlos_points")
         obj = np.zeros(len(m), dtype=np.int64) if self.mnlos_object is None else self.mnlos_object
-        obj = as_array("GroundTruth.mnlos_object", obj, dtype=np.int64, shape=(len(m),))
+        obj = as_array("GroundTruth.mnlos_object", obj, dtype=np.int64, shape=(len(m),), readonly=True)
         if len(obj) and (obj.min() < 0 or obj.max() >= max(len(self.object_names), 1)):
             raise InputError("GroundTruth.mnlos_object: indices must address GroundTruth.object_names")
         _set(self, "mnlos_points", m)
@@ -149,8 +165,8 @@ class GroundTruth:
         _set(self, "walls", tuple(self.walls))
         for name, n in (("los_snr_db", len(self.los_points)), ("mnlos_snr_db", len(m))):
             v = getattr(self, name)
-            v = np.full(n, np.nan) if v is None else as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False)
-            _set(self, name, v)
+            v = np.full(n, np.nan) if v is None else v
+            _set(self, name, as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False, readonly=True))
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
         """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
@@ -181,7 +197,7 @@ class Frame:
 
 
 @dataclass(frozen=True, eq=False)
-class Detections:
+class Detections(_ReadOnlyArrays):
     """Peaks found in an RA map.
 
     range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
@@ -197,11 +213,11 @@ class Detections:
     azimuth_std: np.ndarray | None = None
 
     def __post_init__(self):
-        r = as_array("Detections.range", self.range, ndim=1)
+        r = as_array("Detections.range", self.range, ndim=1, readonly=True)
         k = len(r)
-        a = as_array("Detections.azimuth", self.azimuth, shape=(k,))
-        lab = as_array("Detections.label", self.label, dtype=np.int8, shape=(k,))
-        c = as_array("Detections.confidence", self.confidence, shape=(k,))
+        a = as_array("Detections.azimuth", self.azimuth, shape=(k,), readonly=True)
+        lab = as_array("Detections.label", self.label, dtype=np.int8, shape=(k,), readonly=True)
+        c = as_array("Detections.confidence", self.confidence, shape=(k,), readonly=True)
         if k and r.min() < 0:
             raise InputError(f"Detections.range: ranges must be ≥ 0 m, got min {r.min()}")
         if k and np.any(np.abs(a) > np.pi):
@@ -212,14 +228,14 @@ class Detections:
             raise InputError(f"Detections.confidence: must lie in [0, 1], got [{c.min()}, {c.max()}]")
         rs = np.zeros(k) if self.range_std is None else self.range_std
         az = np.zeros(k) if self.azimuth_std is None else self.azimuth_std
-        rs = as_array("Detections.range_std", rs, shape=(k,))
-        az = as_array("Detections.azimuth_std", az, shape=(k,))
+        rs = as_array("Detections.range_std", rs, shape=(k,), readonly=True)
+        az = as_array("Detections.azimuth_std", az, shape=(k,), readonly=True)
         if k and (rs.min() < 0 or az.min() < 0):
             raise InputError("Detections.range_std/azimuth_std: standard deviations must be ≥ 0")
         for name, v in (("range", r), ("azimuth", a), ("label", lab), ("confidence", c),
                         ("range_std", rs), ("azimuth_std", az)):
             _set(self, name, v)
-        _set(self, "position", polar_to_cartesian(r, a))
+        _set(self, "position", frozen(polar_to_cartesian(r, a)))
 
     @classmethod
     def empty(cls) -> "Detections":
@@ -265,7 +281,7 @@ class Detections:
 
 
 @dataclass(frozen=True, eq=False)
-class WallPosterior:
+class WallPosterior(_ReadOnlyArrays):
     """Estimate of one relay wall with its uncertainty.
 
     model: name of the wall model, with n = (cos φ, sin φ) the unit normal and u = (−sin φ, cos φ)
@@ -303,21 +319,21 @@ class WallPosterior:
     anchor: np.ndarray | None = None
 
     def __post_init__(self):
-        m = as_array("WallPosterior.mean", self.mean, ndim=1)
+        m = as_array("WallPosterior.mean", self.mean, ndim=1, readonly=True)
         p = len(m)
         if len(self.param_names) != p:
             raise InputError(f"WallPosterior.param_names: {len(self.param_names)} names for {p} parameters")
-        c = as_array("WallPosterior.cov", self.cov, shape=(p, p))
+        c = as_array("WallPosterior.cov", self.cov, shape=(p, p), readonly=True)
         if not np.allclose(c, c.T, rtol=1e-8, atol=1e-12 * max(1.0, np.abs(c).max())):
             raise InputError("WallPosterior.cov: covariance must be symmetric")
         if p and np.linalg.eigvalsh(c).min() < -1e-9 * max(1.0, np.abs(c).max()):
             raise InputError("WallPosterior.cov: covariance must be positive semi-definite")
         if self.extent is not None:
-            _set(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2)))
+            _set(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2), readonly=True))
         if self.samples is not None:
-            _set(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p)))
+            _set(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p), readonly=True))
         if self.anchor is not None:
-            _set(self, "anchor", as_array("WallPosterior.anchor", self.anchor, shape=(2,)))
+            _set(self, "anchor", as_array("WallPosterior.anchor", self.anchor, shape=(2,), readonly=True))
         if self.model in ("line", "arc"):
             want = {"line": 2, "arc": 3}[self.model]
             if p != want:
@@ -335,8 +351,8 @@ class WallPosterior:
                         m = m.copy()
                         m[2] = -m[2]
                 m = np.concatenate([[np.arctan2(n[1], n[0]), b], m[2:]])
-        _set(self, "mean", m)
-        _set(self, "cov", c)
+        _set(self, "mean", frozen(m))
+        _set(self, "cov", frozen(c))
 
     @classmethod
     def line(cls, normal, offset: float, cov=None, **kw) -> "WallPosterior":
@@ -396,7 +412,7 @@ class WallPosterior:
 
 
 @dataclass(frozen=True, eq=False)
-class HiddenPoints:
+class HiddenPoints(_ReadOnlyArrays):
     """Reconstructed hidden points o with uncertainty.
 
     mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
@@ -411,9 +427,9 @@ class HiddenPoints:
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
         k = len(m)
-        c = as_array("HiddenPoints.cov", self.cov, shape=(k, 2, 2))
-        s = as_array("HiddenPoints.source_index", self.source_index, dtype=np.int64, shape=(k,))
-        w = as_array("HiddenPoints.wall_index", self.wall_index, dtype=np.int64, shape=(k,))
+        c = as_array("HiddenPoints.cov", self.cov, shape=(k, 2, 2), readonly=True)
+        s = as_array("HiddenPoints.source_index", self.source_index, dtype=np.int64, shape=(k,), readonly=True)
+        w = as_array("HiddenPoints.wall_index", self.wall_index, dtype=np.int64, shape=(k,), readonly=True)
         if k and (s.min() < 0 or w.min() < 0):
             raise InputError("HiddenPoints.source_index/wall_index: indices must be ≥ 0")
         for name, v in (("mean", m), ("cov", c), ("source_index", s), ("wall_index", w)):
@@ -428,7 +444,7 @@ class HiddenPoints:
 
 
 @dataclass(frozen=True, eq=False)
-class Tracks:
+class Tracks(_ReadOnlyArrays):
     """Tracked objects after a frame: id (T,), position (T, 2) [m], velocity (T, 2) [m/s],
     predicted (T, 2) [m] position at the next expected timestamp, timestamp [s]."""
 
@@ -439,11 +455,11 @@ class Tracks:
     timestamp: float = 0.0
 
     def __post_init__(self):
-        i = as_array("Tracks.track_id", self.track_id, dtype=np.int64, ndim=1)
+        i = as_array("Tracks.track_id", self.track_id, dtype=np.int64, ndim=1, readonly=True)
         k = len(i)
         _set(self, "track_id", i)
         for name in ("position", "velocity", "predicted"):
-            _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2)))
+            _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2), readonly=True))
 
     def __len__(self) -> int:
         return len(self.track_id)

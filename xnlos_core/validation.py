@@ -14,10 +14,13 @@ def as_array(
     ndim: int | None = None,
     shape: tuple[int | None, ...] | None = None,
     finite: bool = True,
+    readonly: bool = False,
 ) -> np.ndarray:
     """Return ``value`` as an array of ``dtype`` after checking dimensions, shape and finiteness.
 
     ``shape`` entries of ``None`` match any length. Raises :class:`InputError` naming ``name``.
+    ``readonly``: return an array that cannot be written (:func:`frozen`), so that what was checked
+    stays as checked — the core types store their arrays this way.
     """
     try:
         arr = np.asarray(value)
@@ -31,7 +34,8 @@ def as_array(
             raise InputError(f"{name}: expected numeric (complex) values, got dtype {arr.dtype}")
         if kind in "fi" and arr.dtype.kind not in "fiub":
             raise InputError(f"{name}: expected numeric values, got dtype {arr.dtype}")
-        arr = arr.astype(dtype, copy=False)
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow becomes inf: refused below
+            arr = arr.astype(dtype, copy=False)
     if ndim is not None and arr.ndim != ndim:
         raise InputError(f"{name}: expected a {ndim}-D array, got shape {arr.shape}")
     if shape is not None:
@@ -41,6 +45,17 @@ def as_array(
     if finite and arr.dtype.kind in "fc" and arr.size and not np.all(np.isfinite(arr)):
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
         raise InputError(f"{name}: {bad} of {arr.size} values are NaN or infinite; all must be finite")
+    return frozen(arr, value) if readonly else arr
+
+
+def frozen(arr: np.ndarray, source=None) -> np.ndarray:
+    """``arr`` made read-only (``flags.writeable = False``); copied first when it shares memory
+    with ``source`` (the caller's array: freezing a view of it would lock the caller's own data, and
+    the caller could still change what was validated through its writable original) or is not the
+    owner of its memory."""
+    if arr.base is not None or (isinstance(source, np.ndarray) and np.may_share_memory(arr, source)):
+        arr = arr.copy()
+    arr.flags.writeable = False
     return arr
 
 

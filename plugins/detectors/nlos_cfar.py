@@ -72,6 +72,10 @@ class NLOSCFARDetector(Detector):
 
     Params = NLOSCFARParams
 
+    def check_radar(self, radar) -> None:
+        """The CFAR window must fit the radar's RA map (:func:`.peaks.window_error`)."""
+        self.params.check_radar(radar)
+
     def _walls(self, frame: Frame) -> list[tuple[np.ndarray, np.ndarray]]:
         p = self.params
         if p.wall_source == "config":
