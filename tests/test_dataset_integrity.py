@@ -18,13 +18,24 @@ from sims.dataset.shard import decode_npz, encode_npz
 from xnlos_core.cli import main
 from xnlos_core.errors import InputError, XnlosError
 
+from tests.tiny_scenes import tiny_manager, tiny_registry
+
 from .test_dataset import cfg, hashes
+
+
+@pytest.fixture(autouse=True)
+def _tiny_generators(monkeypatch):
+    """Every registry lookup (simulate, repair, ``main([...])``) sees the tiny scene generators
+    corner_a/b/c, as after ``xnlos -p tests.tiny_scenes``."""
+    import xnlos_core.registry as registry_module
+
+    monkeypatch.setattr(registry_module, "_MANAGER", tiny_manager())
 
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("ref")
-    simulate_dataset(cfg(), out, workers=1, progress=False)
+    simulate_dataset(cfg(), out, workers=1, progress=False, registry=tiny_registry())
     return out
 
 
