@@ -17,3 +17,10 @@ def xnlos_register_components(registry):
     registry.add("backend", "npz", NPZBackend)
     registry.add("backend", "can", CANBackend)
     registry.add("backend", "replay", ReplayBackend)
+
+
+@hookimpl
+def xnlos_add_commands(subparsers):
+    from .commands import add_commands
+
+    add_commands(subparsers)

@@ -13,3 +13,17 @@ def xnlos_register_components(registry):
     registry.add("forward_model", "raytrace", RaytraceForwardModel)
     for name, component in COMPONENTS.items():
         registry.add("scene_generator", name, component)
+
+
+@hookimpl
+def xnlos_add_commands(subparsers):
+    from .commands import add_commands
+
+    add_commands(subparsers)
+
+
+@hookimpl
+def xnlos_check_config(table, path):
+    from .commands import check_config
+
+    return check_config(table, path)

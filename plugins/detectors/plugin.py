@@ -15,3 +15,17 @@ def xnlos_register_components(registry):
     registry.add("detector", "unet", UNetDetector)
     registry.add("detector", "further_than_cfar", FurtherThanCFARDetector)
     registry.add("detector", "rtn", RTNDetector)
+
+
+@hookimpl
+def xnlos_add_commands(subparsers):
+    from .commands import add_commands
+
+    add_commands(subparsers)
+
+
+@hookimpl
+def xnlos_check_config(table, path):
+    from .commands import check_config
+
+    return check_config(table, path)
