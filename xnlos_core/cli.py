@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import ConfigError, XnlosError
+from .errors import ConfigError, PluginError, XnlosError
 
 DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
 
@@ -175,7 +175,11 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=_cmd_plugins)
-    manager.pm.hook.xnlos_add_commands(subparsers=sub)  # simulate, train, emulate, …: added by their packages
+    try:  # simulate, train, emulate, …: added by the packages that own them
+        manager.pm.hook.xnlos_add_commands(subparsers=sub)
+    except argparse.ArgumentError as exc:
+        raise PluginError(f"a plugin's xnlos_add_commands hook failed: {exc} (plugins: "
+                          f"{', '.join(sorted(n for n, _ in manager.pm.list_name_plugin()))})") from exc
     return p
 
 
