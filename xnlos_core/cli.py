@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import ConfigError, PluginError, XnlosError
+from .errors import PluginError, XnlosError
 
 DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
 
