@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+from plugins.training.checkpoint import load_checkpoint, save_checkpoint
 from plugins.detectors.data import MapSet
 from plugins.detectors.features import ra_features
 from plugins.detectors.heatmaps import peak_cells
@@ -122,15 +122,13 @@ def test_training_config_errors_name_the_key(tmp_path):
 
 
 def test_every_shipped_training_config_is_valid():
-    from plugins.residual_mirror.train import is_residual_config, parse_config
+    from plugins.training.trainers import trainer_for
     from xnlos_core.config import load_toml
 
     for path in sorted((ROOT / "configs" / "training").glob("*.toml")):
-        if is_residual_config(load_toml(path)):  # the Eq. 9 residual network (tests/test_residual_mirror.py)
-            parse_config(load_toml(path), str(path))
-            continue
-        cfg = load_train_config(path)
-        assert cfg.model.name in architectures()
+        table = load_toml(path)
+        cfg = trainer_for(table, str(path)).parse(table, str(path))  # the residual mirror's too
+        assert cfg.model.name in {*architectures(), "residual_mirror"}
 
 
 def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network(tmp_path, one_thread):
@@ -248,7 +246,7 @@ def test_a_flipped_bit_anywhere_in_last_pt_is_refused(straight_run, tmp_path):
     """Issue 26 #5: 5 of 12 bit flips in a mid-run last.pt (optimizer state) were accepted. Here
     24 flips spread over the file and 8 inside the optimizer's tensors and the pickled progress /
     history are each refused, naming the file; the optimizer flips pass the weights hash alone."""
-    from plugins.detectors.checkpoint import SEAL, weights_digest
+    from plugins.training.checkpoint import SEAL, weights_digest
 
     data = (straight_run / "last.pt").read_bytes()
     assert data.startswith(SEAL)
@@ -303,7 +301,7 @@ def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_ru
     line for good (epochs_run 39, stopped_early true instead of 40, false). Crashing in epoch 2
     after best.pt, after last.pt, or halfway through the line, then resuming, gives the same
     summary, metrics lines and weights as the uninterrupted run."""
-    import plugins.detectors.resume as rs
+    import plugins.training.resume as rs
 
     real_save, real_append = rs.save_epoch, rs.append_jsonl
 
