@@ -103,8 +103,91 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
     sd_b, _, _ = load_checkpoint(tmp_path / "b" / "model.pt", "swin_unet")
     for key in sd_a:
         torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)
-    assert main(["train", str(TINY_TOML), "--out", str(tmp_path / "b"), "--epochs", "3", "-q"]) == 2
-    assert "another config" in capsys.readouterr().err
+    other = tmp_path / "other.toml"  # another config (learning rate) is another run
+    other.write_text(TINY_TOML.read_text().replace("lr = 3e-3", "lr = 2e-3"))
+    assert main(["train", str(other), "--out", str(tmp_path / "b"), "--epochs", "2", "-q"]) == 2
+    assert "another configuration" in capsys.readouterr().err
+
+
+def test_a_larger_epochs_extends_a_finished_run_and_a_smaller_one_is_refused(tmp_path, one_thread, capsys):
+    """Issue 27 #5: `xnlos train CONFIG --epochs N` extends a finished run (the README's promise;
+    it was refused because the epochs were part of the config digest). The extension resumes from
+    last.pt: the first epochs are the finished run's, unchanged, and the extra ones follow."""
+    run = tmp_path / "run"
+    assert main(_tiny_run(run, epochs=2)) == 0
+    two = _lines_without_seconds(run / "metrics.jsonl")
+    weights_two = load_checkpoint(run / "last.pt", sealed=True)[0]
+    assert main(_tiny_run(run, epochs=4)) == 0
+    four = _lines_without_seconds(run / "metrics.jsonl")
+    assert [r["epoch"] for r in four] == [1, 2, 3, 4] and four[:2] == two
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["epochs_run"] == 4 and not summary["stopped_early"]
+    assert load_checkpoint(run / "model.pt", "swin_unet")[1]["training"]["config"]["optim"]["epochs"] == 4
+    assert not all(torch.equal(weights_two[k], v) for k, v in load_checkpoint(run / "last.pt", sealed=True)[0].items())
+    # the cosine schedule spans optim.epochs (plugins.training.optim): the 2-epoch run ended at its
+    # floor, the extension continues on the 4-epoch cosine, so it is not a run started with 4 epochs
+    assert two[1]["lr"] == pytest.approx(3e-3 * 0.02) and four[2]["lr"] > two[1]["lr"]
+    capsys.readouterr()
+    assert main(_tiny_run(run, epochs=3)) == 2
+    err = capsys.readouterr().err
+    assert "holds a run of 4 epochs, longer than optim.epochs = 3" in err and "Traceback" not in err
+    assert [r["epoch"] for r in read_jsonl(run / "metrics.jsonl")] == [1, 2, 3, 4]  # left as it was
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_train_writes_into_the_installed_package_only_when_the_command_names_the_export(tmp_path, one_thread,
+                                                                                      monkeypatch, capsys):
+    """Issue 27 #5: `xnlos train configs/training/residual_mirror.toml --out elsewhere` overwrote the
+    shipped model its `export` key names. The same with the tiny config whose `export` names a model
+    of the package — a copy of plugins/detectors/models standing in for the installed package, so
+    that the real shipped files are never at risk (their hashes are checked too)."""
+    import shutil
+
+    import xnlos_core.rundir as rundir
+
+    shipped = {p: _sha(p) for p in sorted((ROOT / "plugins").glob("*/models/*"))}
+    assert shipped
+    pkg = tmp_path / "site-packages" / "plugins"
+    shutil.copytree(ROOT / "plugins" / "detectors" / "models", pkg / "detectors" / "models")
+    monkeypatch.setattr(rundir, "package_dirs", lambda distribution="xnlos": [pkg.resolve()])
+    target = pkg / "detectors" / "models" / "swin_unet.pt"
+    before = {p: _sha(p) for p in (pkg / "detectors" / "models").iterdir()}
+    cfg = tmp_path / "tiny_export.toml"
+    cfg.write_text(TINY_TOML.read_text().replace('out = "out/train/tiny"', f'out = "out/train/tiny"\nexport = "{target}"'))
+
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "-q"]) == 0
+    out, err = capsys.readouterr()
+    assert {p: _sha(p) for p in (pkg / "detectors" / "models").iterdir()} == before
+    assert f"not exported to {target}" in err and f"--export {target}" in err and " and " not in out
+    assert json.loads((tmp_path / "elsewhere" / "summary.json").read_text())["export"] is None
+
+    # named on the command line: written (the finished run is reused, not retrained)
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "--export", str(target),
+                 "-q"]) == 0
+    assert f"and {target}" in capsys.readouterr().out
+    assert _sha(target) == _sha(tmp_path / "elsewhere" / "model.pt") != before[target]
+    # an export outside the package is the user's own file: written as the config says
+    mine = tmp_path / "mine" / "model.pt"
+    cfg.write_text(cfg.read_text().replace(str(target), str(mine)))
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "-q"]) == 0
+    assert _sha(mine) == _sha(tmp_path / "elsewhere" / "model.pt")
+    assert {p: _sha(p) for p in shipped} == shipped
+
+
+def test_the_shipped_residual_mirror_config_exports_into_the_package_only_when_named(monkeypatch):
+    """The reproduction's own config: its `export` is the shipped residual_mirror.pt, which only an
+    explicit --export may replace."""
+    from plugins.training.run import export_target
+    from xnlos_core.config import load_toml
+
+    monkeypatch.chdir(ROOT)
+    export = load_toml(ROOT / "configs" / "training" / "residual_mirror.toml")["export"]
+    dest, why = export_target(export, named=False)
+    assert dest is None and "inside the installed xnlos package" in why and f"--export {export}" in why
+    assert export_target(export, named=True) == (Path(export), None)
 
 
 def test_training_config_errors_name_the_key(tmp_path):
