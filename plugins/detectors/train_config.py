@@ -148,7 +148,8 @@ class TrainConfig(BaseModel):
     name: str = "train"
     seed: int = Field(0, ge=0, lt=2**63)
     out: str = Field("out/train", description="output directory")
-    export: str | None = Field(None, description="also write the final model to this path")
+    export: str | None = Field(None, description="also write the final model to this path (into the installed "
+                               "package only when the command names it: --export)")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$")
     threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads (None: torch's default)")
     init: str | None = Field(None, description="start from the weights of this checkpoint (same architecture "
