@@ -419,3 +419,30 @@ def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_ru
     sd_b, _, _ = load_checkpoint(run / "model.pt", "swin_unet")
     for key in sd_a:
         torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)
+
+
+def test_train_and_check_name_the_models_they_can_train(tmp_path, capsys):
+    cfg = tmp_path / "t.toml"
+    cfg.write_text(TINY_TOML.read_text().replace('name = "swin_unet"', 'name = "swin"'))
+    for command in (["train", str(cfg), "-q"], ["check", str(cfg)]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert f"{cfg}: [model] name 'swin': no trainer" in err and "residual_mirror" in err and "swin_unet" in err
+
+
+def test_a_run_directory_of_an_earlier_xnlos_is_recognised_by_its_config_digest(straight_run, tmp_path, one_thread,
+                                                                                capsys):
+    """run.json written before run_sha256 existed holds only config_sha256 (epochs included): the same
+    config resumes from it, a changed one is refused as before."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(straight_run, run)
+    record = json.loads((run / "run.json").read_text())
+    del record["run_sha256"]
+    (run / "run.json").write_text(json.dumps(record))
+    assert main(_tiny_run(run, epochs=4)) == 2
+    assert "holds a training run of another configuration" in capsys.readouterr().err
+    assert main(_tiny_run(run)) == 0
+    assert json.loads((run / "summary.json").read_text())["epochs_run"] == 3
+    assert "run_sha256" in json.loads((run / "run.json").read_text())
