@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+from plugins.training.checkpoint import load_checkpoint, save_checkpoint
 from plugins.detectors.features import ra_features
 from plugins.detectors.learned import LEARNED, MODELS_DIR
 from plugins.detectors.nets import architectures

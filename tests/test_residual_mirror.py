@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+from plugins.training.checkpoint import load_checkpoint, save_checkpoint
 from plugins.residual_mirror.data import NoiseConfig, scene_inputs
 from plugins.residual_mirror.net import HParams, geo_loss
 from plugins.residual_mirror.reconstructor import DEFAULT_MODEL, ResidualMirrorReconstructor, load_model
@@ -171,12 +171,12 @@ def test_resumed_training_matches_an_uninterrupted_run(tmp_path):
 
 
 def test_resume_state_is_sealed_and_rebuilds_metrics_after_a_crash(tmp_path, monkeypatch):
-    """Issue 26 #5 for the residual mirror's training (the shared plugins.detectors.resume): a crash
+    """Issue 26 #5 for the residual mirror's training (the shared plugins.training.resume): a crash
     after last.pt but before its metrics line loses no line, best.pt is rebuilt from last.pt, the
     resumed fit ends on the uninterrupted weights, and a flipped bit in the optimizer state is refused."""
     import json
 
-    import plugins.detectors.resume as rs
+    import plugins.training.resume as rs
 
     data = {k: v[:40] for k, v in tiny_pairs().items()}
     opt = RMOptim(epochs=4, batch_size=16, lr=3e-3)

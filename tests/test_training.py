@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
+from plugins.training.checkpoint import load_checkpoint, save_checkpoint
 from plugins.detectors.data import MapSet
 from plugins.detectors.features import ra_features
 from plugins.detectors.heatmaps import peak_cells
@@ -103,8 +103,91 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
     sd_b, _, _ = load_checkpoint(tmp_path / "b" / "model.pt", "swin_unet")
     for key in sd_a:
         torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)
-    assert main(["train", str(TINY_TOML), "--out", str(tmp_path / "b"), "--epochs", "3", "-q"]) == 2
-    assert "another config" in capsys.readouterr().err
+    other = tmp_path / "other.toml"  # another config (learning rate) is another run
+    other.write_text(TINY_TOML.read_text().replace("lr = 3e-3", "lr = 2e-3"))
+    assert main(["train", str(other), "--out", str(tmp_path / "b"), "--epochs", "2", "-q"]) == 2
+    assert "another configuration" in capsys.readouterr().err
+
+
+def test_a_larger_epochs_extends_a_finished_run_and_a_smaller_one_is_refused(tmp_path, one_thread, capsys):
+    """Issue 27 #5: `xnlos train CONFIG --epochs N` extends a finished run (the README's promise;
+    it was refused because the epochs were part of the config digest). The extension resumes from
+    last.pt: the first epochs are the finished run's, unchanged, and the extra ones follow."""
+    run = tmp_path / "run"
+    assert main(_tiny_run(run, epochs=2)) == 0
+    two = _lines_without_seconds(run / "metrics.jsonl")
+    weights_two = load_checkpoint(run / "last.pt", sealed=True)[0]
+    assert main(_tiny_run(run, epochs=4)) == 0
+    four = _lines_without_seconds(run / "metrics.jsonl")
+    assert [r["epoch"] for r in four] == [1, 2, 3, 4] and four[:2] == two
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["epochs_run"] == 4 and not summary["stopped_early"]
+    assert load_checkpoint(run / "model.pt", "swin_unet")[1]["training"]["config"]["optim"]["epochs"] == 4
+    assert not all(torch.equal(weights_two[k], v) for k, v in load_checkpoint(run / "last.pt", sealed=True)[0].items())
+    # the cosine schedule spans optim.epochs (plugins.training.optim): the 2-epoch run ended at its
+    # floor, the extension continues on the 4-epoch cosine, so it is not a run started with 4 epochs
+    assert two[1]["lr"] == pytest.approx(3e-3 * 0.02) and four[2]["lr"] > two[1]["lr"]
+    capsys.readouterr()
+    assert main(_tiny_run(run, epochs=3)) == 2
+    err = capsys.readouterr().err
+    assert "holds a run of 4 epochs, longer than optim.epochs = 3" in err and "Traceback" not in err
+    assert [r["epoch"] for r in read_jsonl(run / "metrics.jsonl")] == [1, 2, 3, 4]  # left as it was
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_train_writes_into_the_installed_package_only_when_the_command_names_the_export(tmp_path, one_thread,
+                                                                                      monkeypatch, capsys):
+    """Issue 27 #5: `xnlos train configs/training/residual_mirror.toml --out elsewhere` overwrote the
+    shipped model its `export` key names. The same with the tiny config whose `export` names a model
+    of the package — a copy of plugins/detectors/models standing in for the installed package, so
+    that the real shipped files are never at risk (their hashes are checked too)."""
+    import shutil
+
+    import xnlos_core.rundir as rundir
+
+    shipped = {p: _sha(p) for p in sorted((ROOT / "plugins").glob("*/models/*"))}
+    assert shipped
+    pkg = tmp_path / "site-packages" / "plugins"
+    shutil.copytree(ROOT / "plugins" / "detectors" / "models", pkg / "detectors" / "models")
+    monkeypatch.setattr(rundir, "package_dirs", lambda distribution="xnlos": [pkg.resolve()])
+    target = pkg / "detectors" / "models" / "swin_unet.pt"
+    before = {p: _sha(p) for p in (pkg / "detectors" / "models").iterdir()}
+    cfg = tmp_path / "tiny_export.toml"
+    cfg.write_text(TINY_TOML.read_text().replace('out = "out/train/tiny"', f'out = "out/train/tiny"\nexport = "{target}"'))
+
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "-q"]) == 0
+    out, err = capsys.readouterr()
+    assert {p: _sha(p) for p in (pkg / "detectors" / "models").iterdir()} == before
+    assert f"not exported to {target}" in err and f"--export {target}" in err and " and " not in out
+    assert json.loads((tmp_path / "elsewhere" / "summary.json").read_text())["export"] is None
+
+    # named on the command line: written (the finished run is reused, not retrained)
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "--export", str(target),
+                 "-q"]) == 0
+    assert f"and {target}" in capsys.readouterr().out
+    assert _sha(target) == _sha(tmp_path / "elsewhere" / "model.pt") != before[target]
+    # an export outside the package is the user's own file: written as the config says
+    mine = tmp_path / "mine" / "model.pt"
+    cfg.write_text(cfg.read_text().replace(str(target), str(mine)))
+    assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "-q"]) == 0
+    assert _sha(mine) == _sha(tmp_path / "elsewhere" / "model.pt")
+    assert {p: _sha(p) for p in shipped} == shipped
+
+
+def test_the_shipped_residual_mirror_config_exports_into_the_package_only_when_named(monkeypatch):
+    """The reproduction's own config: its `export` is the shipped residual_mirror.pt, which only an
+    explicit --export may replace."""
+    from plugins.training.run import export_target
+    from xnlos_core.config import load_toml
+
+    monkeypatch.chdir(ROOT)
+    export = load_toml(ROOT / "configs" / "training" / "residual_mirror.toml")["export"]
+    dest, why = export_target(export, named=False)
+    assert dest is None and "inside the installed xnlos package" in why and f"--export {export}" in why
+    assert export_target(export, named=True) == (Path(export), None)
 
 
 def test_training_config_errors_name_the_key(tmp_path):
@@ -122,15 +205,13 @@ def test_training_config_errors_name_the_key(tmp_path):
 
 
 def test_every_shipped_training_config_is_valid():
-    from plugins.residual_mirror.train import is_residual_config, parse_config
+    from plugins.training.trainers import trainer_for
     from xnlos_core.config import load_toml
 
     for path in sorted((ROOT / "configs" / "training").glob("*.toml")):
-        if is_residual_config(load_toml(path)):  # the Eq. 9 residual network (tests/test_residual_mirror.py)
-            parse_config(load_toml(path), str(path))
-            continue
-        cfg = load_train_config(path)
-        assert cfg.model.name in architectures()
+        table = load_toml(path)
+        cfg = trainer_for(table, str(path)).parse(table, str(path))  # the residual mirror's too
+        assert cfg.model.name in {*architectures(), "residual_mirror"}
 
 
 def test_fine_tuning_starts_from_the_init_checkpoint_and_refuses_another_network(tmp_path, one_thread):
@@ -248,7 +329,7 @@ def test_a_flipped_bit_anywhere_in_last_pt_is_refused(straight_run, tmp_path):
     """Issue 26 #5: 5 of 12 bit flips in a mid-run last.pt (optimizer state) were accepted. Here
     24 flips spread over the file and 8 inside the optimizer's tensors and the pickled progress /
     history are each refused, naming the file; the optimizer flips pass the weights hash alone."""
-    from plugins.detectors.checkpoint import SEAL, weights_digest
+    from plugins.training.checkpoint import SEAL, weights_digest
 
     data = (straight_run / "last.pt").read_bytes()
     assert data.startswith(SEAL)
@@ -303,7 +384,7 @@ def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_ru
     line for good (epochs_run 39, stopped_early true instead of 40, false). Crashing in epoch 2
     after best.pt, after last.pt, or halfway through the line, then resuming, gives the same
     summary, metrics lines and weights as the uninterrupted run."""
-    import plugins.detectors.resume as rs
+    import plugins.training.resume as rs
 
     real_save, real_append = rs.save_epoch, rs.append_jsonl
 
@@ -338,3 +419,30 @@ def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_ru
     sd_b, _, _ = load_checkpoint(run / "model.pt", "swin_unet")
     for key in sd_a:
         torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)
+
+
+def test_train_and_check_name_the_models_they_can_train(tmp_path, capsys):
+    cfg = tmp_path / "t.toml"
+    cfg.write_text(TINY_TOML.read_text().replace('name = "swin_unet"', 'name = "swin"'))
+    for command in (["train", str(cfg), "-q"], ["check", str(cfg)]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert f"{cfg}: [model] name 'swin': no trainer" in err and "residual_mirror" in err and "swin_unet" in err
+
+
+def test_a_run_directory_of_an_earlier_xnlos_is_recognised_by_its_config_digest(straight_run, tmp_path, one_thread,
+                                                                                capsys):
+    """run.json written before run_sha256 existed holds only config_sha256 (epochs included): the same
+    config resumes from it, a changed one is refused as before."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(straight_run, run)
+    record = json.loads((run / "run.json").read_text())
+    del record["run_sha256"]
+    (run / "run.json").write_text(json.dumps(record))
+    assert main(_tiny_run(run, epochs=4)) == 2
+    assert "holds a training run of another configuration" in capsys.readouterr().err
+    assert main(_tiny_run(run)) == 0
+    assert json.loads((run / "summary.json").read_text())["epochs_run"] == 3
+    assert "run_sha256" in json.loads((run / "run.json").read_text())

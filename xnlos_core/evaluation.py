@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 
 from .config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
-from .errors import ConfigError, InputError
-from .io import append_jsonl, atomic_write_text, read_json_object, read_keyed_jsonl, write_jsonl
-from .provenance import require_same_state
+from .errors import InputError
+from .io import append_jsonl, atomic_write_text, read_keyed_jsonl, write_jsonl
+from .rundir import claim, write_record
 
 DEFAULT_DATASET = "out/data/default"
 DEFAULT_SPLIT = "test"
@@ -223,30 +223,18 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
 
     cfg: PipelineConfig = run["config"]
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     pipe = Pipeline(cfg, registry=registry, source=run["source"])
     digest, state = resume_digest(cfg), pipe.state_sha256()
-    info_path, log = out / "run.json", out / "frames.jsonl"
+    log = out / "frames.jsonl"
     done: list[dict] = []
-    if info_path.exists() and not overwrite:
-        old = read_json_object(info_path, "evaluation record")
-        if old.get("resume_sha256") != digest:
-            raise ConfigError(f"{out}: holds an evaluation of another configuration (hash "
-                              f"{str(old.get('resume_sha256'))[:12]} ≠ {digest[:12]}); choose another --out "
-                              "or pass --overwrite")
-        require_same_state(out, old.get("state_sha256"), state, "an evaluation")
+    if claim(out, "run.json", {"resume_sha256": digest}, overwrite=overwrite, what="an evaluation",
+             clear=[log.name, "map_*.png"], state=state, label="evaluation record") is not None:
         # Keyed on the map's position: repeated lines are dropped, bad ones refused naming the line.
         done = list(read_keyed_jsonl(log, "position").values())
         write_jsonl(log, done)  # the repairs (a torn last line, repeats) made durable before appending
-    else:
-        log.unlink(missing_ok=True)
-        for f in out.glob("map_*.png"):
-            f.unlink()
-    atomic_write_text(info_path, json.dumps({"name": cfg.name, "assignment": run["assignment"],
-                                             "resume_sha256": digest, "state_sha256": state,
-                                             "config": cfg.model_dump(mode="json"),
-                                             "provenance": pipe.provenance()}, indent=2, sort_keys=True,
-                                            default=str))
+    write_record(out, "run.json", {"name": cfg.name, "assignment": run["assignment"], "resume_sha256": digest,
+                                   "state_sha256": state, "config": cfg.model_dump(mode="json"),
+                                   "provenance": pipe.provenance()})
     backend = pipe.stages["backend"]
     total = len(backend) if hasattr(backend, "__len__") else None
     have = {r["position"] for r in done}

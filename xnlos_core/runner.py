@@ -20,38 +20,29 @@ from typing import Any
 import numpy as np
 
 from .config import PipelineConfig
-from .errors import ConfigError
-from .io import (append_jsonl, atomic_write_text, json_default, read_json_object, read_keyed_jsonl,
-                 write_jsonl)
+from .io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, write_jsonl
 from .pipeline import Pipeline
-from .provenance import require_same_state
+from .rundir import claim, write_record
 
 
 def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<config>", progress: bool = True,
                overwrite: bool = False, registry=None) -> dict[str, Any]:
     """Run ``config`` writing into ``out``; returns the summary dict (also in summary.md)."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     pipe = Pipeline(config, registry=registry, source=source)
     prov = pipe.provenance()
-    prov_path, res_path = out / "provenance.json", out / "results.jsonl"
+    res_path = out / "results.jsonl"
     n = config.run.frames
     done: dict[int, dict] = {}
-    if prov_path.exists() and not overwrite:
-        old = read_json_object(prov_path, "provenance")
-        if old.get("config_sha256") != prov["config_sha256"]:
-            raise ConfigError(f"{out}: holds results of another configuration (config hash "
-                              f"{str(old.get('config_sha256', '?'))[:12]} ≠ {prov['config_sha256'][:12]}); "
-                              "choose another --out or pass --overwrite")
-        require_same_state(out, old.get("state_sha256"), prov["state_sha256"], "results")
+    old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
+                what="results", clear=[res_path.name], state=prov["state_sha256"])
+    if old is not None:
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
         write_jsonl(res_path, done.values())
         resumed = old.get("resumed", 0)
         prov = {**old, "resumed": (resumed if isinstance(resumed, int) and not isinstance(resumed, bool) else 0) + 1}
-    else:
-        res_path.unlink(missing_ok=True)
-    atomic_write_text(prov_path, json.dumps(prov, indent=2, sort_keys=True))
+    write_record(out, "provenance.json", prov)
 
     records = dict(done)
     bar = _progress(total=n, initial=len(done), enabled=progress, desc=f"run {config.name}")

@@ -158,7 +158,9 @@ class LearnedDetector(Detector):
     def _load(self) -> None:
         if getattr(self, "_net", None) is not None:
             return
-        from .checkpoint import build_model, load_checkpoint
+        from plugins.training.checkpoint import load_checkpoint
+
+        from .nets import build_model
         from .tasks import default_head, make_head
 
         p = self.params

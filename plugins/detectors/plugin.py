@@ -1,6 +1,13 @@
 """Entry point ``xnlos-detectors``: registers the classical detectors (cfar, nlos_cfar) and the
-learned ones (swin_unet, unet, further_than_cfar, rtn)."""
+learned ones (swin_unet, unet, further_than_cfar, rtn) with their trainer, and adds the training
+core's ``xnlos train`` (:mod:`plugins.training.commands`; the command lives with the training core,
+this entry point carries it because adding an entry point needs a reinstall)."""
+from plugins.training.trainers import register
 from xnlos_core import hookimpl
+
+from .train_config import ARCHITECTURES
+
+register(ARCHITECTURES, "plugins.detectors.train:TRAINER", default="swin_unet")
 
 
 @hookimpl
@@ -19,13 +26,13 @@ def xnlos_register_components(registry):
 
 @hookimpl
 def xnlos_add_commands(subparsers):
-    from .commands import add_commands
+    from plugins.training.commands import add_commands
 
     add_commands(subparsers)
 
 
 @hookimpl
 def xnlos_check_config(table, path):
-    from .commands import check_config
+    from plugins.training.commands import check_config
 
     return check_config(table, path)

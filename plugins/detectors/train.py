@@ -1,5 +1,6 @@
-"""``xnlos train CONFIG``: train a learned detector (Sec. 4.2, Eq. 8) with validation, early
-stopping, checkpoints and resume.
+"""The detectors' trainer: what a learned detector (Sec. 4.2, Eq. 8) brings to the shared training
+core (:mod:`plugins.training`): its network, maps and crops (:class:`Batcher`), the head's loss and
+the validation Macro-F1 over the decoding grid; the core runs the epochs, checkpoints and resume.
 
 Reproducibility: the data order and crops of epoch e come from ``numpy.random.default_rng([seed,
 e])``; the initial weights from ``torch.manual_seed(seed)``, called once here at the start of a
@@ -9,17 +10,14 @@ continues from the last finished epoch and gives the same result as an uninterru
 Files in ``out``: ``run.json`` (config and its digest), ``metrics.jsonl`` (one fsync'd record per
 epoch: train loss, validation loss and Macro-F1 over the decoding grid, seconds), ``last.pt``
 (weights + optimizer + schedule + progress + RNG states + metrics history + best weights, sealed
-by one hash: the resume point, :mod:`.resume`; ``metrics.jsonl`` and ``best.pt`` are rebuilt from
+by one hash: the resume point, :mod:`plugins.training.resume`; ``metrics.jsonl`` and ``best.pt`` are rebuilt from
 it on resume, so no crash separates an epoch's line from its checkpoint), ``best.pt`` (best
 validation Macro-F1) and ``model.pt`` (the final model: best weights with tuned decoding and
-calibrated standard deviations; ``export`` copies it). All written atomically.
+calibrated standard deviations; ``export`` copies it, :mod:`plugins.training.run`). All written
+atomically.
 """
 from __future__ import annotations
 
-import json
-import logging
-import math
-import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -27,22 +25,12 @@ from typing import Any
 import numpy as np
 
 from xnlos_core.errors import ConfigError, InputError
-from xnlos_core.io import atomic_write_text
+from plugins.training.trainers import Trainer
 
-from .train_config import TrainConfig
+from .train_config import TrainConfig, check_train_config, parse_train_config
 
-log = logging.getLogger(__name__)
 FEATURES = {"version": 2, "channels": ["log_power_10db_over_median", "cos_phase", "sin_phase", "occlusion"],
             "dynamic_range_db": 200.0}
-
-
-def _lr_lambda(warmup: int, total: int):
-    def f(step: int) -> float:
-        if step < warmup:
-            return (step + 1) / warmup
-        t = min(1.0, (step - warmup) / max(1, total - warmup))
-        return 0.02 + 0.98 * 0.5 * (1.0 + math.cos(math.pi * t))
-    return f
 
 
 def _round_up(n: int, m: int) -> int:
@@ -107,36 +95,14 @@ class Batcher:
             yield np.stack(xs), np.stack(ys)
 
 
-def _prepare_out(out: Path, cfg: TrainConfig, overwrite: bool) -> bool:
-    """Create ``out``; True when a run of the same config can be resumed from it."""
-    run = out / "run.json"
-    if run.exists():
-        try:
-            old = json.loads(run.read_text())
-        except ValueError:
-            old = {}
-        if old.get("config_sha256") != cfg.digest():
-            if not overwrite:
-                raise ConfigError(f"{out}: holds a training run of another config; use another out directory or "
-                                  "--overwrite to discard it")
-            for name in ("run.json", "metrics.jsonl", "last.pt", "best.pt", "best.json", "model.pt", "model.json",
-                         "summary.json"):
-                (out / name).unlink(missing_ok=True)
-        elif overwrite:
-            for name in ("metrics.jsonl", "last.pt", "best.pt", "best.json", "model.pt", "model.json"):
-                (out / name).unlink(missing_ok=True)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run, json.dumps({"config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest()},
-                                      indent=2, sort_keys=True) + "\n")
-    return (out / "last.pt").is_file()
-
-
 def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     """Load ``cfg.init`` into ``net`` (same architecture and hyper-parameters, else InputError);
     returns its provenance {path, weights_sha256, its own training record} for the metadata, with
     the parent's own ``init`` nested under ``init`` when it was fine-tuned too (the whole chain of
     stages, back to the run that started from random weights)."""
-    from .checkpoint import build_model, load_checkpoint
+    from plugins.training.checkpoint import load_checkpoint
+
+    from .nets import build_model
 
     path = Path(cfg.init)
     if not path.is_absolute():
@@ -179,20 +145,21 @@ def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
 
 
 def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, source: str = "<config>",
-          base_dir: str | Path = ".") -> dict[str, Any]:
-    """Train ``cfg.model`` and write the files of the module doc to ``cfg.out``; returns a summary."""
+          base_dir: str | Path = ".", named_export: bool = False) -> dict[str, Any]:
+    """Train ``cfg.model`` and write the files of the module doc to ``cfg.out``; returns a summary.
+    named_export: the command line named ``cfg.export`` (:func:`plugins.training.run.export_target`)."""
     import torch
     from tqdm import tqdm
 
-    from .checkpoint import save_checkpoint
+    from plugins.training.optim import make_optimizer, step
+    from plugins.training.run import Validation, open_run, train_epochs
+
     from .data import dataset_record, load_split
     from .learned import resolve_device
     from .nets import architectures
-    from .resume import best_copy, load_resume, save_epoch, start_fresh
     from .tasks import default_head
 
-    out = Path(cfg.out)
-    resume = _prepare_out(out, cfg, overwrite)
+    run = open_run(cfg, overwrite=overwrite, minimise=False)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     device = resolve_device(cfg.device)
@@ -213,28 +180,14 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
                               "so a mirrored map is not a map of this radar; set flip_azimuth = false")
     batcher = Batcher(train_set, head, net.multiple, cfg.data.crop, cfg.optim.batch_size, cfg.data.flip_azimuth)
     steps = min(batcher.n_batches(), cfg.optim.steps_per_epoch or batcher.n_batches())
-    opt = torch.optim.AdamW(net.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay)
-    sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(cfg.optim.warmup_steps, steps * cfg.optim.epochs))
-    state = {"epoch": 0, "best_f1": -1.0, "best_epoch": -1, "bad_epochs": 0}
+    opt, sched = make_optimizer(net, cfg.optim, steps * cfg.optim.epochs, cfg.optim.warmup_steps)
     init = _initial_weights(cfg, net, hp, base_dir) if cfg.init else None
-    history: list[dict[str, Any]] = []
-    best_weights = None
-    if resume:
-        saved = load_resume(out, cfg.model.name, map_location=device)  # also restores torch's RNG
-        net.load_state_dict(saved.state_dict)
-        opt.load_state_dict(saved.optimizer)
-        sched.load_state_dict(saved.scheduler)
-        state = {k: saved.progress[k] for k in state}
-        history, best_weights = saved.history, saved.best
-        log.info("resuming %s after epoch %d", out, state["epoch"])
-    else:
-        start_fresh(out)
+    run.restore(net, opt, sched, cfg.model.name, map_location=device)  # also restores torch's RNG
     base_meta = {"architecture": cfg.model.name, "hparams": hp.model_dump(mode="json"), "head": head.describe(),
                  "features": FEATURES}
-    stopped = state["bad_epochs"] >= cfg.optim.patience
-    epoch = state["epoch"]
-    while epoch < cfg.optim.epochs and not stopped:
-        epoch += 1
+
+    def train_epoch(epoch: int) -> dict[str, Any]:
+        """Eq. 8 (the head's loss) over ``steps`` seeded batches."""
         t0 = time.perf_counter()
         net.train()
         total, n = 0.0, 0
@@ -245,82 +198,67 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
                 break
             x, y = torch.from_numpy(x).to(device), torch.from_numpy(y).to(device)
             loss = head.loss(net(x), y)
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.optim.grad_clip)
-            opt.step()
-            sched.step()
+            step(loss, net, opt, sched, cfg.optim.grad_clip)
             total, n = total + loss.detach().item(), n + 1
             bar.set_postfix(loss=f"{total / n:.4f}")
         bar.close()
-        train_s = time.perf_counter() - t0
-        rec: dict[str, Any] = {"epoch": epoch, "train_loss": total / max(n, 1), "train_seconds": train_s,
-                               "lr": sched.get_last_lr()[0]}
-        if epoch % cfg.eval.every == 0 or epoch == cfg.optim.epochs:
-            val_loss, _, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
-            best = sweep["best"]
-            rec.update(val_loss=val_loss, val=best, val_seconds=time.perf_counter() - t0 - train_s)
-            if best["macro_f1"] > state["best_f1"]:
-                state.update(best_f1=best["macro_f1"], best_epoch=epoch, bad_epochs=0)
-                dec = {"threshold": best["threshold"], "window": best["window"], "cells": best["cells"]}
-                best_weights = best_copy(net, {**base_meta, "decode": dec, "training": {"epoch": epoch, "val": best}})
-                save_checkpoint(out / "best.pt", *best_weights)
-            else:
-                state["bad_epochs"] += 1
-            stopped = state["bad_epochs"] >= cfg.optim.patience
-        state["epoch"] = epoch
-        history.append(rec)
-        save_epoch(out, net, {**base_meta, "training": {"epoch": epoch}}, opt.state_dict(), sched.state_dict(),
-                   dict(state), history, best_weights)
-        if progress:
-            msg = f"epoch {epoch}: train loss {rec['train_loss']:.4f}"
-            if "val" in rec:
-                msg += (f", val loss {rec['val_loss']:.4f}, Macro-F1 {rec['val']['macro_f1']:.3f} "
-                        f"(LOS {rec['val']['los_f1']:.3f}, mNLOS {rec['val']['mnlos_f1']:.3f})")
-            tqdm.write(msg)
+        return {"train_loss": total / max(n, 1), "train_seconds": time.perf_counter() - t0,
+                "lr": sched.get_last_lr()[0]}
+
+    def validate(epoch: int) -> Validation | None:
+        """Validation Macro-F1 at the best decoding, every ``eval.every`` epochs and after the last."""
+        if not (epoch % cfg.eval.every == 0 or epoch == cfg.optim.epochs):
+            return None
+        t0 = time.perf_counter()
+        val_loss, _, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
+        best = sweep["best"]
+        dec = {"threshold": best["threshold"], "window": best["window"], "cells": best["cells"]}
+        return Validation(best["macro_f1"], best, {"val_loss": val_loss, "val_seconds": time.perf_counter() - t0},
+                          {"decode": dec})
+
+    def line(rec: dict[str, Any]) -> str:
+        msg = f"epoch {rec['epoch']}: train loss {rec['train_loss']:.4f}"
+        if "val" in rec:
+            msg += (f", val loss {rec['val_loss']:.4f}, Macro-F1 {rec['val']['macro_f1']:.3f} "
+                    f"(LOS {rec['val']['los_f1']:.3f}, mNLOS {rec['val']['mnlos_f1']:.3f})")
+        return msg
+
+    train_epochs(run, net, opt, sched, base_meta, train_epoch, validate, line, progress)
     data_rec = {**data_rec, "n_train_maps": len(train_set), "n_val_maps": len(val_set)}
     if init is not None:
         data_rec = {**data_rec, "init": init}
-    return _finish(cfg, out, base_meta, head, val_set, device, history, data_rec, source)
+    return _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export)
 
 
-def _finish(cfg, out: Path, base_meta, head, val_set, device, history, data_rec, source) -> dict[str, Any]:
+def _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export) -> dict[str, Any]:
     """Best weights → calibrated, documented final model (model.pt, export) and summary.json."""
-    import torch
+    from plugins.training.checkpoint import load_checkpoint
+    from plugins.training.run import finish
 
-    from .checkpoint import build_model, load_checkpoint, save_checkpoint
     from .evaluate import calibrate
+    from .nets import build_model
 
-    sd, meta, _ = load_checkpoint(out / "best.pt", cfg.model.name, map_location="cpu")
+    sd, meta, _ = load_checkpoint(run.out / "best.pt", cfg.model.name, map_location="cpu")
     net = build_model(meta, sd).to(device)
     val_loss, outputs, sweep = _validate(net, head, val_set, device, cfg.optim.batch_size, cfg)
     best = sweep["best"]
     win = tuple(best["window"])
     cal = calibrate(outputs, head, val_set.maps, val_set.truths, best["threshold"], win, cfg.data.match_radius,
                     best["cells"])
-    epochs = [r for r in history if "train_seconds" in r]
-    training = {
-        "config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest(), "config_file": source,
-        "command": f"xnlos train {source}", "dataset": data_rec, "best_epoch": meta["training"]["epoch"],
-        "epochs_run": len(epochs), "device": str(device), "torch": torch.__version__,
-        "seconds_per_epoch": float(np.mean([r["train_seconds"] for r in epochs])) if epochs else None,
-        "metrics": {"val": best, "val_loss": val_loss, "match_radius_m": cfg.data.match_radius},
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
-    n_params = sum(p.numel() for p in net.parameters())
-    final = {**base_meta, "n_parameters": n_params, "training": training,
-             "decode": {"threshold": best["threshold"], "window": list(win), "cells": best["cells"], "calibration": cal}}
-    save_checkpoint(out / "model.pt", net, final)
-    if cfg.export:
-        dest = Path(cfg.export)
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(out / "model.pt", dest.with_suffix(".tmp"))
-        dest.with_suffix(".tmp").replace(dest)
-        shutil.copyfile(out / "model.json", dest.with_suffix(".json.tmp"))
-        dest.with_suffix(".json.tmp").replace(dest.with_suffix(".json"))
-    summary = {"out": str(out), "model": str(out / "model.pt"), "export": cfg.export, "best_epoch": training["best_epoch"],
-               "epochs_run": len(epochs), "val": best, "calibration": cal, "n_parameters": n_params,
-               "seconds_per_epoch": training["seconds_per_epoch"], "device": str(device),
-               "stopped_early": len(epochs) < cfg.optim.epochs}
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str) + "\n")
-    return summary
+    decode = {"threshold": best["threshold"], "window": list(win), "cells": best["cells"], "calibration": cal}
+    return finish(cfg, run, net, {**base_meta, "decode": decode}, dataset=data_rec, source=source,
+                     metrics={"val": best, "val_loss": val_loss, "match_radius_m": cfg.data.match_radius},
+                     named_export=named_export, training={"device": str(device)},
+                     summary={"val": best, "calibration": cal, "device": str(device)})
+
+
+def report(s: dict[str, Any]) -> str:
+    """The line ``xnlos train`` prints for a finished detector run."""
+    v = s["val"]
+    return (f"{s['epochs_run']} epoch(s) on {s['device']} ({s['seconds_per_epoch']:.1f} s/epoch), best epoch "
+            f"{s['best_epoch']}: validation Macro-F1 {v['macro_f1']:.3f} (LOS {v['los_f1']:.3f}, mNLOS "
+            f"{v['mnlos_f1']:.3f}) at threshold {v['threshold']}, window {v['window']}"
+            f"{', one peak per resolution cell' if v.get('cells') else ''}")
+
+
+TRAINER = Trainer(parse=parse_train_config, train=train, report=report, check=check_train_config)

@@ -39,6 +39,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from plugins.training.optim import OptimConfig as BaseOptim
 from xnlos_core.config import StageConfig, load_toml, validate_model
 from xnlos_core.errors import ConfigError
 
@@ -115,16 +116,10 @@ class ModelConfig(BaseModel):
         return v
 
 
-class OptimConfig(BaseModel):
-    """AdamW with a cosine learning-rate schedule and early stopping."""
+class OptimConfig(BaseOptim):
+    """AdamW with a warm-up and cosine learning-rate schedule and early stopping
+    (:mod:`plugins.training.optim`, whose defaults are the detectors')."""
 
-    model_config = ConfigDict(extra="forbid")
-    epochs: int = Field(30, ge=1, le=100_000)
-    batch_size: int = Field(8, ge=1, le=4096)
-    lr: float = Field(2e-3, gt=0, le=1)
-    weight_decay: float = Field(1e-4, ge=0, le=1)
-    grad_clip: float = Field(5.0, gt=0, le=1e6, description="gradient-norm clip")
-    patience: int = Field(6, ge=1, le=100_000, description="epochs without a better validation Macro-F1")
     steps_per_epoch: int | None = Field(None, ge=1, description="cap on optimizer steps per epoch")
     warmup_steps: int = Field(50, ge=0, le=1_000_000, description="linear learning-rate warm-up")
 
@@ -153,7 +148,8 @@ class TrainConfig(BaseModel):
     name: str = "train"
     seed: int = Field(0, ge=0, lt=2**63)
     out: str = Field("out/train", description="output directory")
-    export: str | None = Field(None, description="also write the final model to this path")
+    export: str | None = Field(None, description="also write the final model to this path (into the installed "
+                               "package only when the command names it: --export)")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$")
     threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads (None: torch's default)")
     init: str | None = Field(None, description="start from the weights of this checkpoint (same architecture "
@@ -197,3 +193,20 @@ def parse_train_config(table: dict[str, Any], source: str = "<config>") -> Train
 def load_train_config(path: str | Path) -> TrainConfig:
     """Load and validate a training TOML file."""
     return parse_train_config(load_toml(path), str(path))
+
+
+def check_train_config(cfg: TrainConfig, source: str) -> None:
+    """``xnlos check`` beyond parsing: what ``xnlos train`` builds from ``[data.generate]`` before
+    simulating (relative paths from the working directory, as the trainer takes them)."""
+    gen = cfg.data.generate
+    if gen is None:
+        return
+    from xnlos_core.pipeline import load_radar
+    from xnlos_core.registry import get_registry
+    from xnlos_core.scene import load_scene
+
+    source = f"{source}: [data.generate]"
+    radar = load_radar(gen.radar, source, ".")
+    fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
+    if gen.scene is not None:
+        fm.check(load_scene(gen.scene, source, "."), radar)

@@ -1,5 +1,9 @@
-"""Entry point ``xnlos-residual-mirror``: registers the learned-residual mirror reconstructor (residual_mirror)."""
+"""Entry point ``xnlos-residual-mirror``: registers the learned-residual mirror reconstructor
+(residual_mirror) and its trainer (``xnlos train configs/training/residual_mirror.toml``)."""
+from plugins.training.trainers import register
 from xnlos_core import hookimpl
+
+register(("residual_mirror",), "plugins.residual_mirror.train:TRAINER")  # .net.ARCHITECTURE; .net imports torch
 
 
 @hookimpl

@@ -51,7 +51,7 @@ class ResidualMirrorParams(MirrorParams):
 @lru_cache(maxsize=8)
 def _load(path: str, mtime_ns: int):
     from .net import ARCHITECTURE, HParams, ResidualAttention
-    from plugins.detectors.checkpoint import load_checkpoint
+    from plugins.training.checkpoint import load_checkpoint
 
     sd, meta, _ = load_checkpoint(path)
     if meta.get("architecture") != ARCHITECTURE:

@@ -9,13 +9,15 @@ initial weights by a torch generator seeded with ``seed`` inside ``torch.random.
 global RNG state is left untouched). A rerun resumes after the last finished epoch and gives
 the same result as an uninterrupted run.
 
-Files in ``out`` (written atomically): ``run.json`` (config + digest), ``metrics.jsonl`` (one
-record per epoch), ``last.pt`` (weights + optimizer + scheduler + progress + RNG states + metrics
-history + best weights, sealed by one hash; ``metrics.jsonl`` and ``best.pt`` are rebuilt from it
-on resume: :mod:`plugins.detectors.resume`, shared with detector training), ``best.pt`` (lowest
-validation L_geo), ``model.pt`` (+ ``model.json``; the best weights with metadata), copied to
-``export``.
-Checkpoints use :mod:`plugins.detectors.checkpoint` (state_dict + JSON metadata, weights hash,
+This module supplies the residual's network, pairs, loss and validation metric (lowest L_geo) to
+the shared training core (:mod:`plugins.training`), which runs the epochs and writes ``out``
+(atomically): ``run.json`` (config + digests), ``metrics.jsonl`` (one record per epoch),
+``last.pt`` (weights + optimizer + scheduler + progress + RNG states + metrics history + best
+weights, sealed by one hash; ``metrics.jsonl`` and ``best.pt`` are rebuilt from it on resume:
+:mod:`plugins.training.resume`), ``best.pt`` (lowest validation L_geo), ``model.pt`` (+
+``model.json``; the best weights with metadata), copied to ``export`` (into the installed package
+only when the command names it: :func:`plugins.training.run.export_target`).
+Checkpoints use :mod:`plugins.training.checkpoint` (state_dict + JSON metadata, weights hash,
 ``torch.load(weights_only=True)``) with architecture ``residual_mirror``.
 
 TOML::
@@ -46,17 +48,16 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
-import shutil
 import time
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from xnlos_core.config import load_toml, validate_model
-from xnlos_core.io import atomic_write_text
+from plugins.training.optim import OptimConfig
+from plugins.training.trainers import Trainer
+from xnlos_core.config import validate_model
 
 from .data import NoiseConfig
 from .net import ARCHITECTURE, N_POINT, N_QUERY, HParams
@@ -82,15 +83,12 @@ class RMModel(BaseModel):
     support_distance: float = Field(3.0, gt=0, le=100)
 
 
-class RMOptim(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    epochs: int = Field(30, ge=1, le=10_000)
-    batch_size: int = Field(256, ge=1, le=1_000_000)
-    lr: float = Field(3e-3, gt=0, le=1)
-    weight_decay: float = Field(1e-4, ge=0, le=1)
+class RMOptim(OptimConfig):
+    """AdamW with a cosine learning-rate schedule (no warm-up) and early stopping on the validation
+    L_geo (:mod:`plugins.training.optim`), plus the weight of the Laplace NLL in the loss."""
+
+    DEFAULTS: ClassVar[dict[str, Any]] = {"batch_size": 256, "lr": 3e-3, "grad_clip": 1.0, "patience": 8}
     nll_weight: float = Field(0.1, ge=0, le=100, description="weight of the Laplace NLL next to Eq. 9")
-    grad_clip: float = Field(1.0, gt=0)
-    patience: int = Field(8, ge=1, description="early stopping: epochs without a lower validation L_geo")
 
 
 class ResidualTrainConfig(BaseModel):
@@ -108,12 +106,6 @@ class ResidualTrainConfig(BaseModel):
 
     def digest(self) -> str:
         return hashlib.sha256(json.dumps(self.model_dump(mode="json"), sort_keys=True).encode()).hexdigest()
-
-
-def is_residual_config(table: dict) -> bool:
-    """True for a training table whose [model] name is residual_mirror (dispatch in ``xnlos train``)."""
-    model = table.get("model")
-    return isinstance(model, dict) and model.get("name") == ARCHITECTURE
 
 
 def parse_config(table: dict, source: str) -> ResidualTrainConfig:
@@ -159,48 +151,57 @@ def evaluate(net, data: dict, batch_size: int = 4096) -> dict[str, float]:
             "mirror_error_m": float(torch.linalg.norm(data["target"], dim=-1).mean())}
 
 
-def fit(net, train: dict, val: dict | None, optim: RMOptim, seed: int, epochs: int | None = None, state=None,
-        on_epoch=None, progress: bool = False) -> list[dict]:
-    """Train ``net`` in place on :func:`tensors` ``train`` (AdamW, Eq. 9 + nll_weight·NLL); returns the
-    per-epoch records (cosine learning-rate decay over all epochs). ``state`` ({optimizer,
-    scheduler, epoch}) resumes; ``on_epoch(epoch, rec, states)`` is called after each epoch with the
-    optimizer and scheduler state dicts and returns True to stop."""
+def train_epoch(net, train: dict, opt, sched, optim: RMOptim, seed: int, epoch: int, epochs: int,
+                progress: bool = False) -> dict[str, Any]:
+    """One epoch over :func:`tensors` ``train`` in the order of ``default_rng([seed, epoch])``
+    (loss Eq. 9 + nll_weight·NLL); returns its fields of the metrics line."""
     import torch
     from tqdm import tqdm
 
+    from plugins.training.optim import step
+
+    t0 = time.perf_counter()
     n = len(train["target"])
     steps = -(-n // optim.batch_size)
-    total_steps = steps * (epochs or optim.epochs)
-    opt = torch.optim.AdamW(net.parameters(), lr=optim.lr, weight_decay=optim.weight_decay)
-    # cosine decay to 2 % of lr; plain floats so the scheduler state loads with weights_only=True
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda i: 0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(1.0, i / max(1, total_steps)))))
+    net.train()
+    order = torch.from_numpy(np.random.default_rng([seed, epoch]).permutation(n))
+    total = 0.0
+    bar = tqdm(range(steps), desc=f"epoch {epoch}/{epochs}", unit="batch", disable=not progress, leave=False)
+    for b in bar:
+        idx = order[b * optim.batch_size:(b + 1) * optim.batch_size]
+        g, l = step_losses(net, {k: v[idx] for k, v in train.items()})
+        step(g + optim.nll_weight * l, net, opt, sched, optim.grad_clip)
+        total += g.item()
+        bar.set_postfix(l_geo=f"{total / (b + 1):.3f}")
+    bar.close()
+    return {"train_l_geo": total / steps, "train_seconds": time.perf_counter() - t0}
+
+
+def optimizer(net, n_pairs: int, optim: RMOptim, epochs: int | None = None):
+    """(AdamW, cosine schedule over all ``epochs`` of ``n_pairs`` pairs), :mod:`plugins.training.optim`."""
+    from plugins.training.optim import make_optimizer
+
+    return make_optimizer(net, optim, -(-n_pairs // optim.batch_size) * (epochs or optim.epochs))
+
+
+def fit(net, train: dict, val: dict | None, optim: RMOptim, seed: int, epochs: int | None = None, state=None,
+        on_epoch=None, progress: bool = False) -> list[dict]:
+    """Train ``net`` in place on :func:`tensors` ``train`` without a run directory (tests,
+    experiments); returns the per-epoch records. ``state`` ({optimizer, scheduler, epoch}) resumes;
+    ``on_epoch(epoch, rec, states)`` is called after each epoch with the optimizer and scheduler
+    state dicts and returns True to stop. ``xnlos train`` runs the same epochs through
+    :func:`plugins.training.run.train_epochs`."""
+    epochs = epochs or optim.epochs
+    opt, sched = optimizer(net, len(train["target"]), optim, epochs)
     first = 1
     if state is not None:
         opt.load_state_dict(state["optimizer"])
         sched.load_state_dict(state["scheduler"])
         first = state["epoch"] + 1
     history = []
-    for epoch in range(first, (epochs or optim.epochs) + 1):
-        t0 = time.perf_counter()
-        net.train()
-        order = torch.from_numpy(np.random.default_rng([seed, epoch]).permutation(n))
-        total = 0.0
-        bar = tqdm(range(steps), desc=f"epoch {epoch}/{epochs or optim.epochs}", unit="batch", disable=not progress,
-                   leave=False)
-        for b in bar:
-            idx = order[b * optim.batch_size:(b + 1) * optim.batch_size]
-            g, l = step_losses(net, {k: v[idx] for k, v in train.items()})
-            loss = g + optim.nll_weight * l
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(net.parameters(), optim.grad_clip)
-            opt.step()
-            sched.step()
-            total += g.item()
-            bar.set_postfix(l_geo=f"{total / (b + 1):.3f}")
-        bar.close()
-        rec: dict[str, Any] = {"epoch": epoch, "train_l_geo": total / steps, "train_seconds": time.perf_counter() - t0}
+    for epoch in range(first, epochs + 1):
+        rec: dict[str, Any] = {"epoch": epoch, **train_epoch(net, train, opt, sched, optim, seed, epoch, epochs,
+                                                             progress)}
         if val is not None:
             rec["val"] = evaluate(net, val)
         history.append(rec)
@@ -221,21 +222,19 @@ def new_network(hp: HParams, seed: int):
 
 
 def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool = True,
-          source: str = "<config>") -> dict[str, Any]:
-    """Train per ``cfg`` and write the files of the module doc; returns a summary."""
+          source: str = "<config>", named_export: bool = False) -> dict[str, Any]:
+    """Train per ``cfg`` and write the files of the module doc; returns a summary. named_export: the
+    command line named ``cfg.export`` (:func:`plugins.training.run.export_target`)."""
     import torch
-    from tqdm import tqdm
 
-    from plugins.detectors.checkpoint import load_checkpoint, save_checkpoint
-    from plugins.detectors.resume import best_copy, load_resume, save_epoch, start_fresh
-    from plugins.detectors.train import _prepare_out  # same run.json / resume rule as detector training
+    from plugins.training.checkpoint import load_checkpoint
+    from plugins.training.run import Validation, finish, open_run, train_epochs
     from sims.dataset import open_dataset
 
     from .data import build_pairs
     from .reconstructor import ResidualMirrorReconstructor
 
-    out = Path(cfg.out)
-    resume = _prepare_out(out, cfg, overwrite)
+    run = open_run(cfg, overwrite=overwrite, minimise=True)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     recon = ResidualMirrorReconstructor()
@@ -255,84 +254,37 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
                 "manifest_sha256": hashlib.sha256(manifest.read_bytes()).hexdigest() if manifest.is_file() else None}
     train_t, val_t = tensors(sets["train"]), tensors(sets["val"])
     net = new_network(cfg.model.params, cfg.seed)
+    opt, sched = optimizer(net, len(train_t["target"]), cfg.optim)
+    run.restore(net, opt, sched, ARCHITECTURE)  # also restores torch's RNG states
     base_meta = {"architecture": ARCHITECTURE, "hparams": cfg.model.params.model_dump(mode="json"),
                  "neighbours": cfg.model.neighbours, "support_distance": cfg.model.support_distance,
                  "noise": cfg.data.noise.model_dump(), "features": {"version": 1, "query": N_QUERY, "point": N_POINT}}
-    progress_state = {"best": float("inf"), "best_epoch": 0, "bad": 0}
-    state = None
-    history: list[dict[str, Any]] = []
-    best_weights = None
-    if resume:
-        saved = load_resume(out, ARCHITECTURE)  # also restores torch's RNG states
-        net.load_state_dict(saved.state_dict)
-        progress_state = dict(saved.progress["state"])
-        state = {"optimizer": saved.optimizer, "scheduler": saved.scheduler, "epoch": int(saved.progress["epoch"])}
-        history, best_weights = saved.history, saved.best
-    else:
-        start_fresh(out)
 
-    def on_epoch(epoch, rec, states):
-        nonlocal best_weights
+    def validate(epoch: int) -> Validation:
+        v = evaluate(net, val_t)
+        return Validation(v["l_geo"], v)
+
+    def line(rec: dict[str, Any]) -> str:
         v = rec["val"]
-        if v["l_geo"] < progress_state["best"]:
-            progress_state.update(best=v["l_geo"], best_epoch=epoch, bad=0)
-            best_weights = best_copy(net, {**base_meta, "training": {"epoch": epoch, "val": v}})
-            save_checkpoint(out / "best.pt", *best_weights)
-        else:
-            progress_state["bad"] += 1
-        history.append(rec)
-        save_epoch(out, net, {**base_meta, "training": {"epoch": epoch}}, states["optimizer"], states["scheduler"],
-                   {"epoch": epoch, "state": dict(progress_state)}, history, best_weights)
-        if progress:
-            tqdm.write(f"epoch {epoch}: train L_geo {rec['train_l_geo']:.3f} m, val L_geo {v['l_geo']:.3f} m, "
-                       f"NLL {v['nll']:.3f}, error {v['error_m']:.3f} m (mirror {v['mirror_error_m']:.3f} m)")
-        return progress_state["bad"] >= cfg.optim.patience
+        return (f"epoch {rec['epoch']}: train L_geo {rec['train_l_geo']:.3f} m, val L_geo {v['l_geo']:.3f} m, "
+                f"NLL {v['nll']:.3f}, error {v['error_m']:.3f} m (mirror {v['mirror_error_m']:.3f} m)")
 
-    done = state is not None and (state["epoch"] >= cfg.optim.epochs or progress_state["bad"] >= cfg.optim.patience)
-    if not done:
-        fit(net, train_t, val_t, cfg.optim, cfg.seed, state=state, on_epoch=on_epoch, progress=progress)
-    sd, meta, _ = load_checkpoint(out / "best.pt")
+    train_epochs(run, net, opt, sched, base_meta,
+                 lambda e: train_epoch(net, train_t, opt, sched, cfg.optim, cfg.seed, e, cfg.optim.epochs, progress),
+                 validate, line, progress)
+    sd, _, _ = load_checkpoint(run.out / "best.pt")
     net.load_state_dict(sd)
     val = evaluate(net, val_t)
-    epochs = [r for r in history if "train_seconds" in r]
-    training = {"config": cfg.model_dump(mode="json"), "config_sha256": cfg.digest(), "config_file": source,
-                "command": f"xnlos train {source}", "dataset": data_rec, "best_epoch": meta["training"]["epoch"],
-                "epochs_run": len(epochs), "torch": torch.__version__,
-                "seconds_per_epoch": float(np.mean([r["train_seconds"] for r in epochs])) if epochs else None,
-                "metrics": {"val": val}, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-    n_params = sum(p.numel() for p in net.parameters())
-    save_checkpoint(out / "model.pt", net, {**base_meta, "n_parameters": n_params, "training": training})
-    if cfg.export:
-        dest = Path(cfg.export)
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        for src, dst in ((out / "model.pt", dest), (out / "model.json", dest.with_suffix(".json"))):
-            shutil.copyfile(src, dst.with_name(dst.name + ".tmp"))
-            dst.with_name(dst.name + ".tmp").replace(dst)
-    summary = {"out": str(out), "model": str(out / "model.pt"), "export": cfg.export, "val": val,
-               "best_epoch": training["best_epoch"], "epochs_run": len(epochs), "n_parameters": n_params,
-               "seconds_per_epoch": training["seconds_per_epoch"], "dataset": data_rec}
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str) + "\n")
-    return summary
+    return finish(cfg, run, net, base_meta, dataset=data_rec, metrics={"val": val}, source=source,
+                  named_export=named_export, summary={"val": val, "dataset": data_rec})
 
 
-def cli_train(args) -> int:
-    """``xnlos train CONFIG`` for a residual_mirror config (same flags as for detectors; --device is ignored: CPU)."""
-    table = load_toml(args.config)
-    for key, value in (("out", args.out),):
-        if value is not None:
-            table[key] = str(value)
-    if args.epochs is not None:
-        table.setdefault("optim", {})["epochs"] = args.epochs
-    cfg = parse_config(table, str(args.config))
-    s = train(cfg, overwrite=args.overwrite, progress=not args.quiet, source=str(args.config))
-    v = s["val"]
-    print(f"{s['epochs_run']} epoch(s) ({s['seconds_per_epoch'] or 0:.1f} s/epoch), best epoch {s['best_epoch']}: "
-          f"validation L_geo {v['l_geo']:.3f} m, hidden-point error {v['error_m']:.3f} m (analytic mirror "
-          f"{v['mirror_error_m']:.3f} m); wrote {s['model']}" + (f" and {s['export']}" if s.get("export") else ""))
-    return 0
+def report(summary: dict[str, Any]) -> str:
+    """The line ``xnlos train`` prints for a finished residual_mirror run."""
+    v = summary["val"]
+    return (f"{summary['epochs_run']} epoch(s) ({summary['seconds_per_epoch'] or 0:.1f} s/epoch), best epoch "
+            f"{summary['best_epoch']}: validation L_geo {v['l_geo']:.3f} m, hidden-point error {v['error_m']:.3f} m "
+            f"(analytic mirror {v['mirror_error_m']:.3f} m)")
 
 
-def check_config(table: dict, path) -> str:
-    """``xnlos check`` line for a residual_mirror training config (raises ConfigError when invalid)."""
-    cfg = parse_config(table, str(path))
-    return f"{path}: valid training config (model {cfg.model.name}, {cfg.optim.epochs} epochs)"
+TRAINER = Trainer(parse=parse_config, train=train, report=report)

@@ -7,9 +7,11 @@ takes features (B, 4, H, W) with H, W multiples of its ``multiple`` and returns 
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from pydantic import BaseModel
+
+from xnlos_core.errors import InputError
 
 
 class Architecture(NamedTuple):
@@ -33,3 +35,25 @@ def architectures() -> dict[str, Architecture]:
         "further_than_cfar": Architecture(FurtherThanCFAR, FTCParams, "dense"),
         "rtn": Architecture(RTN, RTNParams, "grid"),
     }
+
+
+def build_model(metadata: dict[str, Any], state_dict: dict | None = None, source: str = "checkpoint"):
+    """The network described by ``metadata`` (architecture + hparams), with ``state_dict`` loaded."""
+    archs = architectures()
+    name = metadata.get("architecture")
+    if name not in archs:
+        raise InputError(f"{source}: unknown architecture {name!r}; known: {', '.join(archs)}")
+    arch = archs[name]
+    try:
+        hp = arch.HParams.model_validate(metadata.get("hparams", {}))
+    except ValueError as exc:
+        raise InputError(f"{source}: invalid hyper-parameters for {name!r}: {exc}") from None
+    model = arch.module(hp)
+    if state_dict is not None:
+        try:
+            model.load_state_dict(state_dict, strict=True)
+        except RuntimeError as exc:
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            raise InputError(f"{source}: weights do not fit a {name!r} network with hparams "
+                             f"{hp.model_dump()} ({first})") from None
+    return model

@@ -1,6 +1,6 @@
 """Resume state of a training run: ``last.pt`` holds everything a resumed run needs, sealed by one
-hash, and the run's other files are rebuilt from it. Shared by ``xnlos train`` for detectors
-(:mod:`.train`) and for the residual mirror (:mod:`plugins.residual_mirror.train`).
+hash, and the run's other files are rebuilt from it. Used by the epoch loop (:mod:`.run`) that
+trains every learned component (detectors, residual mirror).
 
 ``last.pt`` is a sealed checkpoint (:mod:`.checkpoint`: a sha256 of the whole file in its header)
 of the weights plus: optimizer and scheduler state dicts, the run's progress (epoch, early-stopping

@@ -1,4 +1,5 @@
-"""Detector checkpoints: a ``state_dict`` plus a JSON metadata record, in one torch file.
+"""Checkpoints of every learned component (detectors, residual mirror): a ``state_dict`` plus a
+JSON metadata record, in one torch file.
 
 File content (``torch.save`` of a plain dict, read back with ``torch.load(weights_only=True)``,
 so no pickled code is ever executed)::
@@ -41,7 +42,7 @@ from torch import nn
 from xnlos_core.errors import InputError
 from xnlos_core.io import atomic_write_bytes, atomic_write_text
 
-FORMAT, VERSION = "xnlos-detector", 1
+FORMAT, VERSION = "xnlos-detector", 1  # the name predates the residual mirror; shipped files carry it
 SEAL = b"xnlos-sealed-checkpoint 1\nsha256 "
 _SEAL_LEN = len(SEAL) + 64 + 1  # the header: SEAL, the hex digest, a newline
 _ZIP_MAGIC = b"PK\x03\x04"
@@ -144,28 +145,3 @@ def load_checkpoint(path: str | Path, architecture: str | None = None,
                          f"{architecture!r} needs a {architecture!r} checkpoint (train one with xnlos train, "
                          f"model.name = {architecture!r})")
     return sd, meta, payload
-
-
-def build_model(metadata: dict[str, Any], state_dict: dict[str, torch.Tensor] | None = None,
-                source: str = "checkpoint") -> nn.Module:
-    """The network described by ``metadata`` (architecture + hparams), with ``state_dict`` loaded."""
-    from .nets import architectures
-
-    archs = architectures()
-    name = metadata.get("architecture")
-    if name not in archs:
-        raise InputError(f"{source}: unknown architecture {name!r}; known: {', '.join(archs)}")
-    arch = archs[name]
-    try:
-        hp = arch.HParams.model_validate(metadata.get("hparams", {}))
-    except ValueError as exc:
-        raise InputError(f"{source}: invalid hyper-parameters for {name!r}: {exc}") from None
-    model = arch.module(hp)
-    if state_dict is not None:
-        try:
-            model.load_state_dict(state_dict, strict=True)
-        except RuntimeError as exc:
-            first = str(exc).splitlines()[0] if str(exc) else ""
-            raise InputError(f"{source}: weights do not fit a {name!r} network with hparams "
-                             f"{hp.model_dump()} ({first})") from None
-    return model
