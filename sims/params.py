@@ -32,7 +32,8 @@ class ForwardParams(BaseModel):
                                           "(image: the path's own power; raytrace: summed over its resolution "
                                           "cell); default: detectable at pd 0.5, pfa 1e-5")
     reflection: Literal["analytic", "fdtd"] = Field(
-        "analytic", description="wall reflection coefficients from the slab formula or the cached FDTD solver")
+        "analytic", description="specular wall reflection coefficient α of material walls: 'analytic' slab "
+                                 "formula or the cached FDTD solver ('fdtd', 5° grid)")
     diffuse: Switch = Field("auto", description="diffuse roughness lobe of material walls (LOS echoes); "
                                                 "auto: on when a material wall or mesh is rough")
     transmission: Switch = Field("auto", description="direct paths through walls of finite thickness, power "

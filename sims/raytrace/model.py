@@ -42,9 +42,12 @@ class RaytraceParams(ForwardParams):
     max_bounces: int = Field(3, ge=0, le=10, description="specular bounces one way (cap; depth adapts)")
     depth_margin_db: float = Field(10.0, ge=0, le=100, description="a ray stops bouncing when the brightest "
                                    "scatterer would fall this far below min_snr_db [dB]")
-    mixed_paths: bool = Field(True, description="out along one chain, back along another")
+    mixed_paths: bool = Field(True, description="add mixed paths: out along one chain, back along another "
+                                               "(bistatic)")
     radar_height: float = Field(0.75, gt=0, le=100, description="antenna height above ground [m]")
-    backend: Literal["auto", "embree", "triangle"] = Field("auto", description="ray-casting backend")
+    backend: Literal["auto", "embree", "triangle"] = Field(
+        "auto", description="ray-casting backend: 'embree' (embreex), 'triangle' (trimesh, numpy + rtree) or "
+                            "'auto' (embree when available)")
     transmission: Literal["off"] = Field("off", description="not modelled by the ray tracer (use 'image')")
 
 
