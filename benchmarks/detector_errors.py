@@ -58,11 +58,10 @@ def multipath_echoes(frame, fm) -> np.ndarray:
         return np.empty((0, 2))
     scene = generate_scene(meta["family"], int(meta["scene_seed"]))
     _, paths, _, _ = fm.trace(scene, frame.ra_map.radar, frame.timestamp)
-    a = paths.arrays()
-    if not len(a.get("length", [])):
+    if not len(paths):
         return np.empty((0, 2))
-    keep = (a["kind"] == 2) & (ra_snr_db(frame.ra_map.radar, a["power"]) > 5.0)
-    return a["pos"][keep]
+    keep = (paths.kind == 2) & (ra_snr_db(frame.ra_map.radar, paths.power) > 5.0)
+    return paths.pos[keep]
 
 
 def errors(det, frames, fm, radius: float) -> dict:

@@ -22,7 +22,8 @@ import time
 
 import numpy as np
 
-from sims.image import COMPONENTS, ImageForwardModel
+from sims.image import ImageForwardModel
+from sims.params import COMPONENTS
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import AtmosphereSpec, ObjectSpec, Scene, WallSpec
 from xnlos_core.signal_chain import noise_floor

@@ -48,6 +48,19 @@ def test_plugins_json_lists_kind_name_provider_params(capsys):
     assert "nlos_cfar" in capsys.readouterr().out
 
 
+def test_every_forward_model_parameter_is_described_and_printed(capsys):
+    from xnlos_core.registry import get_registry
+
+    models = [c for c in get_registry().components() if c.kind == "forward_model" and c.provider.startswith("xnlos ")]
+    assert {"image", "raytrace"} <= {c.name for c in models}
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    for c in models:
+        for pname, info in c.parameters().items():
+            assert info.get("description"), f"forward model {c.name!r}: parameter {pname!r} has no description"
+            assert any(f"- {pname} = " in line and line.endswith(info["description"]) for line in out), pname
+
+
 def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path):
     p = tmp_path / "bad.toml"
     p.write_text(SWEEP.replace('name = "lsq"', 'name = "lsq"\nparams = { cluster_distance = -1 }'))

@@ -148,3 +148,33 @@ def test_material_walls_validate_early():
     brick = Scene(walls=[WallSpec(start=(20.0, 5.0), end=(20.0, -5.0), material="brick")], objects=[_point(10, 0)])
     with pytest.raises(InputError, match="brick"):  # P.2040 brick is valid to 40 GHz only
         CLEAN.simulate(brick, RadarConfig(carrier_frequency=77e9), np.random.default_rng(0))
+
+
+def test_both_amplitude_conventions_render_the_same_frame():
+    """render_paths: paths with real amplitudes √P (image) and with complex amplitudes (raytrace)
+    give the same ADC cube and ground truth, atmosphere and coupling included."""
+    from sims.paths import LOS, MNLOS, PathList
+    from sims.render import render_paths
+
+    scene = _mirror_scene(reflectivity=0.6).model_copy(update={"atmosphere": AtmosphereSpec()})
+    radar = RadarConfig(carrier_frequency=35e9, coupling_db=-20.0)
+    pos = np.array([[10.0, 1.0], [30.0, -2.0]])
+    r, th = cartesian_to_polar(pos)
+    power = received_power(radar, r, th, 10.0)
+    cols = dict(length=2 * r, azimuth=th, power=power, phase=np.array([0.3, 2.0]), kind=np.array([LOS, MNLOS]),
+                order=np.array([0, 1]), pos=pos, hidden=pos, obj=0, centre=np.array([0, 1]))
+    real, cplx = PathList(), PathList()
+    real.add(**cols)
+    cplx.add(**cols, amp=np.sqrt(power).astype(complex))
+    with pytest.raises(ValueError, match="amp"):
+        real.add(**cols, amp=np.sqrt(power))
+    use = {"atmosphere": "on", "coupling": "on"}
+    p = ImageForwardModel.Params(noise=False, min_snr_db=-100.0)
+    out = [render_paths(pl.paths(), scene, radar, np.random.default_rng(0), p, use, forward_model="t", walls=())
+           for pl in (real, cplx)]
+    assert out[0][1].meta["n_paths"] == 2 and len(out[0][1].ground_truth.mnlos_points) == 1
+    np.testing.assert_allclose(out[0][0], out[1][0], rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(out[0][1].ground_truth.los_snr_db, out[1][1].ground_truth.los_snr_db)
+    atm = render_paths(real.paths(), scene, radar, np.random.default_rng(0), p, {**use, "atmosphere": "off"},
+                       forward_model="t", walls=())
+    assert np.all(atm[1].ground_truth.los_snr_db > out[0][1].ground_truth.los_snr_db)  # the loss shows in the SNR

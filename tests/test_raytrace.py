@@ -123,8 +123,7 @@ def test_77ghz_with_5mm_roughness_relays_much_less_than_10ghz():
         scene, radar = _corner(20.0, f_c, roughness=5e-3)
         model = RaytraceForwardModel({"noise": False, "random_phase": False, "min_snr_db": -100.0})
         world, paths, _, _ = model.trace(scene, radar)
-        a = paths.arrays()
-        peak[f_c] = float(a["power"][(a["kind"] == 1) & (a["obj"] >= 0)].sum())  # the car via the relay
+        peak[f_c] = float(paths.power[(paths.kind == 1) & (paths.obj >= 0)].sum())  # the car via the relay
     assert peak[10e9] > 0 and peak[77e9] < 1e-3 * peak[10e9]
 
 

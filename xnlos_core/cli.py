@@ -108,7 +108,8 @@ def _cmd_plugins(args) -> int:
         print(f"{r['kind']:<16} {r['name']:<18} {r['provider']:<24} {r['description']}")
         for pname, info in r["parameters"].items():
             extra = ", ".join(f"{k} {v}" for k, v in info.items() if k in ("gt", "ge", "lt", "le"))
-            print(f"{'':<18}- {pname} = {info['default']!r}" + (f"  ({extra})" if extra else ""))
+            print(f"{'':<18}- {pname} = {info['default']!r}" + (f"  ({extra})" if extra else "")
+                  + (f"  {info['description']}" if info.get("description") else ""))
     return 0
 
 

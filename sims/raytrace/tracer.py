@@ -25,62 +25,19 @@ h_r, and a wall hit stands for the wall's whole vertical extent (as in the image
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from xnlos_core.antenna import element_gain, transmit_gain
 from xnlos_core.radar import RadarConfig
 from sims import walls as wall_em
+from sims.paths import PathList
 from sims.propagation import ra_snr_db, received_power
 
 from .world import World, reflect_points
 
 START = 1e-4  # [m] a leg leaving a reflection point is cast from this far along it (not from the surface)
-
-
-@dataclass
-class Paths:
-    """Rendered paths: one entry per propagation path.
-
-    length (P,): unfolded ROUND-TRIP length [m]; azimuth (P,): arrival azimuth [rad];
-    amp (P,): complex amplitude [√W] excluding the scatterer's random phase; power (P,) [W];
-    kind (P,): 0 LOS (wall strip or object seen directly), 1 mNLOS (object or wall strip seen via
-    one mirror: Eq. 7 maps its virtual point back), 2 other multipath (two or more mirrors, mixed
-    out/back legs); order (P,): bounces one way; pos (P, 2): ground-truth BEV position (LOS point
-    or virtual point o'); hidden (P, 2): o; obj (P,): object index ≥ 0, or −1 − s for a strip of
-    static surface s (World.surfaces); centre (P,): scattering-centre index within the object
-    (phase key), −1 for wall strips.
-    """
-
-    length: list = field(default_factory=list)
-    azimuth: list = field(default_factory=list)
-    amp: list = field(default_factory=list)
-    power: list = field(default_factory=list)
-    kind: list = field(default_factory=list)
-    order: list = field(default_factory=list)
-    pos: list = field(default_factory=list)
-    hidden: list = field(default_factory=list)
-    obj: list = field(default_factory=list)
-    centre: list = field(default_factory=list)
-
-    def add(self, **cols):
-        n = len(np.atleast_1d(cols["length"]))
-        for k in ("length", "azimuth", "amp", "power", "kind", "order", "obj", "centre"):
-            v = np.asarray(cols[k])
-            getattr(self, k).append(np.broadcast_to(v, (n,)) if v.ndim == 0 else v)
-        for k in ("pos", "hidden"):
-            getattr(self, k).append(np.asarray(cols[k], dtype=np.float64).reshape(n, 2))
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        out = {}
-        for k in ("length", "azimuth", "amp", "power", "kind", "order", "obj", "centre", "pos", "hidden"):
-            parts = getattr(self, k)
-            if parts:
-                out[k] = np.concatenate(parts)
-            else:
-                out[k] = np.zeros((0, 2)) if k in ("pos", "hidden") else np.zeros(0)
-        return out
 
 
 @dataclass
@@ -102,7 +59,7 @@ def _angle(d: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndarray, *, az_step: float,
           max_bounces: int, snr_floor_db: float, sigma_bound: float, reflection: str, diffuse: bool,
-          paths: Paths, keep_segments: bool = False) -> Trace:
+          paths: PathList, keep_segments: bool = False) -> Trace:
     """Step 1–2 of the module doc. Appends diffuse strip paths to ``paths``; returns the Trace.
 
     heights (n_surfaces,): vertical extent [m] each static surface stands for.

@@ -1,0 +1,75 @@
+"""Parameters every radar forward model shares, and which optional components a scene needs.
+
+:class:`ForwardParams` is the base of ``image``'s and ``raytrace``'s ``Params``: receiver noise,
+speckle, the ground-truth SNR threshold, wall reflection and the optional components, each
+"auto", "on" or "off" (:func:`components_needed` decides "auto"; a frame's
+``meta["components"]`` says what was used and why).
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from xnlos_core.radar import RadarConfig
+
+from .atmosphere import attenuation_db
+from .propagation import DETECTABLE_SNR_DB
+
+Switch = Literal["auto", "on", "off"]
+COMPONENTS = ("diffuse", "transmission", "atmosphere", "coupling")
+
+
+class ForwardParams(BaseModel):
+    """Shared forward-model parameters (each documented here once)."""
+
+    model_config = ConfigDict(extra="forbid")
+    noise: bool = Field(True, description="add receiver thermal noise (radar.noise_power [W] per ADC sample)")
+    random_phase: bool = Field(True, description="uniform random phase [rad] per scatterer, wall cell and wall "
+                                                 "strip (speckle); off: every phase 0")
+    min_snr_db: float = Field(DETECTABLE_SNR_DB, ge=-100, le=200,
+                              description="ground truth lists a path only where its RA-map SNR reaches this [dB] "
+                                          "(image: the path's own power; raytrace: summed over its resolution "
+                                          "cell); default: detectable at pd 0.5, pfa 1e-5")
+    reflection: Literal["analytic", "fdtd"] = Field(
+        "analytic", description="specular wall reflection coefficient α of material walls: 'analytic' slab "
+                                 "formula or the cached FDTD solver ('fdtd', 5° grid)")
+    diffuse: Switch = Field("auto", description="diffuse roughness lobe of material walls (LOS echoes); "
+                                                "auto: on when a material wall or mesh is rough")
+    transmission: Switch = Field("auto", description="direct paths through walls of finite thickness, power "
+                                                     "×|T|⁴ per crossed wall; auto: on when the scene has objects "
+                                                     "and a finite-thickness material wall")
+    atmosphere: Switch = Field("auto", description="ITU-R P.676 gaseous loss over each round trip; auto: on when "
+                                                   "the scene declares an atmosphere whose loss over 2·max_range "
+                                                   "reaches tolerance_db")
+    coupling: Switch = Field("auto", description="the radar's mutual-coupling matrix mixes the channels; auto: on "
+                                                 "when the radar has one")
+    tolerance_db: float = Field(0.1, ge=0, le=60, description="'auto' leaves out a loss term whose largest "
+                                                              "effect stays below this [dB]")
+
+
+def components_needed(p: ForwardParams, scene, radar: RadarConfig) -> dict[str, str]:
+    """Decide the optional components (module doc) from switches ``p`` (fields named as
+    COMPONENTS, each "auto"/"on"/"off", and tolerance_db): name → "on" or "off: reason"."""
+    mat = [w for w in scene.walls if w.material is not None]
+    need = {
+        "diffuse": (any(w.roughness > 0 for w in mat)
+                    or any(m.roughness > 0 and (m.material or m.materials) for m in scene.meshes),
+                    "no rough material wall"),
+        "transmission": (bool(scene.objects) and any(w.thickness is not None for w in mat),
+                         "no object and finite-thickness material wall"),
+        "coupling": (radar.has_coupling, "radar has no coupling matrix"),
+    }
+    if scene.atmosphere is None:
+        need["atmosphere"] = (False, "scene declares no atmosphere")
+    else:
+        worst = float(attenuation_db(radar.carrier_frequency, 2 * radar.max_range, **scene.atmosphere.model_dump()))
+        need["atmosphere"] = (worst >= p.tolerance_db,
+                              f"≤ {worst:.3g} dB over the longest round trip < tolerance {p.tolerance_db} dB")
+    out = {}
+    for name in COMPONENTS:
+        switch = getattr(p, name)
+        on, why = need[name]
+        out[name] = "on" if switch == "on" or (switch == "auto" and on) else (
+            "off: switched off" if switch == "off" else f"off: {why}")
+    return out

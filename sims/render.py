@@ -1,0 +1,105 @@
+"""The one render path of the radar forward models: propagation paths → ADC cube and Frame.
+
+Given the paths a forward model found (:class:`sims.paths.Paths`), :func:`render_paths`
+
+1. applies the ITU-R P.676 gaseous loss over each round trip when the ``atmosphere`` component is on;
+2. forms each path's complex amplitude √P·e^{j(arg α + φ)} with the scatterer's random phase φ;
+3. dechirps every path with positive power into the ADC cube (:func:`xnlos_core.signal_chain.dechirp`),
+   through the radar's coupling matrix only when the ``coupling`` component is on;
+4. adds receiver noise (``noise``), forms the RA map (coupling compensated as the radar says);
+5. lists as ground truth the LOS and mNLOS paths inside the field of view and range whose RA-map
+   SNR reaches ``min_snr_db`` (other multipath is clutter, not ground truth).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from xnlos_core.metrics import resolution_cell
+from xnlos_core.radar import RadarConfig
+from xnlos_core.signal_chain import add_noise, dechirp, ra_map_from_cube
+from xnlos_core.types import Frame, GroundTruth
+
+from .atmosphere import attenuation_db
+from .params import ForwardParams
+from .paths import LOS, MNLOS, Paths
+from .propagation import ra_snr_db
+
+
+def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generator, params: ForwardParams,
+                 use: dict[str, str], *, forward_model: str, walls: Sequence, timestamp: float = 0.0,
+                 index: int = 0, cell_snr: bool = False, surface_names: Sequence[str] = (),
+                 describe: Callable[[np.ndarray], dict] | None = None) -> tuple[np.ndarray, Frame]:
+    """Render ``paths`` of ``scene`` (steps 1–5 of the module doc) into (ADC cube, Frame).
+
+    rng: draws the receiver noise only (the models draw their random phases before). use: the
+    components in use, name → "on" or "off: why" (:func:`sims.params.components_needed`).
+    walls: the WallSegments the ground truth lists. cell_snr: the ground-truth SNR of a path is
+    that of the power of its kind and object summed over its resolution cell (:func:`cell_power`)
+    instead of its own. surface_names: names of the static surfaces s of strips with obj = −1 − s
+    (an mNLOS strip is owned by ``"wall:<name>"``). describe: extra frame meta from the (P,) mask of
+    rendered paths. Returns the noisy ADC cube (n_samples, n_channels) [√W] and the Frame at
+    ``timestamp`` [s] with its RA map, ground truth and meta.
+    """
+    power, amp = paths.power, paths.amp
+    if amp is not None:
+        amp = amp * np.exp(1j * paths.phase)
+    if use["atmosphere"] == "on" and len(power):
+        conditions = scene.atmosphere.model_dump() if scene.atmosphere is not None else {}
+        att = 10 ** (-attenuation_db(radar.carrier_frequency, paths.length, **conditions) / 10)
+        power = power * att
+        if amp is not None:
+            amp = amp * np.sqrt(att)
+    live = power > 0  # paths behind the array have zero element gain
+    amp = np.sqrt(power[live]) * np.exp(1j * paths.phase[live]) if amp is None else amp[live]
+
+    radar_syn = radar
+    if use["coupling"] != "on" and radar.has_coupling:
+        radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
+    cube = dechirp(radar_syn, paths.length[live], paths.azimuth[live], amp)
+    if params.noise:
+        cube = add_noise(cube, radar_syn, rng)
+    ra = ra_map_from_cube(cube, radar)
+
+    snr = ra_snr_db(radar, cell_power(radar, paths, power) if cell_snr else power)
+    seen = (live & (snr >= params.min_snr_db) & (np.abs(paths.azimuth) <= radar.field_of_view)
+            & (paths.length / 2 <= radar.max_range))
+    los, mn = seen & (paths.kind == LOS), seen & (paths.kind == MNLOS)
+    names, owner = mnlos_owners([o.name for o in scene.objects], surface_names, paths.obj[mn])
+    gt = GroundTruth(los_points=paths.pos[los], mnlos_points=paths.pos[mn], hidden_points=paths.hidden[mn],
+                     mnlos_object=owner, object_names=names, walls=walls,
+                     los_snr_db=snr[los], mnlos_snr_db=snr[mn])
+    meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (paths.kind == LOS)).sum()),
+            "n_mnlos_paths": int((live & (paths.kind == MNLOS)).sum()), "forward_model": forward_model,
+            **(describe(live) if describe is not None else {}), "components": use}
+    return cube, Frame(ra, timestamp=float(timestamp), ground_truth=gt, index=int(index), meta=meta)
+
+
+def mnlos_owners(object_names: Sequence[str], surface_names: Sequence[str],
+                 obj: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """(object_names, (M,) owner index) for mNLOS paths of ``obj`` (object index ≥ 0, or −1 − s for a
+    strip of surface s): the scene's objects, then ``"wall:<surface>"`` for each surface seen in a mirror."""
+    names = list(object_names)
+    surfaces = np.unique(-1 - obj[obj < 0])
+    owner = obj.copy()
+    for k, s in enumerate(surfaces):
+        owner[obj == -1 - s] = len(names) + k
+    names += [f"wall:{surface_names[s]}" for s in surfaces]
+    return tuple(names), owner
+
+
+def cell_power(radar: RadarConfig, paths: Paths, power: np.ndarray) -> np.ndarray:
+    """(P,) power [W] summed over the paths of the same kind and object that fall into the same
+    resolution cell (c/2B in range, the −3 dB beamwidth in azimuth,
+    :func:`xnlos_core.metrics.resolution_cell`): the expected power a detector sees of that
+    object there (random phases add in power)."""
+    if len(power) == 0:
+        return power
+    dr, da = resolution_cell(radar)
+    rb = np.floor(paths.length / 2 / dr).astype(np.int64)
+    ab = np.floor(paths.azimuth / da).astype(np.int64)
+    key = np.column_stack([paths.kind, paths.obj, rb, ab])
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    return np.bincount(inv, weights=power)[inv]
