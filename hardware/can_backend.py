@@ -47,6 +47,7 @@ from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
 from .assembler import FrameAssembler, LinkStats, LostFrame
+from .emulator import RadarEmulator
 from .frame_queue import FrameQueue
 from .link import BusSpec, CanLink
 from .protocol import (FORMAT_NAMES, Command, DeviceState, ErrorCode, LinkError, PayloadSpec, Protocol, code_name,
@@ -198,8 +199,6 @@ class CANBackend(Backend):
     def _start_emulator(self, radar: RadarConfig) -> None:
         from xnlos_core.registry import get_registry
         from xnlos_core.scene import load_scene
-
-        from .emulator import RadarEmulator
 
         spec = self.params.emulator
         fm = get_registry().create("forward_model", spec.forward_model, spec.params, source="can backend emulator")
@@ -422,8 +421,7 @@ class CANBackend(Backend):
         between two frames never counts against a frame's transfer. Frames queued but not taken
         when the generator is closed are the first of the next call.
         """
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"CANBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         if self._link is None:
             raise InputError("CANBackend.frames: call open(radar) first (the radar must be configured)")
         self._stop_worker()

@@ -111,8 +111,7 @@ class ReplayBackend(Backend):
 
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         """Yield up to ``max_frames`` frames (None: all) in sequence order."""
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"ReplayBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         if self.radar is None:
             raise InputError("ReplayBackend.frames: call open(radar) first (the radar frames are decoded with)")
         if max_frames == 0:
