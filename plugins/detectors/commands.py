@@ -70,7 +70,10 @@ def _check_generate(gen, source: str) -> None:
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 
+    from .data import scene_generators
+
     radar = load_radar(gen.radar, source, ".")
     fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
     if gen.scene is not None:
         fm.check(load_scene(gen.scene, source, "."), radar)
+    scene_generators(gen, source)
