@@ -346,11 +346,11 @@ class CANBackend(Backend):
             return None
         kind, detail = a, b
         st.count(kind)
+        if kind == "protocol":
+            self._protocol_problem = str(detail)
         if kind == "transfer_error":
             log.debug("%s: ISO-TP: %s", self._where(), detail)
         elif kind in ("e2e", "protocol"):
-            if kind == "protocol":
-                self._protocol_problem = str(detail)
             log.warning("%s: %s", self._where(), detail)
         elif kind == "unknown_id":
             if detail not in self._unknown_logged and len(self._unknown_logged) < 64:
