@@ -61,8 +61,7 @@ def run_setting(name: str, kind: str, params: dict, frames) -> dict:
     est = get_registry().create("wall_estimator", kind, params, source=f"wall_frontier {name}")
     rec = MirrorReconstructor()
     n_warn = 0
-    if hasattr(est, "warm_up"):  # casadi builds its Functions once per problem size, not per frame
-        est.warm_up(max(len(f.detections) for f in frames))
+    est.warm_up(max(len(f.detections) for f in frames))  # casadi builds its Functions once per problem size
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         evaluate(est, rec, frames[0])  # warm-up of everything else

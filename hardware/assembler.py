@@ -29,7 +29,7 @@ from typing import Any
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
-from .protocol import SEQ_PREFIX, PayloadFormat, PayloadSpec, decode_payload, payload_crc32
+from .protocol import SEQ_PREFIX, DeviceState, PayloadFormat, PayloadSpec, decode_payload, payload_crc32
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,13 @@ class LostFrame:
     kind: str  # "dropped" | "incomplete" | "corrupted"
     reason: str
     time: float = 0.0
+
+
+# The LinkStats counter of each receive event (the kinds of CanLink's on_event): one table, so a
+# replayed log counts what the live run counted.
+EVENT_COUNTERS = {"error_frame": "error_frames", "unknown_id": "unknown_ids", "other_sensor": "other_sensor",
+                  "e2e": "e2e_errors", "protocol": "e2e_errors", "transfer_error": "transfer_errors",
+                  "bus_error": "bus_errors"}
 
 
 @dataclass
@@ -106,6 +113,11 @@ class LinkStats:
         d["overrun_seqs"] = list(self.overrun_seqs)
         d["frames_lost"] = self.frames_lost
         return d
+
+    def count(self, event: str) -> None:
+        """Count one receive event (a :data:`EVENT_COUNTERS` kind) on its counter."""
+        name = EVENT_COUNTERS[event]
+        setattr(self, name, getattr(self, name) + 1)
 
     def summary(self) -> str:
         """One line: ok / delivered / overrun / dropped / incomplete / corrupted / late / duplicate, plus
@@ -370,3 +382,19 @@ class FrameAssembler:
                 self._resolved.popitem(last=False)
             self._ready.append(out)
             self.lo += 1
+
+
+def on_radar_message(asm: "FrameAssembler | None", stats: LinkStats, name: str, signals: dict, t: float) -> None:
+    """Apply one decoded message of the radar (``name`` FrameHeader, RadarState or RadarError, its
+    ``signals``, arrival time ``t`` [s]) to the assembler and the counters — the receive dispatch
+    the live ``can`` backend and ``replay`` share. ``asm`` None: the payload format is not known yet
+    (a log's first RadarState), so only the counters change. Other names are ignored."""
+    if name == "FrameHeader":
+        asm.on_header(signals, t)
+    elif name == "RadarState":
+        if asm is not None:
+            asm.known_sent(signals["NextSeq"], t)
+        if signals["State"] == DeviceState.ERROR:
+            stats.device_errors += 1
+    elif name == "RadarError":
+        stats.device_errors += 1

@@ -46,9 +46,10 @@ from xnlos_core.interfaces import Backend
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
-from .assembler import FrameAssembler, LinkStats, LostFrame
+from .assembler import FrameAssembler, LinkStats, LostFrame, on_radar_message
+from .emulator import RadarEmulator
 from .frame_queue import FrameQueue
-from .link import BusSpec, CanLink
+from .link import BusSpec, CanLink, stop_quietly
 from .protocol import (FORMAT_NAMES, Command, DeviceState, ErrorCode, LinkError, PayloadSpec, Protocol, code_name,
                        config_signals, radar_hash)
 
@@ -181,11 +182,8 @@ class CANBackend(Backend):
         """Stop streaming, release the bus, stop the emulator and recorder; safe to call twice."""
         self._stop_worker()
         if self._link is not None:
-            if self._streaming and self._link.is_open:
-                try:
-                    self._send_ctrl(Command.STOP)
-                except Exception as exc:  # best effort on the way out
-                    log.debug("stop on close: %s", exc)
+            if self._streaming and self._link.is_open:  # best effort on the way out
+                stop_quietly(lambda: self._send_ctrl(Command.STOP), "stop on close", log)
             self._drop_link()
         self._streaming = False
         if self.emulator is not None:
@@ -198,8 +196,6 @@ class CANBackend(Backend):
     def _start_emulator(self, radar: RadarConfig) -> None:
         from xnlos_core.registry import get_registry
         from xnlos_core.scene import load_scene
-
-        from .emulator import RadarEmulator
 
         spec = self.params.emulator
         fm = get_registry().create("forward_model", spec.forward_model, spec.params, source="can backend emulator")
@@ -336,46 +332,31 @@ class CANBackend(Backend):
             asm.on_item(a, t)
             return None
         if what == "signal":
-            if a == "FrameHeader":
+            if a == "FrameHeader" or (a == "RadarState" and (asm.sent_upto is None or b["NextSeq"] > asm.sent_upto)):
                 self._last_progress = t
-                asm.on_header(b, t)
-            elif a == "RadarState":
-                if asm.sent_upto is None or b["NextSeq"] > asm.sent_upto:
-                    self._last_progress = t
-                asm.known_sent(b["NextSeq"], t)
-                if b["State"] == DeviceState.ERROR:
-                    st.device_errors += 1
+            on_radar_message(asm, st, a, b, t)
+            if a == "RadarState":
                 if self._streaming and b["State"] != DeviceState.STREAMING:
                     self._streaming = False
                     asm.cancel(t)
                 return b
-            elif a == "RadarError":
-                st.device_errors += 1
+            if a == "RadarError":
                 log.warning("%s reports error %s (frame %d)", self._where(), code_name(ErrorCode, b["ErrorCode"]),
                             b["Seq"])
             return None
         kind, detail = a, b
-        if kind == "transfer_error":
-            st.transfer_errors += 1
-            log.debug("%s: ISO-TP: %s", self._where(), detail)
-        elif kind == "e2e":
-            st.e2e_errors += 1
-            log.warning("%s: %s", self._where(), detail)
-        elif kind == "protocol":
-            st.e2e_errors += 1
+        st.count(kind)
+        if kind == "protocol":
             self._protocol_problem = str(detail)
+        if kind == "transfer_error":
+            log.debug("%s: ISO-TP: %s", self._where(), detail)
+        elif kind in ("e2e", "protocol"):
             log.warning("%s: %s", self._where(), detail)
         elif kind == "unknown_id":
-            st.unknown_ids += 1
             if detail not in self._unknown_logged and len(self._unknown_logged) < 64:
                 self._unknown_logged.add(detail)
                 log.warning("%s: ignoring CAN identifier 0x%03X, not in the protocol", self._where(), detail)
-        elif kind == "other_sensor":
-            st.other_sensor += 1
-        elif kind == "error_frame":
-            st.error_frames += 1
         elif kind == "bus_error":
-            st.bus_errors += 1
             self._need_reconnect = f"bus error: {type(detail).__name__}: {detail}"
         return None
 
@@ -422,8 +403,7 @@ class CANBackend(Backend):
         between two frames never counts against a frame's transfer. Frames queued but not taken
         when the generator is closed are the first of the next call.
         """
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"CANBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         if self._link is None:
             raise InputError("CANBackend.frames: call open(radar) first (the radar must be configured)")
         self._stop_worker()

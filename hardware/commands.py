@@ -26,7 +26,7 @@ def add_commands(subparsers) -> None:
 
 
 def cmd_emulate(args: argparse.Namespace) -> int:
-    from .emulator import run_emulate
+    from .emulate import run_emulate
 
     summary = run_emulate(interface=args.interface, channel=args.channel, sensor_id=args.sensor_id,
                           config=args.config, frames=args.frames, duration=args.duration, record=args.record,

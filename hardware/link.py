@@ -54,6 +54,15 @@ def _close_all() -> None:
 atexit.register(_close_all)
 
 
+def stop_quietly(step: Callable[[], Any], what: str, logger: logging.Logger) -> None:
+    """Run one teardown ``step``; what it raises is logged at DEBUG on ``logger`` as ``what``, not
+    raised: a close must release everything else however this step fails."""
+    try:
+        step()
+    except Exception as exc:
+        logger.debug("%s: %s", what, exc)
+
+
 def track(obj) -> None:
     """Register an open link or a running emulator for shutdown at interpreter exit."""
     _LIVE.add(obj)
@@ -194,22 +203,13 @@ class CanLink:
             self._pump.join(timeout=1.0)
             self._pump = None
         if self.stack is not None:
-            try:
-                self.stack.stop()
-            except Exception as exc:  # teardown must go on
-                log.debug("isotp stack stop: %s", exc)
+            stop_quietly(self.stack.stop, "isotp stack stop", log)
             self.stack = None
         if self.notifier is not None:
-            try:
-                self.notifier.stop(timeout=1.0)
-            except Exception as exc:
-                log.debug("notifier stop: %s", exc)
+            stop_quietly(lambda: self.notifier.stop(timeout=1.0), "notifier stop", log)
             self.notifier = None
         if self.bus is not None:
-            try:
-                self.bus.shutdown()
-            except Exception as exc:
-                log.debug("bus shutdown: %s", exc)
+            stop_quietly(self.bus.shutdown, "bus shutdown", log)
             self.bus = None
 
     @property

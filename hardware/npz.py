@@ -38,8 +38,7 @@ class NPZBackend(Backend):
 
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         """Yield up to ``max_frames`` frames (all when None) in file-name order."""
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"NPZBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         files = self.files()
         if max_frames is not None:
             files = files[:max_frames]

@@ -28,8 +28,8 @@ from xnlos_core.interfaces import Backend
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
-from .assembler import FrameAssembler, LinkStats, LostFrame
-from .link import _SIGNIFICANT, isotp_params
+from .assembler import FrameAssembler, LinkStats, LostFrame, on_radar_message
+from .link import _SIGNIFICANT, isotp_params, stop_quietly
 from .protocol import (FORMAT_NAMES, DeviceState, E2EError, PayloadFormat, PayloadSpec, Protocol, ProtocolError,
                        radar_hash)
 
@@ -111,8 +111,7 @@ class ReplayBackend(Backend):
 
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         """Yield up to ``max_frames`` frames (None: all) in sequence order."""
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"ReplayBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         if self.radar is None:
             raise InputError("ReplayBackend.frames: call open(radar) first (the radar frames are decoded with)")
         if max_frames == 0:
@@ -153,7 +152,7 @@ class _Session:
 
     def _isotp_error(self, exc):
         if isinstance(exc, _SIGNIFICANT):
-            self.stats.transfer_errors += 1
+            self.stats.count("transfer_error")
 
     def _messages(self):
         try:
@@ -213,7 +212,7 @@ class _Session:
     def _handle(self, msg: can.Message) -> None:
         st = self.stats
         if msg.is_error_frame:
-            st.error_frames += 1
+            st.count("error_frame")
             return
         kind = self.protocol.classify(msg.arbitration_id, msg.is_extended_id)
         if kind == "data":
@@ -227,38 +226,26 @@ class _Session:
             return
         if kind == "flow":
             return
-        if kind == "other_sensor":
-            st.other_sensor += 1
-            return
-        if kind == "unknown":
-            st.unknown_ids += 1
+        if kind in ("other_sensor", "unknown"):
+            st.count("other_sensor" if kind == "other_sensor" else "unknown_id")
             return
         try:
             name, sig = self.protocol.decode(msg)
         except E2EError:
-            st.e2e_errors += 1
+            st.count("e2e")
             return
         except ProtocolError as exc:
-            st.e2e_errors += 1
+            st.count("protocol")
             log.warning("replay: %s: %s", self.path, exc)
             return
         if name in ("RadarState", "RadarError", "FrameHeader"):
             st.messages += 1
-        if name == "RadarState":
-            if sig["State"] in (DeviceState.CONFIGURED, DeviceState.STREAMING):
-                self._check_config(sig)
-                if self.fmt is None:
-                    self._set_format(sig["PayloadFormat"])
-            if sig["State"] == DeviceState.ERROR:
-                st.device_errors += 1
-            if self.asm is not None:
-                self.asm.known_sent(sig["NextSeq"], self.now)
-        elif name == "RadarError":
-            st.device_errors += 1
-        elif name == "FrameHeader":
-            if self.fmt is None:
-                self._set_format(sig["PayloadFormat"])
-            self.asm.on_header(sig, self.now)
+        configured = name == "RadarState" and sig["State"] in (DeviceState.CONFIGURED, DeviceState.STREAMING)
+        if configured:
+            self._check_config(sig)
+        if self.fmt is None and (configured or name == "FrameHeader"):  # the first to announce the format sets it
+            self._set_format(sig["PayloadFormat"])
+        on_radar_message(self.asm, st, name, sig, self.now)
 
     def _item(self, item: bytes) -> None:
         if self.asm is None:
@@ -278,8 +265,5 @@ class _Session:
 
     def close(self) -> None:
         if self.reader is not None:
-            try:
-                self.reader.stop()
-            except Exception as exc:
-                log.debug("reader stop: %s", exc)
+            stop_quietly(self.reader.stop, "reader stop", log)
             self.reader = None

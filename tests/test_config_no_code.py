@@ -178,6 +178,19 @@ def test_a_plugin_adds_a_family_and_the_builtins_are_components():
     assert built.generate(4) == generate_scene("crossroads", 4, hidden_distance=[20, 30])
 
 
+def test_training_families_are_registered_scene_generators():
+    """[data.generate] families of a training config name scene_generator components, as a dataset's do."""
+    from plugins.detectors.data import scene_generators
+    from plugins.detectors.train_config import GenerateConfig
+    from sims.generators import generate_scene
+
+    gens = scene_generators(GenerateConfig(families=["crossroads", "t_junction"]))
+    assert gens[1].generate(4) == generate_scene("t_junction", 4)
+    with pytest.raises(ConfigError, match=r"train.toml: \[families\] unknown scene_generator 'mars'; registered "
+                                          r"scene_generators: .*crossroads"):
+        scene_generators(GenerateConfig(families=["mars"]), "train.toml")
+
+
 def test_only_scene_generators_register_as_scene_generators():
     class NotOne:
         @hookimpl

@@ -2,10 +2,11 @@
 import numpy as np
 import pytest
 
-from xnlos_core import Detector, Detections
+from xnlos_core import Backend, Detector, Detections, InputError
 from xnlos_core.io import save_frame
 from xnlos_core.registry import get_registry
-from xnlos_core.testing import check_component, check_detector, synthetic_frame
+from xnlos_core.testing import check_backend, check_component, check_detector, small_radar, synthetic_frame
+from xnlos_core.types import Frame, RAMap
 
 REG = get_registry()
 CASES = [(c.kind, c.name) for c in REG.components() if c.provider.startswith("xnlos ")]
@@ -63,3 +64,36 @@ def test_kit_catches_a_broken_detector():
 def test_synthetic_frame_is_seeded():
     a, b = synthetic_frame(seed=4), synthetic_frame(seed=4)
     assert np.array_equal(a.ra_map.data, b.ra_map.data)
+
+
+class _ListBackend(Backend):
+    """Yields the frames it was given (after the base class's max_frames check)."""
+
+    def __init__(self, frames):
+        super().__init__()
+        self._frames = frames
+
+    def frames(self, max_frames=None):
+        self.check_max_frames(max_frames)
+        yield from self._frames[:max_frames]
+
+
+def test_kit_demands_a_frame_of_the_radars_grid_from_a_backend():
+    check_backend(_ListBackend([synthetic_frame(seed=0), synthetic_frame(seed=1)]))
+    with pytest.raises(AssertionError, match="yielded no frame"):
+        check_backend(_ListBackend([]))
+    radar = small_radar()  # 241 × 61 grid
+    wrong = RAMap(np.zeros((radar.n_range_bins, 3), np.complex64), radar.range_axis, np.linspace(-0.1, 0.1, 3), radar)
+    with pytest.raises(AssertionError, match=r"RA map shape \(241, 3\) ≠ its radar's grid \(241, 61\)"):
+        check_backend(_ListBackend([Frame(wrong)]))
+
+
+def test_kit_demands_the_max_frames_check():
+    class Unchecked(_ListBackend):
+        def frames(self, max_frames=None):
+            yield from self._frames[:1]
+
+    with pytest.raises(AssertionError, match=r"frames\(-1\) did not raise InputError"):
+        check_backend(Unchecked([synthetic_frame()]))
+    with pytest.raises(InputError, match=r"_ListBackend.frames: max_frames must be None or an integer ≥ 0, got 1.5"):
+        list(_ListBackend([]).frames(1.5))

@@ -117,7 +117,7 @@ def test_dataset_backend_round_trips_frames_and_ground_truth(tiny_dataset):
     want = list(open_dataset(tiny_dataset, "test"))
     b = get_registry().create("backend", "dataset", {"path": str(tiny_dataset), "split": "test"})
     got = list(b.frames())
-    assert len(b) == len(got) == len(want) == 4
+    assert b.n_frames == len(got) == len(want) == 4
     for f, g in zip(got, want):
         assert f.index == g.index and f.meta["family"] == g.meta["family"]
         assert np.array_equal(f.ra_map.data, g.ra_map.data)
@@ -125,7 +125,7 @@ def test_dataset_backend_round_trips_frames_and_ground_truth(tiny_dataset):
             assert np.array_equal(getattr(f.ground_truth, a), getattr(g.ground_truth, a)), a
     part = get_registry().create("backend", "dataset", {"path": str(tiny_dataset), "split": "test", "start": 1,
                                                         "limit": 2})
-    assert [f.index for f in part.frames()] == [g.index for g in want[1:3]] and len(part) == 2
+    assert [f.index for f in part.frames()] == [g.index for g in want[1:3]] and part.n_frames == 2
     assert [f.index for f in part.frames(1)] == [want[1].index]
     assert len(list(get_registry().create("backend", "dataset", {"path": str(tiny_dataset), "split": "all"})
                     .frames())) == 8

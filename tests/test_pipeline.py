@@ -6,6 +6,7 @@ import pytest
 
 from xnlos_core.cli import DEMO_CONFIG
 from xnlos_core.config import load_pipeline, parse_pipeline
+from xnlos_core.interfaces import STAGE_KINDS
 from xnlos_core.io import read_jsonl, save_frame
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import get_registry
@@ -51,7 +52,7 @@ def _params_for(kind, name, tmp_path):
     return {}
 
 
-@pytest.mark.parametrize("kind", ["forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker"])
+@pytest.mark.parametrize("kind", STAGE_KINDS)
 def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path):
     """For each kind, every registered name replaces the current one by changing `name` only."""
     names = get_registry().names(kind)

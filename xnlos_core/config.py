@@ -41,8 +41,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from .errors import ConfigError
-
-STAGE_KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker")
+from .interfaces import STAGE_KINDS
 
 
 MAX_DEPTH = 32  # nested tables/arrays; the shipped configs use ≤ 4

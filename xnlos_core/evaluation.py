@@ -199,16 +199,10 @@ def _progress(total, initial, enabled, desc):
     return tqdm(total=total, initial=initial, disable=not enabled, desc=desc, unit="map")
 
 
-def _heatmaps(detector, frame):
-    """The detector's (2, H, W) LOS / mNLOS confidence maps when it has them (learned detectors), else None."""
-    fn = getattr(detector, "heatmap", None)
-    return fn(frame) if callable(fn) else None
-
-
 def _figure(pipe, res, path: Path, title: str) -> None:
     from .frame_figure import plot_frame_panels
 
-    plot_frame_panels(res, path, heatmaps=_heatmaps(pipe.stages["detector"], res.frame), title=title,
+    plot_frame_panels(res, path, heatmaps=pipe.stages["detector"].heatmap(res.frame), title=title,
                       detector=pipe.config.detector.name)
 
 
@@ -236,7 +230,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
                                    "state_sha256": state, "config": cfg.model_dump(mode="json"),
                                    "provenance": pipe.provenance()})
     backend = pipe.stages["backend"]
-    total = len(backend) if hasattr(backend, "__len__") else None
+    total = backend.n_frames
     have = {r["position"] for r in done}
     records = list(done)
     bar = _progress(total, len(have), progress, f"eval {cfg.name}")

@@ -4,7 +4,13 @@ stores the validated parameters (scikit-learn style) and the stage method does t
 Six kinds are pipeline stages; the seventh, ``scene_generator``, draws the random scenes a
 dataset is rendered from (a dataset config names them in ``families``). Any registered plugin of
 a kind can replace any other of that kind by a one-line config change, and a config can name
-nothing else: no module, no function.
+nothing else: no module, no function. :data:`BASES` (kind → interface) is the one list of kinds.
+
+Each interface declares everything its callers use. Optional capabilities have a default that
+says "not available": :attr:`Backend.n_frames` (None), :meth:`Detector.heatmap` (None),
+:meth:`ForwardModel.simulate_adc` (PluginError; :attr:`ForwardModel.supports_adc` asks first),
+:meth:`WallEstimator.warm_up` (builds nothing). Input checks every implementation needs live
+here once (:meth:`Backend.check_max_frames`, :meth:`Detector.check_frame`).
 """
 from __future__ import annotations
 
@@ -15,13 +21,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from .errors import InputError, PluginError
 from .radar import RadarConfig
 from .types import Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
 if TYPE_CHECKING:
     from .scene import Scene
-
-KINDS = ("forward_model", "backend", "detector", "wall_estimator", "reconstructor", "tracker", "scene_generator")
 
 
 class NoParams(BaseModel):
@@ -34,6 +39,8 @@ class Plugin:
     """Common base: stores a validated ``Params`` instance as ``self.params``."""
 
     Params: ClassVar[type[BaseModel]] = NoParams
+    kind: ClassVar[str]  # the registry kind; each interface below sets it, and :data:`BASES` is keyed by it
+    stage: ClassVar[bool] = True  # a pipeline stage (a config table of that name); False: a dataset's helper
 
     def __init__(self, params: BaseModel | dict[str, Any] | None = None):
         if params is None:
@@ -82,6 +89,20 @@ class ForwardModel(Plugin, abc.ABC):
         scene and radar at t = 0, without simulating; cheap. ``xnlos check`` and every run call it
         through :meth:`xnlos_core.pipeline.Pipeline.validate`. The default accepts everything."""
 
+    def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
+                     index: int = 0) -> tuple[np.ndarray, Frame]:
+        """Optional: (ADC cube, Frame) of ``scene`` at ``timestamp`` [s]: the noisy ADC cube
+        (n_samples, n_channels) [√W] the RA map is formed from, and the Frame :meth:`simulate`
+        returns. The radar emulator's ADC payloads need it (:attr:`supports_adc`). The default
+        raises :class:`xnlos_core.errors.PluginError`: the model renders RA maps only."""
+        raise PluginError(f"{type(self).__name__}.simulate_adc: this forward model renders RA maps only, no "
+                          "ADC cube; ADC payloads need a model that overrides simulate_adc (image, raytrace)")
+
+    @property
+    def supports_adc(self) -> bool:
+        """True when the model overrides :meth:`simulate_adc` (renders ADC cubes)."""
+        return type(self).simulate_adc is not ForwardModel.simulate_adc
+
 
 class Backend(Plugin, abc.ABC):
     """A source of measured frames (hardware, a recording). Used as a context manager."""
@@ -96,7 +117,20 @@ class Backend(Plugin, abc.ABC):
 
     @abc.abstractmethod
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
-        """Yield complete frames in order; never yields a partial or corrupted frame."""
+        """Yield complete frames in order; never yields a partial or corrupted frame. Call
+        :meth:`check_max_frames` first."""
+
+    @property
+    def n_frames(self) -> int | None:
+        """How many frames :meth:`frames` yields without a limit, or None when unknown (a live
+        sensor, the default); progress bars use it."""
+        return None
+
+    def check_max_frames(self, max_frames: int | None) -> None:
+        """InputError unless ``max_frames`` is None or an integer ≥ 0 (every :meth:`frames` checks it)."""
+        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
+            raise InputError(f"{type(self).__name__}.frames: max_frames must be None or an integer ≥ 0, "
+                             f"got {max_frames!r}")
 
     def __enter__(self):
         return self
@@ -112,7 +146,19 @@ class Detector(Plugin, abc.ABC):
 
     @abc.abstractmethod
     def detect(self, frame: Frame) -> Detections:
-        """Find peaks in ``frame.ra_map``; an empty map region gives empty Detections, not an error."""
+        """Find peaks in ``frame.ra_map``; an empty map region gives empty Detections, not an error.
+        Call :meth:`check_frame` first."""
+
+    def heatmap(self, frame: Frame) -> np.ndarray | None:
+        """Optional: LOS and mNLOS confidence maps in [0, 1], float32 of shape (2, H, W) (learned
+        detectors; H × W the RA map's grid or the network head's), drawn in the per-frame figure.
+        The default, None, means the detector has none."""
+        return None
+
+    def check_frame(self, frame: Frame) -> None:
+        """InputError unless ``frame`` is a :class:`xnlos_core.types.Frame` (every :meth:`detect` checks it)."""
+        if not isinstance(frame, Frame):
+            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
 
 
 class WallEstimator(Plugin, abc.ABC):
@@ -123,6 +169,12 @@ class WallEstimator(Plugin, abc.ABC):
     @abc.abstractmethod
     def estimate(self, detections: Detections) -> list[WallPosterior]:
         """Fit walls to the LOS detections. Raises InsufficientDataError with < 2 LOS points."""
+
+    def warm_up(self, max_points: int = 64) -> int:
+        """Optional: build once what :meth:`estimate` would otherwise build on first use, for up to
+        ``max_points`` LOS detections (casadi Functions per problem size), so that timings measure
+        the solve alone; returns how many were built. The default builds nothing: 0."""
+        return 0
 
 
 class Reconstructor(Plugin, abc.ABC):
@@ -156,6 +208,7 @@ class SceneGenerator(Plugin, abc.ABC):
     """
 
     kind: ClassVar[str] = "scene_generator"
+    stage: ClassVar[bool] = False
 
     @abc.abstractmethod
     def generate(self, seed: int) -> "Scene":
@@ -164,12 +217,9 @@ class SceneGenerator(Plugin, abc.ABC):
         process. Raises :class:`xnlos_core.errors.InputError` when no valid scene can be drawn."""
 
 
-BASES: dict[str, type[Plugin]] = {
-    "forward_model": ForwardModel,
-    "backend": Backend,
-    "detector": Detector,
-    "wall_estimator": WallEstimator,
-    "reconstructor": Reconstructor,
-    "tracker": Tracker,
-    "scene_generator": SceneGenerator,
-}
+# The one list of kinds, in the order ``xnlos plugins`` lists them: the registry, the config's
+# stage tables, the conformance kit and the tests all derive from it.
+BASES: dict[str, type[Plugin]] = {base.kind: base for base in (
+    ForwardModel, Backend, Detector, WallEstimator, Reconstructor, Tracker, SceneGenerator)}
+KINDS: tuple[str, ...] = tuple(BASES)
+STAGE_KINDS: tuple[str, ...] = tuple(kind for kind, base in BASES.items() if base.stage)

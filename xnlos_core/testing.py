@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, InsufficientDataError
+from .errors import ConfigError, InputError, InsufficientDataError
 from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
 from .interfaces import (BASES, Backend, Detector, ForwardModel, Reconstructor, SceneGenerator, Tracker,
                          WallEstimator)
@@ -185,16 +185,30 @@ def check_forward_model(model: ForwardModel, scene=None, radar: RadarConfig | No
 
 
 def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
-    """Yields at most max_frames Frames in time order; close() is idempotent."""
+    """Yields at least one and at most max_frames Frames in time order, each RA map on the grid
+    of the radar it carries (n_range_bins × n_azimuth_bins; complex64, as RAMap guarantees): a live
+    backend's is ``radar``, a recording's the one it was made with. Refuses a negative max_frames
+    with InputError; close() is idempotent."""
     _assert(isinstance(backend, Backend), backend, "is not a xnlos_core.Backend")
     with backend:
         backend.open(radar or RadarConfig())
         frames = list(backend.frames(2))
     backend.close()
+    _assert(len(frames) >= 1, backend, "frames(2) yielded no frame")
     _assert(len(frames) <= 2 and all(isinstance(f, Frame) for f in frames), backend,
             "frames(2) must yield at most 2 Frame objects")
+    for f in frames:
+        grid = (f.ra_map.radar.n_range_bins, f.ra_map.radar.n_azimuth_bins)
+        _assert(f.ra_map.shape == grid, backend, f"frame {f.index}: RA map shape {f.ra_map.shape} ≠ its radar's "
+                f"grid {grid} (n_range_bins × n_azimuth_bins)")
     ts = [f.timestamp for f in frames]
     _assert(ts == sorted(ts), backend, "frames out of time order")
+    try:
+        list(backend.frames(-1))
+    except InputError:
+        pass
+    else:
+        raise AssertionError(f"{type(backend).__name__}: frames(-1) did not raise InputError")
 
 
 def check_tracker(tracker: Tracker) -> None:
@@ -239,9 +253,8 @@ def _same_state(a, b) -> bool:
     return a[0] == b[0] and np.array_equal(a[1], b[1]) and tuple(a[2:]) == tuple(b[2:])
 
 
-CHECKS = {"detector": check_detector, "wall_estimator": check_wall_estimator,
-          "reconstructor": check_reconstructor, "forward_model": check_forward_model,
-          "backend": check_backend, "tracker": check_tracker, "scene_generator": check_scene_generator}
+# kind → its check, named check_<kind> after the kinds of xnlos_core.interfaces.BASES.
+CHECKS = {kind: globals()[f"check_{kind}"] for kind in BASES}
 
 
 def check_component(kind: str, name: str, params: dict | None = None, registry=None) -> None:

@@ -56,15 +56,15 @@ class DatasetBackend(Backend):
         except DatasetError as exc:
             raise InputError(f"DatasetBackend (params.path {str(path)!r}, split {p.split!r}): {exc}") from None
 
-    def __len__(self) -> int:
+    @property
+    def n_frames(self) -> int:
         """Number of maps this backend yields (after ``start`` and ``limit``)."""
         n = max(len(self.dataset()) - self.params.start, 0)
         return n if self.params.limit is None else min(n, self.params.limit)
 
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         """Yield up to ``max_frames`` (all when None) of the selected maps in dataset order."""
-        if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):
-            raise InputError(f"DatasetBackend.frames: max_frames must be None or an integer ≥ 0, got {max_frames!r}")
+        self.check_max_frames(max_frames)
         ds = self.dataset()
         p = self.params
         stop = len(ds) if p.limit is None else min(len(ds), p.start + p.limit)

@@ -10,7 +10,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.errors import ConfigError
 from xnlos_core.interfaces import Detector
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Detections, Frame
@@ -60,7 +60,6 @@ class CFARDetector(Detector):
 
     def detect(self, frame: Frame) -> Detections:
         """Detections of ``frame.ra_map`` ordered by descending power (empty map → empty)."""
-        if not isinstance(frame, Frame):
-            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
+        self.check_frame(frame)
         p = self.params
         return cfar_peaks(frame.ra_map, p.pfa, tuple(p.guard_cells), tuple(p.train_cells), p.min_range)

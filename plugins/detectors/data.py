@@ -62,6 +62,19 @@ def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool) 
     return MapSet(np.stack(feats), peaks, maps, truths)
 
 
+def scene_generators(gen: GenerateConfig, source: str = "data.generate") -> list:
+    """The registered ``scene_generator`` components named in ``gen.families`` (default parameters),
+    in order; ConfigError naming ``source``, the key and the registered names for an unknown one."""
+    from xnlos_core.errors import PluginError
+    from xnlos_core.registry import get_registry
+
+    reg = get_registry()
+    try:
+        return [reg.create("scene_generator", f, source=f"{source}.families") for f in gen.families or ()]
+    except PluginError as exc:
+        raise ConfigError(f"{source}: [families] {exc}") from None
+
+
 def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
     from xnlos_core.pipeline import load_radar
     from xnlos_core.registry import get_registry
@@ -73,15 +86,13 @@ def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
     fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params,
                                source="data.generate.forward_model")
     fixed = load_scene(gen.scene, "data.generate.scene", base_dir) if gen.scene is not None else None
+    families = scene_generators(gen)
     seeds = np.random.SeedSequence([seed, index]).spawn(n)
     for k in range(n):
         if fixed is not None:
             scene = fixed
         else:
-            from sims.generators import generate_scene
-
-            family = gen.families[k % len(gen.families)]
-            scene = generate_scene(family, int(seeds[k].generate_state(1, np.uint32)[0]))
+            scene = families[k % len(families)].generate(int(seeds[k].generate_state(1, np.uint32)[0]))
         yield fm.simulate(scene, radar, np.random.default_rng(seeds[k]), index=k)
 
 

@@ -214,8 +214,7 @@ class LearnedDetector(Detector):
         with ``tta = "flip"`` the flip-averaged logits. :meth:`decode` turns it into detections."""
         from .features import ra_features
 
-        if not isinstance(frame, Frame):
-            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
+        self.check_frame(frame)
         self._load()
         feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
                             name=f"frame {frame.index}: RAMap.data")

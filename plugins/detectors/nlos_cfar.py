@@ -91,8 +91,7 @@ class NLOSCFARDetector(Detector):
 
     def detect(self, frame: Frame) -> Detections:
         """CFAR detections of ``frame`` with labels LOS / MNLOS (order: descending power)."""
-        if not isinstance(frame, Frame):
-            raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
+        self.check_frame(frame)
         cfar = CFARDetector(CFARParams(**self.params.model_dump(include=set(CFARParams.model_fields))))
         det = cfar.detect(frame)
         if len(det) == 0:  # nothing to classify: no walls needed (an empty map never errors)

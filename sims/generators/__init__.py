@@ -29,12 +29,12 @@ from pydantic import ValidationError
 from xnlos_core.errors import InputError
 from xnlos_core.scene import Scene
 
-from . import corner_split, crossroads, curved_wall, parking_lot, residential_street, t_junction
 from .common import Generator, generate
+from .components import COMPONENTS
 from .params import KINDS, BaseParams
 
-FAMILIES: dict[str, Generator] = {m.GENERATOR.name: m.GENERATOR for m in (
-    crossroads, t_junction, parking_lot, residential_street, curved_wall, corner_split)}
+# name → Generator of each registered family: the components are the one table of families.
+FAMILIES: dict[str, Generator] = {name: component.GENERATOR for name, component in COMPONENTS.items()}
 
 __all__ = ["FAMILIES", "KINDS", "BaseParams", "Generator", "family_params", "generate_scene", "validate_params"]
 

@@ -20,9 +20,17 @@ from .common import Generator, generate
 
 
 class FamilyGenerator(SceneGenerator):
-    """A family of :mod:`sims.generators` (its ``GENERATOR``) as a scene generator component."""
+    """A family of :mod:`sims.generators` (its ``GENERATOR``) as a scene generator component.
+
+    A subclass names its family once, ``class Crossroads(FamilyGenerator, family=crossroads.GENERATOR)``;
+    its ``Params`` and docstring (``xnlos plugins``' description) are the family's.
+    """
 
     GENERATOR: ClassVar[Generator]
+
+    def __init_subclass__(cls, family: Generator, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.GENERATOR, cls.Params, cls.__doc__ = family, family.Params, family.description
 
     def generate(self, seed: int) -> Scene:
         """The family's scene for ``seed`` (≥ 0) with these parameters (see ``generate_scene``)."""
@@ -31,40 +39,12 @@ class FamilyGenerator(SceneGenerator):
         return generate(self.GENERATOR, int(seed), self.params)
 
 
-class Crossroads(FamilyGenerator):
-    __doc__ = crossroads.GENERATOR.description
-    GENERATOR = crossroads.GENERATOR
-    Params = crossroads.GENERATOR.Params
-
-
-class TJunction(FamilyGenerator):
-    __doc__ = t_junction.GENERATOR.description
-    GENERATOR = t_junction.GENERATOR
-    Params = t_junction.GENERATOR.Params
-
-
-class ParkingLot(FamilyGenerator):
-    __doc__ = parking_lot.GENERATOR.description
-    GENERATOR = parking_lot.GENERATOR
-    Params = parking_lot.GENERATOR.Params
-
-
-class ResidentialStreet(FamilyGenerator):
-    __doc__ = residential_street.GENERATOR.description
-    GENERATOR = residential_street.GENERATOR
-    Params = residential_street.GENERATOR.Params
-
-
-class CurvedWall(FamilyGenerator):
-    __doc__ = curved_wall.GENERATOR.description
-    GENERATOR = curved_wall.GENERATOR
-    Params = curved_wall.GENERATOR.Params
-
-
-class CornerSplit(FamilyGenerator):
-    __doc__ = corner_split.GENERATOR.description
-    GENERATOR = corner_split.GENERATOR
-    Params = corner_split.GENERATOR.Params
+class Crossroads(FamilyGenerator, family=crossroads.GENERATOR): pass
+class TJunction(FamilyGenerator, family=t_junction.GENERATOR): pass
+class ParkingLot(FamilyGenerator, family=parking_lot.GENERATOR): pass
+class ResidentialStreet(FamilyGenerator, family=residential_street.GENERATOR): pass
+class CurvedWall(FamilyGenerator, family=curved_wall.GENERATOR): pass
+class CornerSplit(FamilyGenerator, family=corner_split.GENERATOR): pass
 
 
 COMPONENTS: dict[str, type[FamilyGenerator]] = {c.GENERATOR.name: c for c in (
