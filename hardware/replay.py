@@ -146,6 +146,8 @@ class _Session:
         self.checked_config = not p.check_config
         self.reader = None
         self.now = 0.0
+        if self.fmt is not None:  # the format is given: assemble from the first message on
+            self._set_format(self.fmt)
 
     def _rxfn(self, timeout):
         return self.rx.popleft() if self.rx else None

@@ -210,3 +210,6 @@ def check_train_config(cfg: TrainConfig, source: str) -> None:
     fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
     if gen.scene is not None:
         fm.check(load_scene(gen.scene, source, "."), radar)
+    from .data import scene_generators
+
+    scene_generators(gen, source)
