@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from estimators.calibration import wall_point
 from estimators.likelihood import LikelihoodConfig, WallLikelihood
 from estimators.map_solver import hessian
-from estimators.wall_models import mirror, nearest_points, ray_hits, signed_distance
+from xnlos_core.wall import mirror, nearest_points, ray_hits, signed_distance
 from xnlos_core import InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
 

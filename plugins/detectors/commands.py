@@ -66,7 +66,7 @@ def check_config(table: dict, path: Path) -> str | None:
 def _check_generate(gen, source: str) -> None:
     """What ``xnlos train`` builds from ``[data.generate]`` before simulating (relative paths from the
     working directory, as the trainer takes them)."""
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 

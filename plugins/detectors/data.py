@@ -63,7 +63,7 @@ def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool) 
 
 
 def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 
