@@ -1,1 +1,1 @@
-"""Backend plugin: the maps of an `xnlos simulate` dataset split, with ground truth, as frames."""
+"""Empty: see :mod:`plugins.dataset_backend.plugin` (delete after reinstalling the project)."""

@@ -1,9 +1,3 @@
-"""Entry point ``xnlos-dataset-backend``: registers the ``dataset`` backend (a dataset split as frames)."""
-from xnlos_core import hookimpl
-
-
-@hookimpl
-def xnlos_register_components(registry):
-    from .backend import DatasetBackend
-
-    registry.add("backend", "dataset", DatasetBackend)
+"""Registers nothing: the ``dataset`` backend moved to :mod:`sims.dataset.backend` (registered by
+:mod:`sims.plugin`). Kept only while an installed environment still lists the entry point
+``xnlos-dataset-backend``; delete this package once the project is reinstalled."""
