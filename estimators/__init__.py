@@ -1,1 +1,1 @@
-"""Relay-wall estimators and motion trackers."""
+"""Relay-wall estimators (one module each) and motion trackers (:mod:`estimators.trackers`)."""

@@ -12,7 +12,7 @@ is clutter uniform over a depth ``outlier_width`` in front of the wall, the rest
 band of that width on both sides — and observed alike (``clutter_depth`` overrides the clutter's
 depth range, e.g. (0.5, 3) m for clutter hugging the wall, a misspecified case); virtual points
 o' 2–12 m behind the wall along rays that cross it, detected with the same errors, and their
-true hidden points o = R_θ(o') (:func:`estimators.wall_models.mirror`).
+true hidden points o = R_θ(o') (:func:`xnlos_core.wall.mirror`).
 
 Coverage: the Mahalanobis distance m² = (o − μ)ᵀ Σ⁻¹ (o − μ) of each true hidden point from its
 reconstruction is χ²(2)-distributed under a calibrated Gaussian posterior, so the fraction with
@@ -32,9 +32,8 @@ from xnlos_core.errors import InputError
 from xnlos_core.geometry import cartesian_to_polar
 from xnlos_core.metrics import chamfer_distance
 from xnlos_core.types import LOS, MNLOS, Detections, WallPosterior
-
-from .propagate import propagate
-from .wall_models import mirror, nearest_points
+from xnlos_core.wall import mirror, nearest_points
+from xnlos_core.wall_propagation import propagate
 
 LEVELS = (0.5, 0.9)
 

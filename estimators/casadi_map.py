@@ -19,7 +19,7 @@ from xnlos_core.types import Detections, WallPosterior
 
 from .map_solver import student_t_cov
 from .robust import RobustWallParams, estimate_walls, fit_cluster, posterior_from_fit, warm_up
-from .wall_models import MODEL_PARAMS
+from xnlos_core.wall import MODEL_PARAMS
 
 
 class CasadiMapParams(RobustWallParams):

@@ -5,7 +5,7 @@ is a point w_i of the wall plus a detection error e_i ~ N(0, Σ_i), with Σ_i th
 Cartesian covariance of its (range, azimuth) errors (Detections.position_cov: σ_r² along the ray,
 (r·σ_θ)² across it — the azimuth error dominates beyond a few metres). The along-wall position of
 w_i is unknown; integrating it out (flat along the wall) leaves the signed distance δ_i(θ) of x_i
-to the wall (:mod:`estimators.wall_models`), Gaussian with the variance of Σ_i projected on the
+to the wall (:mod:`xnlos_core.wall`), Gaussian with the variance of Σ_i projected on the
 local wall normal n_i, scaled by a noise factor s (the detector's stated errors may be off) plus
 the wall's own roughness ρ (its surface departs from the model):
 
@@ -34,14 +34,32 @@ s fixed and ρ = 0 this is the exact Gaussian line fit.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from types import SimpleNamespace
 
 import numpy as np
 
 from xnlos_core.errors import InputError, InsufficientDataError
-
-from .wall_models import NP, check_model, local_geometry
+from xnlos_core.wall import NP, check_model, local_geometry
 
 LOG_2PI = float(np.log(2 * np.pi))
+
+
+@lru_cache(maxsize=1)
+def casadi_ops() -> SimpleNamespace:
+    """The ``ops`` namespace of :func:`xnlos_core.wall.local_geometry` for symbolic casadi
+    expressions (casadi imported on first use)."""
+    import casadi as ca
+
+    def logaddexp(a, b):  # shifted by the max: exact value and derivatives on either branch
+        m = ca.fmax(a, b)
+        return m + ca.log(ca.exp(a - m) + ca.exp(b - m))
+
+    def ndtr(z):
+        return 0.5 * (1 + ca.erf(z / np.sqrt(2.0)))
+
+    return SimpleNamespace(cos=ca.cos, sin=ca.sin, sqrt=ca.sqrt, log=ca.log, exp=ca.exp,
+                           logaddexp=logaddexp, sum=ca.sum1, ndtr=ndtr)
 
 
 @dataclass(frozen=True)

@@ -43,8 +43,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .likelihood import LOG_2PI, WallLikelihood, log_prior, point_terms
-from .wall_models import casadi_ops
+from .likelihood import LOG_2PI, WallLikelihood, casadi_ops, log_prior, point_terms
 
 IPOPT_OK = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 _LOCK = threading.Lock()

@@ -8,7 +8,7 @@ def xnlos_register_components(registry):
     from .casadi_map import CasadiMapWallEstimator
     from .emcee_wall import EmceeWallEstimator
     from .lsq import LSQWallEstimator
-    from .nearest import NearestTracker
+    from .trackers.nearest import NearestTracker
 
     registry.add("wall_estimator", "lsq", LSQWallEstimator)
     registry.add("wall_estimator", "casadi_map", CasadiMapWallEstimator)

@@ -26,12 +26,12 @@ from pydantic import Field, field_validator
 
 from xnlos_core.errors import InsufficientDataError
 from xnlos_core.types import Detections, WallPosterior
+from xnlos_core.wall import MODEL_PARAMS, canonical, nearest_points
 
 from .likelihood import LikelihoodConfig, WallLikelihood, param_names
 from .lsq import ClusterParams, fit_line, los_clusters
 from .map_solver import MapFit, solve_map
 from .selection import select_model
-from .wall_models import MODEL_PARAMS, nearest_points
 
 MAX_PAIRS = 1000
 
@@ -214,29 +214,6 @@ def extent_of(model: str, theta_wall: np.ndarray, points: np.ndarray, anchor,
     u = np.array([-np.sin(theta_wall[0]), np.cos(theta_wall[0])])
     t = near @ u
     return near[[int(np.argmin(t)), int(np.argmax(t))]]
-
-
-def canonical(theta: np.ndarray, cov: np.ndarray | None, samples: np.ndarray | None
-              ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """Flip (φ, b[, κ]) together so that b ≥ 0 (WallPosterior's convention), φ in (−π, π],
-    samples' φ unwrapped next to the mean's. Returns (theta, cov, samples)."""
-    theta = np.array(theta, dtype=np.float64)
-    sign = np.ones(len(theta))
-    if theta[1] < 0:
-        sign[1:] = -1.0
-        theta = theta * sign
-        theta[0] += np.pi
-        if cov is not None:
-            cov = cov * np.outer(sign, sign)
-        if samples is not None:
-            samples = samples * sign
-            samples[:, 0] += np.pi
-    wrapped = float(np.angle(np.exp(1j * theta[0])))
-    if samples is not None:
-        samples = samples.copy()
-        samples[:, 0] = wrapped + np.angle(np.exp(1j * (samples[:, 0] - theta[0])))
-    theta[0] = wrapped
-    return theta, cov, samples
 
 
 def posterior_from_fit(fit: ClusterFit, estimator: str, mean=None, cov=None, samples=None,

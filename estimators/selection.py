@@ -7,7 +7,7 @@ Criteria (larger is better, both in nats so one margin serves both):
   parameter, so a flat facade stays a line unless its points demand curvature.
 * ``bic``: −BIC/2 = log p(x | θ̂) − (k/2) log N, k parameters (log s included), N points.
 
-The simplest model (line first, :data:`estimators.wall_models.MODEL_ORDER`) is kept unless a
+The simplest model (line first, :data:`xnlos_core.wall.MODEL_ORDER`) is kept unless a
 more complex one beats the current choice by more than ``margin`` nats (default 1: a Bayes
 factor above e ≈ 2.7, "positive" evidence); a model whose MAP failed to converge is not eligible
 (and is reported as such).
@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 
 from .map_solver import MapFit
-from .wall_models import MODEL_ORDER
+from xnlos_core.wall import MODEL_ORDER
 
 
 def criterion(fit: MapFit, n_points: int, kind: Literal["evidence", "bic"]) -> float:

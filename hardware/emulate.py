@@ -24,7 +24,7 @@ def emulator_from_config(config: str | Path | None, bus: BusSpec, *, sensor_id: 
     run.frame_interval; the forward model is [forward_model], or a ``can`` backend's
     ``params.emulator.forward_model``, or ``image``. None: default radar, corner scene, image."""
     from xnlos_core.config import load_pipeline
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 

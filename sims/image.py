@@ -80,7 +80,9 @@ class ImageForwardModel(ForwardModel):
         return components_needed(self.params, scene, radar)
 
     def check(self, scene, radar: RadarConfig) -> None:
-        """InputError for a scene with meshes (the image method models walls and objects only)."""
+        """InputError for a scene with meshes (the image method models walls and objects only) or a
+        wall of unknown material."""
+        wall_em.check_materials(scene)
         if scene.meshes:
             raise InputError(f"image forward model: scene {scene.name!r} has {len(scene.meshes)} mesh(es); the "
                              "image method handles walls and objects only (use the 'raytrace' forward model)")

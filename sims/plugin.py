@@ -1,10 +1,11 @@
-"""Registers the built-in forward models and scene generators (entry point ``xnlos-sims`` of group
-``xnlos.plugins``)."""
+"""Registers the built-in forward models, scene generators and the ``dataset`` backend (entry point
+``xnlos-sims`` of group ``xnlos.plugins``)."""
 from xnlos_core import hookimpl
 
 
 @hookimpl
 def xnlos_register_components(registry):
+    from .dataset.backend import DatasetBackend
     from .generators.components import COMPONENTS
     from .image import ImageForwardModel
     from .raytrace.model import RaytraceForwardModel
@@ -13,6 +14,7 @@ def xnlos_register_components(registry):
     registry.add("forward_model", "raytrace", RaytraceForwardModel)
     for name, component in COMPONENTS.items():
         registry.add("scene_generator", name, component)
+    registry.add("backend", "dataset", DatasetBackend)
 
 
 @hookimpl

@@ -18,10 +18,23 @@ from __future__ import annotations
 
 import numpy as np
 
+from xnlos_core.errors import InputError
 from xnlos_core.radar import RadarConfig
 
 from . import fdtd, fresnel, roughness
 from .materials import get_material
+
+
+def check_materials(scene) -> None:
+    """InputError naming the wall whose ``material`` is not a Table 3 name (with a did-you-mean);
+    the forward models' ``check`` calls it, so ``xnlos check`` refuses the scene."""
+    for i, wall in enumerate(scene.walls):
+        if wall.material is None:
+            continue
+        try:
+            get_material(wall.material)
+        except InputError as exc:
+            raise InputError(f"scene {scene.name!r}, walls[{i}] ({wall.name!r}): {exc}") from None
 
 
 def _pol(radar: RadarConfig) -> str:

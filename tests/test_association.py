@@ -5,7 +5,7 @@ import logging
 import numpy as np
 import pytest
 
-from estimators.wall_models import mirror
+from xnlos_core.wall import mirror
 from plugins.mirror.association import anchor_points, crossing_parameters, wall_support
 from plugins.mirror.mirror import MirrorReconstructor
 from plugins.residual_mirror.features import build_inputs, reflection_frames

@@ -202,8 +202,8 @@ def test_detect_requires_frame():
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
     ("estimators.plugin", "tracker", ["nearest"]),
     ("hardware.plugin", "backend", ["can", "npz", "replay"]),
-    ("plugins.dataset_backend.plugin", "backend", ["dataset"]),
     ("sims.plugin", "forward_model", ["image", "raytrace"]),
+    ("sims.plugin", "backend", ["dataset"]),
 ])
 def test_plugin_modules_register(module, kind, names):
     pm = PluginManager(autoload=False)

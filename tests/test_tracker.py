@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from estimators.nearest import NearestTracker, cluster_centroids
+from estimators.trackers.nearest import NearestTracker, cluster_centroids
 from xnlos_core import HiddenPoints, InputError
 
 

@@ -8,9 +8,9 @@ from hypothesis import strategies as st
 from estimators.calibration import wall_point
 from estimators.likelihood import LikelihoodConfig, WallLikelihood
 from estimators.map_solver import hessian
-from estimators.wall_models import mirror, nearest_points, ray_hits, signed_distance
 from xnlos_core import InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
+from xnlos_core.wall import canonical, flip_normal, mirror, nearest_points, ray_hits, signed_distance
 
 
 def _arc(phi, b, kappa, anchor):
@@ -114,3 +114,23 @@ def test_arc_posterior_is_canonical_and_keeps_the_wall():
         WallPosterior.arc([1.0, 0.0], 5.0, 0.0, anchor=[1.0, 2.0, 3.0])
     line = WallPosterior.line([1.0, 0.0], -5.0)
     assert line.curvature == 0.0 and np.allclose(line.tangent_point, [5.0, 0.0])
+
+
+@pytest.mark.parametrize("model, theta", [("line", [0.3, -12.0]), ("arc", [2.9, -15.0, 0.02])])
+def test_the_flipped_normal_is_the_same_wall_and_canonical_undoes_it(model, theta):
+    anchor = np.array([10.0, 4.0])
+    pts = np.array([[20.0, 5.0], [30.0, -8.0], [25.0, 1.0]])
+    cov = np.diag(np.arange(1.0, len(theta) + 1)) + 0.1
+    samples = np.array(theta) + 0.01 * np.arange(2 * len(theta)).reshape(2, -1)
+    flipped, fcov, fsamples = flip_normal(theta, cov, samples)
+    assert np.allclose(signed_distance(model, flipped, pts, anchor), -signed_distance(model, theta, pts, anchor))
+    assert np.allclose(mirror(model, flipped, pts, anchor)[0], mirror(model, theta, pts, anchor)[0])
+    assert np.allclose(np.diag(fcov), np.diag(cov)) and fcov[0, 1] == -cov[0, 1]
+    assert np.allclose(fsamples[:, 1:], -samples[:, 1:])
+    c_theta, c_cov, c_samples = canonical(theta, cov, samples)  # b < 0 here: canonical flips it
+    assert c_theta[1] > 0 and -np.pi < c_theta[0] <= np.pi
+    assert np.allclose(np.cos(c_theta[0]), np.cos(flipped[0])) and np.allclose(c_theta[1:], flipped[1:])
+    assert np.allclose(c_cov, fcov) and np.allclose(np.cos(c_samples[:, 0]), np.cos(fsamples[:, 0]))
+    wall = WallPosterior(model, theta, cov, param_names=("phi", "b", "kappa")[:len(theta)],
+                         anchor=anchor if model == "arc" else None)
+    assert wall.mean[1] == pytest.approx(c_theta[1]) and np.allclose(wall.cov, fcov)

@@ -9,8 +9,8 @@ from estimators.calibration import (chi2_2_quantile, coverage, evaluate, mahalan
                                     wall_errors)
 from estimators.casadi_map import CasadiMapWallEstimator
 from estimators.emcee_wall import EmceeWallEstimator
-from estimators.propagate import propagate
-from estimators.wall_models import mirror
+from xnlos_core.wall_propagation import propagate
+from xnlos_core.wall import mirror
 from plugins.mirror.mirror import MirrorReconstructor
 from xnlos_core import MNLOS, Detections, WallPosterior
 from xnlos_core.config import parse_pipeline

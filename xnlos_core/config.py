@@ -30,92 +30,21 @@ the grid of the remaining ``[sweep]`` keys; see :func:`expand_sweep`.
 from __future__ import annotations
 
 import copy
-import difflib
 import hashlib
 import itertools
 import json
-import tomllib
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from .errors import ConfigError
+# load_toml, MAX_DEPTH and validate_model are re-exported: plugins and tests import them from here.
+from .files import MAX_DEPTH, load_toml  # noqa: F401
 from .interfaces import STAGE_KINDS
+from .validation import format_errors, validate_model  # noqa: F401
 
 
-MAX_DEPTH = 32  # nested tables/arrays; the shipped configs use ≤ 4
-
-
-def _depth(value: Any) -> int:
-    """Nesting depth of tables and arrays (iterative: a deep value cannot overflow the stack)."""
-    deepest, stack = 0, [(value, 0)]
-    while stack:
-        node, d = stack.pop()
-        if isinstance(node, dict):
-            node = list(node.values())
-        if isinstance(node, list):
-            deepest = max(deepest, d + 1)
-            stack.extend((v, d + 1) for v in node if isinstance(v, (dict, list)))
-    return deepest
-
-
-def load_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file; errors (ConfigError) name the file and say what is wrong.
-
-    Only a regular file of at most 16 MiB is read (a FIFO or device is refused without blocking,
-    :mod:`xnlos_core.files`); it must be UTF-8 (the error gives the offending byte's offset), valid
-    TOML (the error gives line and column) and nested at most ``MAX_DEPTH`` levels deep.
-    """
-    from .files import MAX_CONFIG_BYTES, decode_utf8, read_file_bytes
-
-    path = Path(path)
-    what = f"{path}: configuration file"
-    text = decode_utf8(read_file_bytes(path, what=what, max_bytes=MAX_CONFIG_BYTES), str(path))
-    try:
-        table = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
-    except RecursionError:  # tomllib parses nested arrays / inline tables recursively
-        raise ConfigError(f"{path}: invalid TOML: arrays or inline tables nested too deeply "
-                          f"(at most {MAX_DEPTH} levels)") from None
-    if _depth(table) > MAX_DEPTH:
-        raise ConfigError(f"{path}: tables and arrays nested {_depth(table)} levels deep; at most {MAX_DEPTH}")
-    return table
-
-
-def _format_errors(model: type[BaseModel], exc: ValidationError, source: str, prefix: str) -> str:
-    lines = []
-    for err in exc.errors():
-        loc = ".".join(str(x) for x in err["loc"])
-        key = f"{prefix}.{loc}" if prefix and loc else (prefix or loc)
-        msg = err["msg"]
-        if err["type"] == "extra_forbidden":
-            allowed = list(model.model_fields)
-            if len(err["loc"]) == 1:
-                close = difflib.get_close_matches(str(err["loc"][0]), allowed, n=1)
-                hint = f"; did you mean {close[0]!r}?" if close else ""
-                msg = f"unknown key{hint} Allowed keys: {', '.join(allowed)}"
-            else:
-                msg = "unknown key"
-        elif "input" in err and err["type"] != "missing":
-            msg = f"{msg} (got {err['input']!r})"
-        lines.append(f"{source}: [{key}] {msg}")
-    return "\n".join(lines)
-
-
-def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: str = ""):
-    """Validate ``data`` into ``model``; errors become one ConfigError naming source and keys."""
-    if isinstance(data, model):
-        return data
-    try:
-        return model.model_validate(data)
-    except ValidationError as exc:
-        raise ConfigError(_format_errors(model, exc, source, prefix)) from None
-    except ConfigError:
-        raise
-    except ValueError as exc:  # raised by a model_post_init, which pydantic does not wrap
-        raise ConfigError(f"{source}: [{prefix or model.__name__}] {exc}") from None
 
 
 class StageConfig(BaseModel):
@@ -199,7 +128,7 @@ def parse_pipeline(table: dict[str, Any], source: str, base_dir: str | Path = ".
     try:
         return PipelineConfig.model_validate(table)
     except ValidationError as exc:
-        raise ConfigError(_format_errors(PipelineConfig, exc, source, "")) from None
+        raise ConfigError(format_errors(PipelineConfig, exc, source, "")) from None
     except ValueError as exc:  # from model_post_init
         raise ConfigError(f"{source}: {exc}") from None
 

@@ -2,7 +2,7 @@
 
 A CONFIG is a pipeline file, optionally with a ``[sweep]`` grid and/or ``[[sweep.cases]]``
 (:func:`xnlos_core.config.expand_sweep`); each sweep point is one *run*. Every run reads the maps of
-a dataset split through the ``dataset`` backend (plugins/dataset_backend): the config's own
+a dataset split through the ``dataset`` backend (sims/dataset/backend.py): the config's own
 ``[backend] name = "dataset"`` table when it has one, else ``out/data/default``, split ``test``; the
 ``dataset`` / ``split`` / ``limit`` / ``start`` arguments override either. ``run.frames`` is not used:
 a run reads every selected map.

@@ -24,6 +24,50 @@ def credible_radius(p: float) -> float:
     return float(np.sqrt(-2.0 * np.log1p(-p)))
 
 
+def bev(points) -> tuple[np.ndarray, np.ndarray]:
+    """Plot coordinates (−y, x) [m] of points (…, 2) [m] in the bird's-eye view: x forward is up,
+    y left is to the left, as seen from above."""
+    p = np.asarray(points, float).reshape(-1, 2)
+    return -p[:, 1], p[:, 0]
+
+
+def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", samples: int = 0) -> None:
+    """Bird's-eye walls on ``ax``: the true walls (GroundTruth.walls, grey bands) when given, each
+    estimated WallPosterior over its extent (dashed), and for a sampled wall ``samples`` posterior
+    draws as thin lines."""
+    if true_walls is not None:
+        for i, w in enumerate(true_walls):
+            ax.plot(*bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
+                    label="true walls" if i == 0 else None)
+    drawn = False
+    for i, w in enumerate(walls):
+        curve = _wall_curve(w)
+        if curve is None:
+            continue
+        ax.plot(*bev(curve), color="tab:orange", lw=2, ls="--", zorder=4, label=None if drawn else label)
+        drawn = True
+        if w.samples is not None and samples > 0 and w.extent is not None:
+            _plot_wall_draws(ax, w, samples, first=i == 0)
+
+
+def frame_bev(ax, gt, fallback) -> None:
+    """Bird's-eye limits (5 m margin) around the radar and the ground truth ``gt`` (walls, hidden
+    and virtual points) or, without ground truth, around the arrays (N, 2) [m] in ``fallback``; far
+    false alarms then fall outside rather than shrinking the scene to a corner of the plot."""
+    pts = [np.zeros((1, 2))]
+    if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
+        pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
+    else:
+        pts += list(fallback)
+    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+    lo, hi = allp.min(0) - 5, allp.max(0) + 5
+    ax.set_xlim(-hi[1], -lo[1])
+    ax.set_ylim(min(lo[0], -2), hi[0])
+    ax.set_aspect("equal")
+    ax.set_xlabel("−y [m] (right →)")
+    ax.set_ylabel("x [m] (forward)")
+
+
 def _wall_curve(w, n: int = 64) -> np.ndarray | None:
     """(n, 2) points along a 'line'/'arc' WallPosterior between its extent ends, or None.
 
@@ -88,30 +132,12 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
     if len(det):
         ax_ra.legend(loc="upper right", fontsize=8)
 
-    # Bird's-eye view: x forward (up), y left (to the left), as seen from above.
-    def bev(points):
-        p = np.asarray(points, float).reshape(-1, 2)
-        return -p[:, 1], p[:, 0]
-
     gt = frame.ground_truth
     fov = ra.azimuth_axis[[0, -1]]
     rmax = ra.range_axis[-1]
     for a in fov:
         ax_bev.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":")
-    if gt is not None:
-        for i, w in enumerate(gt.walls):
-            ax_bev.plot(*bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
-                        label="true walls" if i == 0 else None)
-    drawn = False
-    for i, w in enumerate(result.walls):
-        curve = _wall_curve(w)
-        if curve is None:
-            continue
-        ax_bev.plot(*bev(curve), color="tab:orange", lw=2, ls="--", zorder=4,
-                    label=None if drawn else "estimated walls")
-        drawn = True
-        if w.samples is not None and wall_samples > 0 and w.extent is not None:
-            _plot_wall_draws(ax_bev, bev, w, wall_samples, first=i == 0)
+    draw_walls(ax_bev, result.walls, None if gt is None else gt.walls, samples=wall_samples)
     for lab, (name, color, marker) in CLASS_STYLE.items():
         m = det.label == lab
         if m.any():
@@ -130,20 +156,7 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
                 ax_bev.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color="tab:purple",
                             lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
-    # Frame the scene (ground truth when known); far false alarms fall outside rather than
-    # shrinking the scene to a corner of the plot.
-    pts = [np.zeros((1, 2))]
-    if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
-        pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
-    else:
-        pts += [det.position, h.mean]
-    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
-    lo, hi = allp.min(0) - 5, allp.max(0) + 5
-    ax_bev.set_xlim(-hi[1], -lo[1])
-    ax_bev.set_ylim(min(lo[0], -2), hi[0])
-    ax_bev.set_aspect("equal")
-    ax_bev.set_xlabel("−y [m] (right →)")
-    ax_bev.set_ylabel("x [m] (forward)")
+    frame_bev(ax_bev, gt, [det.position, h.mean])
     ax_bev.set_title("bird's-eye view: walls and hidden points")
     ax_bev.legend(loc="upper right", fontsize=7, framealpha=0.85)
     ax_bev.grid(alpha=0.3)
@@ -164,7 +177,7 @@ def save_png(fig, path: str | Path, dpi: int = 110) -> Path:
     return Path(path)
 
 
-def _plot_wall_draws(ax, bev, wall, k: int, first: bool) -> None:
+def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:
     """Thin lines: ``k`` evenly spaced posterior draws of a sampled wall over its extent."""
     from dataclasses import replace
 

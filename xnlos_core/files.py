@@ -19,7 +19,9 @@ from __future__ import annotations
 import errno
 import os
 import stat
+import tomllib
 from pathlib import Path
+from typing import Any
 
 from .errors import ConfigError
 
@@ -130,3 +132,41 @@ def decode_utf8(data: bytes, what: str) -> str:
         line = data.count(b"\n", 0, exc.start) + 1
         raise ConfigError(f"{what}: not UTF-8 text: byte {exc.start} (line {line}) is "
                           f"{data[exc.start:exc.start + 1]!r} ({exc.reason})") from None
+
+
+MAX_DEPTH = 32  # nested tables/arrays; the shipped configs use ≤ 4
+
+
+def _depth(value: Any) -> int:
+    """Nesting depth of tables and arrays (iterative: a deep value cannot overflow the stack)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        node, d = stack.pop()
+        if isinstance(node, dict):
+            node = list(node.values())
+        if isinstance(node, list):
+            deepest = max(deepest, d + 1)
+            stack.extend((v, d + 1) for v in node if isinstance(v, (dict, list)))
+    return deepest
+
+
+def load_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; errors (ConfigError) name the file and say what is wrong.
+
+    Only a regular file of at most 16 MiB is read (a FIFO or device is refused without blocking,
+    :mod:`xnlos_core.files`); it must be UTF-8 (the error gives the offending byte's offset), valid
+    TOML (the error gives line and column) and nested at most ``MAX_DEPTH`` levels deep.
+    """
+    path = Path(path)
+    what = f"{path}: configuration file"
+    text = decode_utf8(read_file_bytes(path, what=what, max_bytes=MAX_CONFIG_BYTES), str(path))
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib parses nested arrays / inline tables recursively
+        raise ConfigError(f"{path}: invalid TOML: arrays or inline tables nested too deeply "
+                          f"(at most {MAX_DEPTH} levels)") from None
+    if _depth(table) > MAX_DEPTH:
+        raise ConfigError(f"{path}: tables and arrays nested {_depth(table)} levels deep; at most {MAX_DEPTH}")
+    return table

@@ -16,14 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .figures import CLASS_STYLE, _ellipse_xy, _wall_curve, credible_radius, save_png
+from .figures import CLASS_STYLE, _ellipse_xy, bev, credible_radius, draw_walls, frame_bev, save_png
 from .geometry import cartesian_to_polar
 from .types import LOS, MNLOS
-
-
-def _bev(points):
-    p = np.asarray(points, float).reshape(-1, 2)
-    return -p[:, 1], p[:, 0]
 
 
 def _ra_extent(ra):
@@ -42,37 +37,16 @@ def _detections_bev(ax, det, classes=(LOS, MNLOS)):
         m = det.label == lab
         if m.any():
             label = "mNLOS detections (virtual o')" if lab == MNLOS else f"{name} detections"
-            ax.scatter(*_bev(det.position[m]), s=12, c=color, marker=marker, label=label, alpha=0.8)
+            ax.scatter(*bev(det.position[m]), s=12, c=color, marker=marker, label=label, alpha=0.8)
 
 
 def _walls_bev(ax, result, gt):
-    if gt is not None:
-        for i, w in enumerate(gt.walls):
-            ax.plot(*_bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
-                    label="true walls" if i == 0 else None)
-    first = True
-    for w in result.walls:
-        curve = _wall_curve(w)
-        if curve is not None:
-            ax.plot(*_bev(curve), color="tab:orange", lw=2, ls="--", zorder=4,
-                    label="fitted walls" if first else None)
-            first = False
+    draw_walls(ax, result.walls, None if gt is None else gt.walls, label="fitted walls")
 
 
 def _frame_bev(ax, result, gt):
-    pts = [np.zeros((1, 2))]
-    if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
-        pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
-    else:
-        pts += [result.detections.position, result.hidden.mean]
-    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
-    lo, hi = allp.min(0) - 5, allp.max(0) + 5
-    ax.set_xlim(-hi[1], -lo[1])
-    ax.set_ylim(min(lo[0], -2), hi[0])
-    ax.set_aspect("equal")
+    frame_bev(ax, gt, [result.detections.position, result.hidden.mean])
     ax.scatter([0], [0], marker="^", s=60, c="k", label="radar", zorder=5)
-    ax.set_xlabel("−y [m] (right →)")
-    ax.set_ylabel("x [m] (forward)")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=6, framealpha=0.85)
 
@@ -147,13 +121,13 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
     _walls_bev(ax, result, gt)
     _detections_bev(ax, det, (LOS,))
     if gt is not None and len(gt.hidden_points):
-        ax.scatter(*_bev(gt.hidden_points), s=10, c="tab:green", marker="o", label="true hidden points")
+        ax.scatter(*bev(gt.hidden_points), s=10, c="tab:green", marker="o", label="true hidden points")
     h = result.hidden
     if len(h):
-        ax.scatter(*_bev(h.mean), s=50, c="tab:purple", marker="+", linewidths=1.5,
+        ax.scatter(*bev(h.mean), s=50, c="tab:purple", marker="+", linewidths=1.5,
                    label=f"reconstructed ({100 * credible:g} % credible)")
         for mu, c in zip(h.mean, h.cov):
-            ax.plot(*_bev(_ellipse_xy(mu, c, credible_radius(credible))), color="tab:purple", lw=0.8, alpha=0.7)
+            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color="tab:purple", lw=0.8, alpha=0.7)
     ax.set_title(f"(f) reconstruction ({len(h)} hidden points)")
     _frame_bev(ax, result, gt)
 

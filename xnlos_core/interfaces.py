@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict
 
 from .errors import InputError, PluginError
 from .radar import RadarConfig
+from .validation import validate_model
 from .types import Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
 if TYPE_CHECKING:
@@ -46,8 +47,6 @@ class Plugin:
         if params is None:
             params = self.Params()
         elif isinstance(params, dict):
-            from .config import validate_model
-
             params = validate_model(self.Params, params, source=type(self).__name__, prefix="params")
         self.params = params
 

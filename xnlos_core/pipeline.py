@@ -8,17 +8,15 @@ from __future__ import annotations
 import time
 from collections.abc import Collection, Iterable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from . import metrics
-from .config import PipelineConfig, load_toml, validate_model
+from .config import PipelineConfig
 from .errors import ConfigError, InsufficientDataError
-from .files import resolve_config_path
 from .provenance import provenance
-from .radar import RadarConfig
+from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
 from .types import MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
@@ -78,41 +76,6 @@ def timed_frames(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float]]:
         except StopIteration:
             return
         yield frame, time.perf_counter() - t0
-
-
-def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
-    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides.
-
-    ``preset`` and ``coupling_file`` are files inside the config roots (:mod:`xnlos_core.files`):
-    the preset relative to ``base_dir`` (the config's folder), a coupling file relative to the
-    file that names it; the returned config holds the coupling file's resolved absolute path.
-    """
-    if not isinstance(table, dict):
-        raise ConfigError(f"{source}: [radar] expected a table of RadarConfig fields, got {table!r}")
-    table = dict(table)
-    preset = table.pop("preset", None)
-    coupling_dir = base_dir
-    if preset is not None:
-        path = resolve_config_path(preset, source=source, key="radar.preset", base_dir=base_dir,
-                                   suffixes=(".toml",))
-        base = load_toml(path)
-        base = base.get("radar", base)
-        if not isinstance(base, dict):
-            raise ConfigError(f"{path}: [radar] expected a table of RadarConfig fields, got {base!r}")
-        if "coupling_file" in base and "coupling_file" not in table:
-            coupling_dir = path.parent
-        table = {**base, **table}
-        source = f"{source} (preset {path})"
-    if table.get("coupling_file") is not None:
-        table["coupling_file"] = str(resolve_config_path(
-            table["coupling_file"], source=source, key="radar.coupling_file", base_dir=coupling_dir,
-            root_dir=base_dir, suffixes=(".npy", ".npz", ".csv")))
-    try:
-        return validate_model(RadarConfig, table, source=source, prefix="radar")
-    except ConfigError:
-        raise
-    except ValueError as exc:
-        raise ConfigError(f"{source}: [radar] {exc}") from None
 
 
 class Pipeline:

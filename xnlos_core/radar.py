@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
-from typing import Literal
-
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from .errors import ConfigError
+from .files import load_toml, resolve_config_path
+from .validation import validate_model
 
 SPEED_OF_LIGHT = 299_792_458.0  # m/s
 BOLTZMANN = 1.380_649e-23  # J/K
@@ -172,15 +175,6 @@ class RadarConfig(BaseModel):
         v = (tx[:, None] + rx[None, :]).ravel()
         return v - v.mean()
 
-    @classmethod
-    def from_toml(cls, path: str | Path) -> "RadarConfig":
-        """Load a radar preset (a TOML file whose keys are the fields above)."""
-        from .config import load_toml, validate_model
-
-        path = Path(path)
-        table = load_toml(path)
-        return validate_model(cls, table.get("radar", table), source=str(path), prefix="radar")
-
 
 def _check_window(name: str, window: str) -> None:
     from scipy.signal import get_window
@@ -189,3 +183,38 @@ def _check_window(name: str, window: str) -> None:
         get_window(window, 8)
     except Exception as exc:  # scipy raises ValueError/TypeError with little context
         raise ValueError(f"{name}={window!r} is not a scipy.signal window name (e.g. 'hann', 'taylor', 'boxcar'): {exc}") from None
+
+
+def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
+    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides.
+
+    ``preset`` and ``coupling_file`` are files inside the config roots (:mod:`xnlos_core.files`):
+    the preset relative to ``base_dir`` (the config's folder), a coupling file relative to the
+    file that names it; the returned config holds the coupling file's resolved absolute path.
+    """
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: [radar] expected a table of RadarConfig fields, got {table!r}")
+    table = dict(table)
+    preset = table.pop("preset", None)
+    coupling_dir = base_dir
+    if preset is not None:
+        path = resolve_config_path(preset, source=source, key="radar.preset", base_dir=base_dir,
+                                   suffixes=(".toml",))
+        base = load_toml(path)
+        base = base.get("radar", base)
+        if not isinstance(base, dict):
+            raise ConfigError(f"{path}: [radar] expected a table of RadarConfig fields, got {base!r}")
+        if "coupling_file" in base and "coupling_file" not in table:
+            coupling_dir = path.parent
+        table = {**base, **table}
+        source = f"{source} (preset {path})"
+    if table.get("coupling_file") is not None:
+        table["coupling_file"] = str(resolve_config_path(
+            table["coupling_file"], source=source, key="radar.coupling_file", base_dir=coupling_dir,
+            root_dir=base_dir, suffixes=(".npy", ".npz", ".csv")))
+    try:
+        return validate_model(RadarConfig, table, source=source, prefix="radar")
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{source}: [radar] {exc}") from None

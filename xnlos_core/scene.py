@@ -88,10 +88,8 @@ class WallSpec(BaseModel):
                              "constants reflectivity/backscatter_db, not both")
         if self.material is None and (self.thickness is not None or self.roughness > 0):
             raise ValueError(f"wall {self.name!r}: thickness and roughness need a material")
-        if self.material is not None:
-            from sims.materials import get_material  # validates the name with a did-you-mean
-
-            get_material(self.material)
+        # The material name is checked by the forward model that knows the materials
+        # (ForwardModel.check, e.g. sims.walls.check_materials): the core knows no material table.
         return self
 
     @property
@@ -277,9 +275,9 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: s
     relative to ``base_dir``, its meshes relative to the scene file. ``builtin`` is a name of
     :func:`builtin_scenes`, never a path.
     """
-    from .config import load_toml, validate_model
     from .errors import ConfigError
-    from .files import resolve_config_path
+    from .files import load_toml, resolve_config_path
+    from .validation import validate_model
 
     if not isinstance(table, dict):
         raise ConfigError(f"{source}: [scene] expected a table (builtin = NAME, file = PATH or inline walls/"

@@ -17,6 +17,7 @@ from .errors import InputError
 from .geometry import cartesian_to_polar, canonical_line, line_from_points, polar_to_cartesian
 from .radar import RadarConfig
 from .validation import as_array, check_ascending, check_length, frozen
+from .wall import flip_normal
 
 LOS, MNLOS, UNCLASSIFIED = 0, 1, 2
 CLASS_NAMES = ("LOS", "mNLOS", "unclassified")
@@ -295,7 +296,7 @@ class WallPosterior(_ReadOnlyArrays):
         origin). Its centre is p₀ − n/κ: κ > 0 bulges towards the radar (convex seen from the
         radar), κ < 0 is concave, κ = 0 is the line. Signed distance (Karimäki form, smooth
         through κ = 0), v = x − p₀: δ(x) = A/(1 + √(1 + κA)), A = 2nᵀv + κ|v|²
-        (:mod:`estimators.wall_models`).
+        (:mod:`xnlos_core.wall`).
 
     mean (P,): parameter estimate; cov (P, P): its covariance (symmetric PSD);
     param_names: names of the P parameters; n_points: LOS detections used;
@@ -341,15 +342,9 @@ class WallPosterior(_ReadOnlyArrays):
                 raise InputError(f"WallPosterior: a {self.model!r} has {want} parameters {names}, got {p}")
             n, b = canonical_line([np.cos(m[0]), np.sin(m[0])], m[1])
             if b != m[1] or not np.allclose(n, [np.cos(m[0]), np.sin(m[0])]):
-                # keep (φ, b) canonical (b ≥ 0); flipping n maps φ → φ + π, b → −b (and for an
-                # arc κ → −κ): the variances stay, covariances with a flipped entry change sign.
+                # keep (φ, b) canonical (b ≥ 0); φ and b are then taken from the unit normal
                 if m[1] < 0:
-                    sign = np.ones(p)
-                    sign[1:] = -1.0
-                    c = c * np.outer(sign, sign)
-                    if self.model == "arc":
-                        m = m.copy()
-                        m[2] = -m[2]
+                    m, c, _ = flip_normal(m, c)
                 m = np.concatenate([[np.arctan2(n[1], n[0]), b], m[2:]])
         _set(self, "mean", frozen(m))
         _set(self, "cov", frozen(c))

@@ -1,9 +1,14 @@
-"""Array checks used on construction of every core type; errors name the input and the rule."""
+"""Checks on input: arrays (on construction of every core type) and parameter tables (pydantic
+models of plugins and configs). Errors name the input and the rule."""
 from __future__ import annotations
 
-import numpy as np
+import difflib
+from typing import Any
 
-from .errors import InputError
+import numpy as np
+from pydantic import BaseModel, ValidationError
+
+from .errors import ConfigError, InputError
 
 
 def as_array(
@@ -69,3 +74,39 @@ def check_length(name: str, arr: np.ndarray, n: int, like: str) -> None:
     """Require ``len(arr) == n`` (the length of ``like``)."""
     if len(arr) != n:
         raise InputError(f"{name}: has {len(arr)} entries but {like} has {n}; they must match")
+
+
+def format_errors(model: type[BaseModel], exc: ValidationError, source: str, prefix: str) -> str:
+    """One line per pydantic error: ``source: [prefix.key] message``, with a did-you-mean for an
+    unknown key and the offending value."""
+    lines = []
+    for err in exc.errors():
+        loc = ".".join(str(x) for x in err["loc"])
+        key = f"{prefix}.{loc}" if prefix and loc else (prefix or loc)
+        msg = err["msg"]
+        if err["type"] == "extra_forbidden":
+            allowed = list(model.model_fields)
+            if len(err["loc"]) == 1:
+                close = difflib.get_close_matches(str(err["loc"][0]), allowed, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                msg = f"unknown key{hint} Allowed keys: {', '.join(allowed)}"
+            else:
+                msg = "unknown key"
+        elif "input" in err and err["type"] != "missing":
+            msg = f"{msg} (got {err['input']!r})"
+        lines.append(f"{source}: [{key}] {msg}")
+    return "\n".join(lines)
+
+
+def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: str = ""):
+    """Validate ``data`` into ``model``; errors become one ConfigError naming source and keys."""
+    if isinstance(data, model):
+        return data
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(format_errors(model, exc, source, prefix)) from None
+    except ConfigError:
+        raise
+    except ValueError as exc:  # raised by a model_post_init, which pydantic does not wrap
+        raise ConfigError(f"{source}: [{prefix or model.__name__}] {exc}") from None

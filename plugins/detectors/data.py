@@ -23,7 +23,7 @@ from xnlos_core.types import Frame, GroundTruth, RAMap
 
 from .features import ra_features
 from .heatmaps import peak_cells
-from .train_config import DataConfig, GenerateConfig
+from .train_config import DataConfig, GenerateConfig, scene_generators
 
 
 @dataclass
@@ -62,21 +62,8 @@ def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool) 
     return MapSet(np.stack(feats), peaks, maps, truths)
 
 
-def scene_generators(gen: GenerateConfig, source: str = "data.generate") -> list:
-    """The registered ``scene_generator`` components named in ``gen.families`` (default parameters),
-    in order; ConfigError naming ``source``, the key and the registered names for an unknown one."""
-    from xnlos_core.errors import PluginError
-    from xnlos_core.registry import get_registry
-
-    reg = get_registry()
-    try:
-        return [reg.create("scene_generator", f, source=f"{source}.families") for f in gen.families or ()]
-    except PluginError as exc:
-        raise ConfigError(f"{source}: [families] {exc}") from None
-
-
 def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 

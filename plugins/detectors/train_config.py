@@ -201,7 +201,7 @@ def check_train_config(cfg: TrainConfig, source: str) -> None:
     gen = cfg.data.generate
     if gen is None:
         return
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
     from xnlos_core.scene import load_scene
 
@@ -210,6 +210,17 @@ def check_train_config(cfg: TrainConfig, source: str) -> None:
     fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
     if gen.scene is not None:
         fm.check(load_scene(gen.scene, source, "."), radar)
-    from .data import scene_generators
-
     scene_generators(gen, source)
+
+
+def scene_generators(gen: GenerateConfig, source: str = "data.generate") -> list:
+    """The registered ``scene_generator`` components named in ``gen.families`` (default parameters),
+    in order; ConfigError naming ``source``, the key and the registered names for an unknown one."""
+    from xnlos_core.errors import PluginError
+    from xnlos_core.registry import get_registry
+
+    reg = get_registry()
+    try:
+        return [reg.create("scene_generator", f, source=f"{source}.families") for f in gen.families or ()]
+    except PluginError as exc:
+        raise ConfigError(f"{source}: [families] {exc}") from None

@@ -29,7 +29,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.geometry import ray_segment_intersection
 from xnlos_core.types import WallPosterior
 
-from estimators.wall_models import ray_hits, signed_distance
+from xnlos_core.wall import ray_hits, signed_distance
 
 log = logging.getLogger(__name__)
 FALLBACKS = ("nearest", "drop")

@@ -10,11 +10,11 @@ with J_x = ∂o/∂o' = I − 2nnᵀ and J_w = ∂o/∂(φ, b) (:func:`xnlos_cor
 covariance. The detection and the wall estimate are taken as independent.
 
 Wall posteriors with samples (e.g. from the ``emcee`` estimator) and curved walls ('arc') go
-through :func:`estimators.propagate.propagate`: every posterior sample mirrors o' exactly and the
+through :func:`xnlos_core.wall_propagation.propagate`: every posterior sample mirrors o' exactly and the
 hidden point's mean and covariance are the sample moments plus the (rotated) detection
 covariance. An arc mirrors o' across its tangent at the point q where the ray radar → o' meets
 the arc (n_q the arc's normal at q, b_q = −n_qᵀq; the tangent line at the arc's anchor if the ray
-misses the circle) — Eq. 7 with the local wall (:mod:`estimators.wall_models`). A 'line' without
+misses the circle) — Eq. 7 with the local wall (:mod:`xnlos_core.wall`). A 'line' without
 samples keeps the first-order formula above.
 
 Wall choice (:mod:`plugins.mirror.association`, shared with ``residual_mirror``): the wall whose
@@ -38,8 +38,7 @@ from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import mirror_jacobians, mirror_reflect
 from xnlos_core.interfaces import Reconstructor
 from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
-
-from estimators.propagate import propagate
+from xnlos_core.wall_propagation import propagate
 
 from .association import anchor_points, crossing_parameters  # noqa: F401  (re-exported)
 

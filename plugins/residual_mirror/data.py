@@ -17,9 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InsufficientDataError
 from xnlos_core.geometry import cartesian_to_polar, polar_to_cartesian
 from xnlos_core.metrics import thin_to_resolution
+from xnlos_core.registry import get_registry
 from xnlos_core.types import LOS, MNLOS, Detections, GroundTruth
-
-from estimators.lsq import LSQWallEstimator
 
 KEYS = ("query", "neigh", "mask", "normal", "target", "geom", "truth", "family")
 
@@ -57,7 +56,8 @@ def scene_inputs(gt: GroundTruth, recon, noise: NoiseConfig, rng: np.random.Gene
     virt = noisy_detections(gt.mnlos_points, MNLOS, noise, rng, scale)
     det = Detections.concat(los, virt)
     try:
-        walls = LSQWallEstimator().estimate(det)
+        # the lsq wall estimator with its defaults, reached through the registry (another stage)
+        walls = get_registry().create("wall_estimator", "lsq").estimate(det)
     except InsufficientDataError:
         return None
     geom, x = recon.prepare(det, walls, neighbours, support_distance)

@@ -1,10 +1,10 @@
 """Inputs of the residual network, in each point's local wall frame (rotation/translation equivariant).
 
 For a virtual point o' anchored to wall w, the reflection point q is where the ray radar → o'
-meets w (a line: q = t·o' with t = −b/(nᵀo'); an arc: :func:`estimators.wall_models.ray_hits`),
+meets w (a line: q = t·o' with t = −b/(nᵀo'); an arc: :func:`xnlos_core.wall.ray_hits`),
 n_q the wall's unit normal at q (radar side) and u_q = (−n_q,y, n_q,x) the tangent. When the ray
 misses the wall, q is the projection of o' onto the (tangent) line and n_q its normal — the
-same local wall the Eq. 7 mirror uses (:func:`estimators.wall_models.mirror`). A vector v in the
+same local wall the Eq. 7 mirror uses (:func:`xnlos_core.wall.mirror`). A vector v in the
 ego frame has local coordinates (u_qᵀv, n_qᵀv)/SCALE.
 
 query (M, 12): local o' − q, radar − q (the radar is the ego origin), ô − q with ô = R_Π(o');
@@ -25,8 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from xnlos_core.types import WallPosterior
-
-from estimators.wall_models import ray_hits
+from xnlos_core.wall import ray_hits
 
 SCALE = 10.0  # [m]: local coordinates are divided by this
 

@@ -7,7 +7,7 @@ For each mNLOS detection o' anchored to a wall (:mod:`plugins.mirror.association
 
 R_Π(o') and Σ_mirror are exactly the ``mirror`` reconstructor's (first-order propagation of the
 detection and wall covariances; wall posterior samples and arcs through
-:func:`estimators.propagate.propagate`), so a point-estimate wall (zero covariance) works and a
+:func:`xnlos_core.wall_propagation.propagate`), so a point-estimate wall (zero covariance) works and a
 wider wall posterior gives a wider Σ_o. Δo_θ comes from :class:`.net.ResidualAttention` over the K
 supporting LOS detections of the anchored wall nearest to the reflection point (the wall's mean
 pose defines the local frame, :mod:`.features`). Σ_Δ is the residual's own uncertainty: the

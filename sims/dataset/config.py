@@ -218,7 +218,7 @@ def resolve(config: DatasetConfig, source: str = "<config>", registry=None) -> D
     radar, families that are not registered scene generators, or parameters a family's model
     rejects. Nothing is drawn or imported here.
     """
-    from xnlos_core.pipeline import load_radar
+    from xnlos_core.radar import load_radar
     from xnlos_core.registry import get_registry
 
     registry = registry or get_registry()

@@ -62,7 +62,8 @@ class RaytraceForwardModel(ForwardModel):
 
     def check(self, scene, radar: RadarConfig) -> None:
         """What :meth:`trace` refuses at t = 0: unreadable or unsupported meshes, the radar inside a
-        wall or mesh, objects against walls (InputError)."""
+        wall or mesh, objects against walls, walls of unknown material (InputError)."""
+        wall_em.check_materials(scene)
         self.components(scene, radar)
         world = build_world(scene, 0.0, self.params.backend)
         check_radar_outside(world, np.array([0.0, 0.0, self.params.radar_height]), scene)

@@ -1,6 +1,6 @@
 """``dataset`` backend: the maps of one split of an `xnlos simulate` dataset, in order, with ground truth.
 
-Frames come from :func:`sims.dataset.open_dataset` (shard order; ``frame.index`` is the global map
+Frames come from :func:`sims.dataset.reader.open_dataset` (shard order; ``frame.index`` is the global map
 index, ``frame.meta`` names the scene family, split and seeds). ``start`` skips the first maps of
 the split, ``limit`` caps how many are read. The radar configuration is the dataset's own (each
 frame's RA map carries it); ``open``'s radar argument is not used. ``path`` is relative to the
@@ -17,6 +17,9 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.types import Frame
+
+from .reader import open_dataset
+from .shard import DatasetError
 
 SPLIT_NAMES = ("train", "val", "test", "all")
 
@@ -39,10 +42,8 @@ class DatasetBackend(Backend):
     Params = DatasetParams
 
     def dataset(self):
-        """The opened :class:`sims.dataset.Dataset` view; InputError naming the path or split when
-        the directory is not a (finished) dataset."""
-        from sims.dataset import DatasetError, open_dataset
-
+        """The opened :class:`sims.dataset.reader.Dataset` view; InputError naming the path or split
+        when the directory is not a (finished) dataset."""
         p = self.params
         path = Path(p.path).expanduser()
         if not path.is_dir():

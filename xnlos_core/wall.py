@@ -1,4 +1,5 @@
-"""Relay-wall models of increasing order seen from above, and Eq. 7 across them.
+"""Relay-wall geometry seen from above — models of increasing order, signed distance, ray hits,
+Eq. 7 across them, the canonical sign — shared by the wall estimators and the reconstructors.
 
 Every model shares the tangent line nᵀx + b = 0, n = (cos φ, sin φ), u = (−sin φ, cos φ), and a
 tangent point p₀ = a − (nᵀa + b)·n, the projection onto that line of a fixed anchor point a (2,)
@@ -15,8 +16,12 @@ d_t = uᵀv = uᵀ(x − a):
   and g/|g| is the unit normal at the point of the circle nearest x (for a line, n).
 
 The functions take an ``ops`` namespace (:data:`NP` for numpy, vectorised over a leading batch
-of parameter vectors; :func:`casadi_ops` for symbolic casadi expressions) so the likelihood used by
-the MAP (casadi) and by the sampler (numpy) is one definition.
+of parameter vectors; :func:`estimators.likelihood.casadi_ops` for symbolic casadi expressions) so
+the likelihood used by the MAP (casadi) and by the sampler (numpy) is one definition.
+
+Canonical sign: n and −n describe the same wall; flipping n maps φ → φ + π, b → −b, κ → −κ
+(p₀ and the anchor stay). Walls are kept with b ≥ 0, the radar on the positive side
+(:func:`canonical`, :class:`xnlos_core.types.WallPosterior`).
 
 Mirror across an arc (:func:`mirror`): the ray radar → o' meets the arc at q (a root t > 0 of the
 quadratic A(t·o') = 0; of two, the hit nearer p₀ — the wall is only modelled where it was seen);
@@ -27,13 +32,12 @@ exactly Eq. 7. A ray that misses the circle falls back to the tangent line (φ, 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from types import SimpleNamespace
 
 import numpy as np
 from scipy import special
 
-from xnlos_core.errors import InputError
+from .errors import InputError
 
 MODEL_PARAMS = {"line": ("phi", "b"), "arc": ("phi", "b", "kappa")}
 MODEL_ORDER = ("line", "arc")  # increasing complexity
@@ -45,22 +49,6 @@ def _np_sum(x):
 
 NP = SimpleNamespace(cos=np.cos, sin=np.sin, sqrt=np.sqrt, log=np.log, exp=np.exp,
                      logaddexp=np.logaddexp, sum=_np_sum, ndtr=special.ndtr)
-
-
-@lru_cache(maxsize=1)
-def casadi_ops() -> SimpleNamespace:
-    """The ``ops`` namespace for symbolic casadi expressions (casadi imported on first use)."""
-    import casadi as ca
-
-    def logaddexp(a, b):  # shifted by the max: exact value and derivatives on either branch
-        m = ca.fmax(a, b)
-        return m + ca.log(ca.exp(a - m) + ca.exp(b - m))
-
-    def ndtr(z):
-        return 0.5 * (1 + ca.erf(z / np.sqrt(2.0)))
-
-    return SimpleNamespace(cos=ca.cos, sin=ca.sin, sqrt=ca.sqrt, log=ca.log, exp=ca.exp,
-                           logaddexp=logaddexp, sum=ca.sum1, ndtr=ndtr)
 
 
 def check_model(model: str) -> tuple[str, ...]:
@@ -187,3 +175,36 @@ def mirror(model: str, theta, points, anchor=None) -> tuple[np.ndarray, np.ndarr
     bq = np.where(hit, -np.sum(nq * q, -1), np.broadcast_to(b, t.shape))
     d = np.sum(p * nq, -1) + bq
     return p - 2 * d[..., None] * nq, hit
+
+
+def flip_normal(theta, cov=None, samples=None):
+    """The same wall written with the opposite normal: φ → φ + π, b → −b, κ → −κ.
+
+    theta (P,) = (φ, b[, κ]); cov (P, P) or None (rows and columns of b, κ change sign, so the
+    variances stay); samples (S, P) or None, flipped alike. Returns (theta, cov, samples), new arrays.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    sign = np.ones(theta.shape[-1])
+    sign[1:] = -1.0
+    theta = theta * sign
+    theta[0] += np.pi
+    if cov is not None:
+        cov = cov * np.outer(sign, sign)
+    if samples is not None:
+        samples = samples * sign
+        samples[:, 0] += np.pi
+    return theta, cov, samples
+
+
+def canonical(theta, cov=None, samples=None):
+    """(θ, cov, samples) with b ≥ 0 (:func:`flip_normal` when b < 0), φ wrapped into (−π, π] and the
+    samples' φ unwrapped next to the mean's. theta (P,), cov (P, P) or None, samples (S, P) or None."""
+    theta = np.array(theta, dtype=np.float64)
+    if theta[1] < 0:
+        theta, cov, samples = flip_normal(theta, cov, samples)
+    wrapped = float(np.angle(np.exp(1j * theta[0])))
+    if samples is not None:
+        samples = samples.copy()
+        samples[:, 0] = wrapped + np.angle(np.exp(1j * (samples[:, 0] - theta[0])))
+    theta[0] = wrapped
+    return theta, cov, samples

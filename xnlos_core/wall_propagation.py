@@ -3,7 +3,7 @@
 For a virtual point o' (mNLOS detection, covariance Σ_o') and a wall posterior p(θ):
 
 * with posterior samples θ_s (WallPosterior.samples, S × P): o_s = R_θs(o') for every sample
-  (:func:`estimators.wall_models.mirror`, the exact map — for an arc the tangent at the point
+  (:func:`xnlos_core.wall.mirror`, the exact map — for an arc the tangent at the point
   where the ray radar → o' meets it), and
 
       E[o] ≈ mean_s o_s,   Σ_o ≈ Cov_s[o_s] + J_x Σ_o' J_xᵀ,
@@ -19,11 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from xnlos_core.errors import InputError
-from xnlos_core.geometry import mirror_jacobians
-from xnlos_core.types import WallPosterior
-
-from .wall_models import check_model, mirror
+from .errors import InputError
+from .geometry import mirror_jacobians
+from .types import WallPosterior
+from .wall import check_model, mirror
 
 
 def _sym(c: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
-from .lsq import single_linkage
+from ..lsq import single_linkage
 
 
 class NearestParams(BaseModel):
