@@ -4,8 +4,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from xnlos_core import hookimpl
 
-def add_commands(subparsers) -> None:
+
+@hookimpl
+def xnlos_add_commands(subparsers) -> None:
     """``xnlos emulate``: a radar device emulator on a CAN bus (hardware in the loop)."""
     e = subparsers.add_parser("emulate", help="run a radar device emulator on a CAN bus (hardware in the loop)")
     e.add_argument("--interface", default="virtual", help="python-can interface (default: virtual)")

@@ -7,6 +7,8 @@
 """
 from xnlos_core import hookimpl
 
+from .commands import xnlos_add_commands  # noqa: F401  (hook implementation)
+
 
 @hookimpl
 def xnlos_register_components(registry):
@@ -18,9 +20,3 @@ def xnlos_register_components(registry):
     registry.add("backend", "can", CANBackend)
     registry.add("backend", "replay", ReplayBackend)
 
-
-@hookimpl
-def xnlos_add_commands(subparsers):
-    from .commands import add_commands
-
-    add_commands(subparsers)

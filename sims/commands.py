@@ -4,10 +4,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from xnlos_core import hookimpl
 from xnlos_core.errors import ConfigError
 
 
-def add_commands(subparsers) -> None:
+@hookimpl
+def xnlos_add_commands(subparsers) -> None:
     """``xnlos simulate``: generate a sharded RA-map dataset (resumable), or verify / repair one."""
     sim = subparsers.add_parser("simulate", help="generate a sharded RA-map dataset (resumable), or --verify / "
                                 "--repair one")
@@ -51,7 +53,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_config(table: dict, path: Path) -> str | None:
+@hookimpl
+def xnlos_check_config(table: dict, path: Path) -> str | None:
     """``xnlos check`` of a dataset config (one with ``families``); None for any other config."""
     if "families" not in table:
         return None

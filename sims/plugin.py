@@ -2,6 +2,8 @@
 ``xnlos-sims`` of group ``xnlos.plugins``)."""
 from xnlos_core import hookimpl
 
+from .commands import xnlos_add_commands, xnlos_check_config  # noqa: F401  (hook implementations)
+
 
 @hookimpl
 def xnlos_register_components(registry):
@@ -16,16 +18,3 @@ def xnlos_register_components(registry):
         registry.add("scene_generator", name, component)
     registry.add("backend", "dataset", DatasetBackend)
 
-
-@hookimpl
-def xnlos_add_commands(subparsers):
-    from .commands import add_commands
-
-    add_commands(subparsers)
-
-
-@hookimpl
-def xnlos_check_config(table, path):
-    from .commands import check_config
-
-    return check_config(table, path)

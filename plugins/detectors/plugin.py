@@ -1,7 +1,6 @@
 """Entry point ``xnlos-detectors``: registers the classical detectors (cfar, nlos_cfar) and the
-learned ones (swin_unet, unet, further_than_cfar, rtn) with their trainer, and adds the training
-core's ``xnlos train`` (:mod:`plugins.training.commands`; the command lives with the training core,
-this entry point carries it because adding an entry point needs a reinstall)."""
+learned ones (swin_unet, unet, further_than_cfar, rtn) with their trainer (``xnlos train`` itself
+belongs to the training core, entry point ``xnlos-training``)."""
 from plugins.training.trainers import register
 from xnlos_core import hookimpl
 
@@ -23,16 +22,3 @@ def xnlos_register_components(registry):
     registry.add("detector", "further_than_cfar", FurtherThanCFARDetector)
     registry.add("detector", "rtn", RTNDetector)
 
-
-@hookimpl
-def xnlos_add_commands(subparsers):
-    from plugins.training.commands import add_commands
-
-    add_commands(subparsers)
-
-
-@hookimpl
-def xnlos_check_config(table, path):
-    from plugins.training.commands import check_config
-
-    return check_config(table, path)

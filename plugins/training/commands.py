@@ -7,8 +7,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from xnlos_core import hookimpl
 
-def add_commands(subparsers) -> None:
+
+@hookimpl
+def xnlos_add_commands(subparsers) -> None:
     """``xnlos train``: train a learned detector or the residual mirror; rerun to resume or extend."""
     tr = subparsers.add_parser("train", help="train a learned detector (swin_unet, unet, further_than_cfar, rtn) or "
                                "the residual mirror; rerun the same command to resume, with a larger --epochs "
@@ -47,7 +50,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def check_config(table: dict, path: Path) -> str | None:
+@hookimpl
+def xnlos_check_config(table: dict, path: Path) -> str | None:
     """``xnlos check`` of a training config (``[data]`` and ``[model]``); None for any other config."""
     if not ("data" in table and "model" in table):
         return None
