@@ -1,21 +1,19 @@
-"""Shared fixtures: a small fast pipeline table and the installed third-party plugin."""
+"""Fixtures shared by tests/unit and tests/integration: the fuzz budget, a small pipeline table and
+tiny learned-detector checkpoints. Test modules never import one another (pytest runs with
+``--import-mode=importlib``); what several of them need is a fixture here or in
+tests/integration/conftest.py."""
 from __future__ import annotations
 
-import copy
-import importlib.metadata as md
 import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
-HERE = Path(__file__).parent
+from xnlos_core.testing import small_pipeline_table
 
-# Fuzz budget. `make test` runs every `fuzz`-marked test briefly (hypothesis' default 100 examples,
-# or the `fuzz_cases` fixture's 200 generated cases); `make fuzz` sets XNLOS_FUZZ=long and runs only
-# those tests, ≥ 10,000 cases each. Tests must not pin max_examples, so the profile decides.
+# Fuzz budget. `make test` runs every `fuzz`-marked test briefly (50 generated cases from the
+# `fuzz_cases` fixture; hypothesis' default profile otherwise); `make fuzz` sets XNLOS_FUZZ=long and
+# runs only those tests, ≥ 10,000 cases each. Tests must not pin max_examples, so the profile decides.
 FUZZ_LONG = os.environ.get("XNLOS_FUZZ") == "long"
 settings.register_profile("xnlos-fuzz-long", max_examples=10_000, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
@@ -25,41 +23,50 @@ if FUZZ_LONG:
 
 @pytest.fixture
 def fuzz_cases() -> int:
-    """How many generated cases a hand-rolled fuzz loop runs: 200 in `make test`, 10,000 in `make fuzz`."""
-    return 10_000 if FUZZ_LONG else 200
-
-SMALL_RADAR = {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 121}
-
-
-def small_table(**over) -> dict:
-    """A fast pipeline table on the built-in corner scene (60 m, 1° azimuth bins)."""
-    t = {
-        "name": "small", "seed": 5, "radar": dict(SMALL_RADAR), "scene": {"builtin": "corner"},
-        "forward_model": {"name": "image"}, "detector": {"name": "nlos_cfar"},
-        "wall_estimator": {"name": "lsq"}, "reconstructor": {"name": "mirror"},
-        "run": {"frames": 1, "figure": False},
-    }
-    for k, v in over.items():
-        t[k] = copy.deepcopy(v)
-    return t
+    """How many generated cases a hand-rolled fuzz loop runs: 50 in `make test`, 10,000 in `make fuzz`."""
+    return 10_000 if FUZZ_LONG else 50
 
 
 @pytest.fixture
-def table():
-    return small_table()
+def table() -> dict:
+    """A fast pipeline table on the built-in corner scene (:func:`xnlos_core.testing.small_pipeline_table`)."""
+    return small_pipeline_table()
 
 
-@pytest.fixture(scope="session")
-def thirdparty_installed():
-    """Install tests/thirdparty_plugin into this venv (the way a user installs a plugin)."""
-    try:
-        md.distribution("xnlos-thirdparty-demo")
-    except md.PackageNotFoundError:
-        cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", str(HERE / "thirdparty_plugin")]
-        try:
-            import setuptools  # noqa: F401  (build offline when the venv can)
-            cmd.insert(5, "--no-build-isolation")
-        except ImportError:
-            pass
-        subprocess.run(cmd, check=True)
-    return "xnlos-thirdparty-demo"
+# Hyper-parameters of untrained learned detectors small enough to build in milliseconds.
+TINY_HPARAMS = {
+    "swin_unet": dict(embed_dim=8, depths=(2, 2), heads=(2, 2), window=(4, 4), patch=(2, 2), stem_channels=4,
+                      head_channels=8),
+    "unet": dict(base_channels=4, levels=2), "further_than_cfar": dict(base_channels=4, levels=1),
+    "rtn": dict(base_channels=4)}
+
+
+@pytest.fixture
+def tiny_hparams() -> dict[str, dict]:
+    """Per learned detector, the tiny hyper-parameters :func:`tiny_checkpoint` builds (a fresh copy)."""
+    return {k: dict(v) for k, v in TINY_HPARAMS.items()}
+
+
+@pytest.fixture
+def tiny_checkpoint():
+    """``tiny_checkpoint(path, name, seed=0, extra_meta=None, **hparams)`` saves an untrained ``name``
+    detector (tiny hyper-parameters, ``hparams`` overriding; torch seeded with ``seed``) as a checkpoint
+    at ``path`` and returns the network."""
+    import torch
+
+    from plugins.detectors.checkpoint import save_checkpoint
+    from plugins.detectors.nets import architectures
+    from plugins.detectors.tasks import default_head
+
+    def save(path, name, seed=0, extra_meta=None, **hparams):
+        arch = architectures()[name]
+        hp = arch.HParams(**{**TINY_HPARAMS[name], **hparams})
+        torch.manual_seed(seed)
+        net = arch.module(hp)
+        meta = {"architecture": name, "hparams": hp.model_dump(mode="json"),
+                "head": default_head(name, hp, (0.7, 1.0)).describe(), "decode": {"threshold": 0.5, "window": [1, 3]},
+                **(extra_meta or {})}
+        save_checkpoint(path, net, meta)
+        return net
+
+    return save

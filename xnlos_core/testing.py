@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import copy
 import math
 from typing import Any
 
@@ -29,6 +30,21 @@ def small_radar(**overrides) -> RadarConfig:
     kw = dict(n_samples=256, max_range=60.0, n_azimuth_bins=61)
     kw.update(overrides)
     return RadarConfig(**kw)
+
+
+def small_pipeline_table(**overrides) -> dict[str, Any]:
+    """A fast pipeline config table (the parsed-TOML dict ``parse_pipeline`` takes) on the built-in
+    corner scene: 256 samples to 60 m, 121 azimuth bins (1°), one frame, no figure, seed 5, stages
+    image → nlos_cfar → lsq → mirror. Each keyword replaces one top-level key (deep-copied), e.g.
+    ``small_pipeline_table(detector={"name": "my_detector"})`` runs a new detector end to end."""
+    table: dict[str, Any] = {
+        "name": "small", "seed": 5, "radar": {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 121},
+        "scene": {"builtin": "corner"}, "forward_model": {"name": "image"}, "detector": {"name": "nlos_cfar"},
+        "wall_estimator": {"name": "lsq"}, "reconstructor": {"name": "mirror"},
+        "run": {"frames": 1, "figure": False},
+    }
+    table.update(copy.deepcopy(overrides))
+    return table
 
 
 def synthetic_frame(radar: RadarConfig | None = None, seed: int = 0, snr_db: float = 35.0) -> Frame:

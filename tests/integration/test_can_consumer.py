@@ -17,9 +17,8 @@ from hardware.testing import NoiseModel, emulated_link, small_radar
 from xnlos_core.cli import main
 from xnlos_core.types import Frame, RAMap
 
-from .test_can_link import MATRIX, RADAR, reference
-
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
+RADAR = small_radar()
 TINY = small_radar(max_range=5.0, n_azimuth_bins=7)  # 1 176-byte RA map: 20 CAN FD frames per transfer
 
 
@@ -114,11 +113,10 @@ def _slow_params():
     return out
 
 
-@pytest.mark.parametrize("case, delay", _slow_params())
-def test_fault_matrix_with_a_slow_consumer(case, delay):
+@pytest.mark.parametrize("fault_case, delay", _slow_params())
+def test_fault_matrix_with_a_slow_consumer(fault_case, delay, fault_matrix, emulated_reference):
     """The fault matrix's exact outcome whatever the consumer's pace (0–1 s per frame, radar every 0.05 s)."""
-    faults, want_seq, want_lost, _ = MATRIX[case]
-    faults = [type(f)(f.kind, f.seq, f.part, f.index) for f in faults]  # fresh copies: rules fire once
+    faults, want_seq, want_lost, _ = fault_matrix[fault_case]
     with emulated_link(RADAR, tx_faults=faults, seed=2, pace=True, frame_interval=0.05) as (backend, em):
         frames = consume(backend, 6, delay=delay)
         st = backend.stats
@@ -128,7 +126,7 @@ def test_fault_matrix_with_a_slow_consumer(case, delay):
     assert (st.frames_overrun, st.frames_late, st.reconnects) == (0, 0, 0)
     check_accounting(frames, st, em)
     for f in frames:
-        assert np.array_equal(f.ra_map.data, reference(2, f.index).ra_map.data)
+        assert np.array_equal(f.ra_map.data, emulated_reference(2, f.index).ra_map.data)
 
 
 @pytest.mark.parametrize("policy", ["drop_oldest", "drop_newest"])

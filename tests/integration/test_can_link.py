@@ -22,21 +22,13 @@ RADAR = small_radar()
 SCENE = load_scene({"builtin": "corner"}, "test")
 
 
-def reference(seed, k, interval=0.05, radar=RADAR, adc=False):
-    fm = get_registry().create("forward_model", "image")
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(k + 1)[k])
-    if adc:
-        return fm.simulate_adc(SCENE, radar, rng, timestamp=k * interval, index=k)
-    return fm.simulate(SCENE, radar, rng, timestamp=k * interval, index=k)
-
-
-def test_stream_is_bit_identical_to_the_forward_model():
+def test_stream_is_bit_identical_to_the_forward_model(emulated_reference):
     with emulated_link(RADAR, seed=7) as (backend, em):
         frames = list(backend.frames(5))
         st = backend.stats
     assert [f.index for f in frames] == [0, 1, 2, 3, 4]
     for k, f in enumerate(frames):
-        ref = reference(7, k)
+        ref = emulated_reference(7, k)
         assert np.array_equal(f.ra_map.data, ref.ra_map.data)  # exact complex64 equality
         assert f.timestamp == ref.timestamp and f.ra_map.radar == RADAR
         assert np.array_equal(f.ra_map.range_axis, RADAR.range_axis)
@@ -55,11 +47,11 @@ def test_frames_continue_across_calls_and_early_stop():
 
 
 @pytest.mark.parametrize("payload", ["adc_int16", "adc_complex64"])
-def test_adc_payloads_go_through_the_shared_chain(payload):
+def test_adc_payloads_go_through_the_shared_chain(payload, emulated_reference):
     with emulated_link(RADAR, seed=3, payload=payload) as (backend, _):
         frames = list(backend.frames(2))
     for k, f in enumerate(frames):
-        cube, ref = reference(3, k, adc=True)
+        cube, ref = emulated_reference(3, k, adc=True)
         if payload == "adc_int16":
             peak = float(np.max(np.abs(np.concatenate([cube.real.ravel(), cube.imag.ravel()]))))
             scale = float(np.nextafter(np.float32(peak / 32767.0), np.float32(np.inf)))
@@ -73,34 +65,8 @@ def test_adc_payloads_go_through_the_shared_chain(payload):
         assert f.meta["payload_format"] == payload.upper()
 
 
-# Fault → (delivered sequence numbers, lost (seq, kind), exact link counters).
-MATRIX = {
-    "drop_cf": ([Fault("drop", 2, "cf", 3)], [0, 1, 3, 4, 5, 6], [(2, "incomplete")], {"transfer_errors": 1}),
-    "drop_header": ([Fault("drop", 2, "header")], [0, 1, 3, 4, 5, 6], [(2, "incomplete")], {"transfer_errors": 0}),
-    "drop_first_frame": ([Fault("drop", 2, "ff")], [0, 1, 3, 4, 5, 6], [(2, "incomplete")], {}),
-    "duplicate_cf": ([Fault("duplicate", 2, "cf", 3)], [0, 1, 3, 4, 5, 6], [(2, "incomplete")],
-                     {"transfer_errors": 1}),
-    "duplicate_header": ([Fault("duplicate", 2, "header")], [0, 1, 2, 3, 4, 5], [], {"frames_duplicate": 0}),
-    "duplicate_first_frame": ([Fault("duplicate", 2, "ff")], [0, 1, 2, 3, 4, 5], [], {"transfer_errors": 1}),
-    "reorder_cf": ([Fault("reorder", 2, "cf", 3)], [0, 1, 3, 4, 5, 6], [(2, "incomplete")], {"transfer_errors": 1}),
-    "reorder_header_past_payload": ([Fault("reorder", 2, "last"), Fault("reorder", 3, "header")],
-                                    [0, 1, 2, 3, 4, 5], [], {}),
-    "corrupt_cf": ([Fault("corrupt", 2, "cf", 3)], [0, 1, 3, 4, 5, 6], [(2, "corrupted")], {"transfer_errors": 0}),
-    "corrupt_header": ([Fault("corrupt", 2, "header")], [0, 1, 3, 4, 5, 6], [(2, "incomplete")], {"e2e_errors": 1}),
-    "checksum_mismatch": ([Fault("checksum", 2, "header")], [0, 1, 3, 4, 5, 6], [(2, "corrupted")], {}),
-    "absurd_header_size": ([Fault("oversize", 2, "header")], [0, 1, 3, 4, 5, 6], [(2, "corrupted")], {}),
-    "truncated_transfer": ([Fault("truncate", 2, "cf", 3)], [0, 1, 3, 4, 5, 6], [(2, "incomplete")],
-                           {"transfer_errors": 1}),
-    "truncated_last_frame": ([Fault("truncate", 5, "cf", 1)], [0, 1, 2, 3, 4, 6], [(5, "incomplete")], {}),
-    "error_frame": ([Fault("error_frame", 2, "cf", 3)], [0, 1, 2, 3, 4, 5], [], {"error_frames": 1}),
-    "several": ([Fault("drop", 1, "cf", 0), Fault("checksum", 3, "header"), Fault("duplicate", 4, "header")],
-                [0, 2, 4, 5, 6, 7], [(1, "incomplete"), (3, "corrupted")], {}),
-}
-
-
-@pytest.mark.parametrize("case", list(MATRIX))
-def test_fault_matrix(case):
-    faults, want_seq, want_lost, counters = MATRIX[case]
+def test_fault_matrix(fault_case, fault_matrix, emulated_reference):
+    faults, want_seq, want_lost, counters = fault_matrix[fault_case]
     with emulated_link(RADAR, tx_faults=faults, seed=2) as (backend, _):
         frames = list(backend.frames(6))
         st = backend.stats
@@ -115,7 +81,7 @@ def test_fault_matrix(case):
     for name, value in counters.items():
         assert getattr(st, name) == value, name
     for f in frames:  # what is delivered is exactly what the model produced
-        assert np.array_equal(f.ra_map.data, reference(2, f.index).ra_map.data)
+        assert np.array_equal(f.ra_map.data, emulated_reference(2, f.index).ra_map.data)
     if want_lost:
         nxt = next(f for f in frames if f.index > want_lost[0][0])
         assert want_lost[0][0] in nxt.meta["lost_before"]
@@ -248,7 +214,7 @@ def test_radar_speaking_another_protocol_version_is_named():
         t.join(2)
 
 
-def test_two_radars_share_one_bus():
+def test_two_radars_share_one_bus(emulated_reference):
     channel = private_channel()
     fm = get_registry().create("forward_model", "image")
     ems = [RadarEmulator(fm, SCENE, RADAR, BusSpec(channel=channel), sensor_id=s, seed=10 + s, pace=False,
@@ -266,7 +232,7 @@ def test_two_radars_share_one_bus():
             em.stop()
     for s in (0, 1):
         assert [f.meta["sensor_id"] for f in got[s]] == [s, s]
-        assert np.array_equal(got[s][1].ra_map.data, reference(10 + s, 1).ra_map.data)
+        assert np.array_equal(got[s][1].ra_map.data, emulated_reference(10 + s, 1).ra_map.data)
     assert backends[0].stats.other_sensor > 0 and backends[0].stats.frames_lost == 0
 
 

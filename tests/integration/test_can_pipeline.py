@@ -11,15 +11,15 @@ from xnlos_core.pipeline import Pipeline
 from xnlos_core.radar import RadarConfig
 from xnlos_core.testing import check_component
 
-from .conftest import small_table
+from xnlos_core.testing import small_pipeline_table
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RADAR = {"n_samples": 128, "max_range": 30.0, "n_azimuth_bins": 41}
 WALLS = [[15.0, 10.0, 35.0, -10.0], [5.0, -4.0, 18.0, -4.0], [18.0, -4.0, 18.0, -30.0]]  # built-in corner
 
 
 def table(source: dict) -> dict:
-    t = small_table(radar=RADAR, run={"frames": 3, "figure": False, "frame_interval": 0.1},
+    t = small_pipeline_table(radar=RADAR, run={"frames": 3, "figure": False, "frame_interval": 0.1},
                     detector={"name": "nlos_cfar", "params": {"wall_source": "config", "walls": WALLS}})
     if "backend" in source:
         del t["forward_model"]
@@ -86,11 +86,11 @@ def test_cli_emulate_streams_and_records(tmp_path, capsys):
 
 
 def test_in_process_emulator_frames_carry_ground_truth_and_metrics():
-    t = small_table(run={"frames": 2, "figure": False})  # nlos_cfar with ground-truth walls, as in simulation
+    t = small_pipeline_table(run={"frames": 2, "figure": False})  # nlos_cfar with ground-truth walls, as in simulation
     del t["forward_model"]
     t["backend"] = {"name": "can", "params": {"channel": private_channel(), "emulator": {"seed": 5, "pace": False}}}
     hil = run(t)
-    sim = run(small_table(run={"frames": 2, "figure": False}))
+    sim = run(small_pipeline_table(run={"frames": 2, "figure": False}))
     for a, b in zip(sim, hil):
         assert b.frame.meta["ground_truth"] == "emulator"
         assert np.array_equal(a.frame.ground_truth.hidden_points, b.frame.ground_truth.hidden_points)

@@ -8,30 +8,6 @@ import pytest
 from xnlos_core.cli import main
 from xnlos_core.io import read_jsonl
 
-SWEEP = """
-name = "tiny-sweep"
-seed = 2
-[radar]
-n_samples = 256
-max_range = 60.0
-n_azimuth_bins = 121
-[scene]
-builtin = "corner"
-[forward_model]
-name = "image"
-[detector]
-name = "nlos_cfar"
-[wall_estimator]
-name = "lsq"
-[reconstructor]
-name = "mirror"
-[run]
-frames = 1
-figure = false
-[sweep]
-"detector.name" = ["cfar", "nlos_cfar"]
-"""
-
 
 def test_version_and_module_entry():
     out = subprocess.run([sys.executable, "-m", "xnlos_core", "--version"], capture_output=True, text=True)
@@ -61,9 +37,9 @@ def test_every_forward_model_parameter_is_described_and_printed(capsys):
             assert any(f"- {pname} = " in line and line.endswith(info["description"]) for line in out), pname
 
 
-def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path):
+def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path, sweep_toml):
     p = tmp_path / "bad.toml"
-    p.write_text(SWEEP.replace('name = "lsq"', 'name = "lsq"\nparams = { cluster_distance = -1 }'))
+    p.write_text(sweep_toml.replace('name = "lsq"', 'name = "lsq"\nparams = { cluster_distance = -1 }'))
     out = subprocess.run([sys.executable, "-m", "xnlos_core", "run", str(p), "--out", str(tmp_path / "o")],
                          capture_output=True, text=True)
     assert out.returncode == 2
@@ -71,17 +47,17 @@ def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path):
     assert "bad.toml" in out.stderr and "wall_estimator.params.cluster_distance" in out.stderr
 
 
-def test_run_cli_writes_outputs(tmp_path, capsys):
+def test_run_cli_writes_outputs(tmp_path, capsys, sweep_toml):
     p = tmp_path / "p.toml"
-    p.write_text(SWEEP.split("[sweep]")[0].replace("figure = false", "figure = true"))
+    p.write_text(sweep_toml.split("[sweep]")[0].replace("figure = false", "figure = true"))
     assert main(["run", str(p), "--out", str(tmp_path / "o"), "-q"]) == 0
     assert (tmp_path / "o" / "summary.md").exists() and list((tmp_path / "o").glob("*.png"))
     assert "hidden car" in capsys.readouterr().out
 
 
-def test_sweep_local(tmp_path):
+def test_sweep_local(tmp_path, sweep_toml):
     p = tmp_path / "s.toml"
-    p.write_text(SWEEP)
+    p.write_text(sweep_toml)
     assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--workers", "1", "-q"]) == 0
     recs = read_jsonl(tmp_path / "o" / "sweep.jsonl")
     assert sorted(r["assignment"]["detector.name"] for r in recs) == ["cfar", "nlos_cfar"]
@@ -92,10 +68,10 @@ def test_sweep_local(tmp_path):
     assert len(read_jsonl(tmp_path / "o" / "sweep.jsonl")) == 2
 
 
-def test_sweep_on_dask_local_cluster(tmp_path):
+def test_sweep_on_dask_local_cluster(tmp_path, sweep_toml):
     distributed = pytest.importorskip("distributed")
     p = tmp_path / "s.toml"
-    p.write_text(SWEEP)
+    p.write_text(sweep_toml)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
@@ -104,9 +80,13 @@ def test_sweep_on_dask_local_cluster(tmp_path):
     assert len(read_jsonl(tmp_path / "o" / "sweep.jsonl")) == 2
 
 
-def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, sweep_toml, monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    real = distributed.Client
+    # The error path, not the sweep's 10 s connect timeout, is the point: give up after 1 s here.
+    monkeypatch.setattr(distributed, "Client", lambda address, **kw: real(address, **{**kw, "timeout": "1s"}))
     p = tmp_path / "s.toml"
-    p.write_text(SWEEP)
+    p.write_text(sweep_toml)
     assert main(["sweep", str(p), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9", "-q"]) == 2
     assert "cannot connect to a Dask scheduler" in capsys.readouterr().err
 

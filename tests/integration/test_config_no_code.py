@@ -13,9 +13,8 @@ import pytest
 from pydantic import BaseModel, ConfigDict
 
 import xnlos_core.registry as registry_module
-from sims.dataset import load_dataset_config, parse_dataset_config, resolve, simulate_dataset
+from sims.dataset import load_dataset_config, parse_dataset_config, resolve
 from sims.dataset.shard import run_shard_job
-from tests.tiny_scenes import tiny_registry
 from xnlos_core import SceneGenerator, hookimpl
 from xnlos_core.cli import main
 from xnlos_core.config import load_pipeline
@@ -25,7 +24,7 @@ from xnlos_core.registry import PluginManager, get_registry
 from xnlos_core.scene import Scene
 from xnlos_core.testing import check_scene_generator
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # The reproduction of the issue, verbatim: it ran `touch SOMEFILE` during `xnlos check`.
 PAYLOAD = """\
@@ -112,13 +111,10 @@ def test_without_the_generator_key_families_and_params_must_be_registered(tmp_pa
     assert not (tmp_path / "SOMEFILE").exists()
 
 
-def test_a_tampered_manifest_or_job_runs_no_code(tmp_path, monkeypatch, capsys):
+def test_a_tampered_manifest_or_job_runs_no_code(tmp_path, monkeypatch, capsys, simulate_tiny, dataset_cfg):
     """`xnlos simulate --repair DIR` reads the config from DIR/manifest.json; workers from the job."""
-    from tests.test_dataset import table
-
     out = tmp_path / "ds"
-    simulate_dataset(parse_dataset_config(table(n_maps=4, shard_size=4), "tiny.toml"), out, workers=1,
-                     progress=False, registry=tiny_registry())
+    simulate_tiny(dataset_cfg(n_maps=4, shard_size=4), out, workers=1, progress=False)
     man = json.loads((out / "manifest.json").read_text())
     evil = {**man["config"], "generator": "subprocess:call", "generator_params": {"shell": True},
             "families": {"touch SOMEFILE": 1.0}}
@@ -258,6 +254,6 @@ def test_plugins_load_names_installed_entry_points(tmp_path):
 def test_the_command_line_switch_still_imports_a_module(monkeypatch, capsys):
     """`xnlos -p MODULE` is the user's own act (like `pytest -p`); a repeated -p is harmless."""
     monkeypatch.setattr(registry_module, "_MANAGER", PluginManager())
-    assert main(["-p", "tests.tiny_scenes", "-p", "tests.tiny_scenes", "plugins", "--json"]) == 0
+    assert main(["-p", "tiny_scenes", "-p", "tiny_scenes", "plugins", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert {r["name"] for r in rows if r["kind"] == "scene_generator"} >= {"corner_a", "crossroads"}

@@ -13,7 +13,7 @@ CASES = [(c.kind, c.name) for c in REG.components() if c.provider.startswith("xn
 
 
 @pytest.mark.parametrize("kind,name", CASES, ids=[f"{k}:{n}" for k, n in CASES])
-def test_builtin_conforms(kind, name, tmp_path):
+def test_builtin_conforms(kind, name, tmp_path, request):
     params = {}
     if (kind, name) == ("backend", "npz"):
         for k in range(3):
@@ -24,13 +24,7 @@ def test_builtin_conforms(kind, name, tmp_path):
 
         params = {"file": str(make_recording(tmp_path / "rec.blf"))}
     if (kind, name) == ("backend", "dataset"):
-        from sims.dataset import parse_dataset_config, simulate_dataset
-        from tests.test_dataset import table
-        from tests.tiny_scenes import tiny_registry
-
-        simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), tmp_path, workers=1, progress=False,
-                         registry=tiny_registry())
-        params = {"path": str(tmp_path), "split": "all"}
+        params = {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
     check_component(kind, name, params)
 
 

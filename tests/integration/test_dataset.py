@@ -21,51 +21,11 @@ from xnlos_core.cli import main
 from xnlos_core.errors import ConfigError
 from xnlos_core.io import read_jsonl
 from xnlos_core.registry import get_registry
-from tests.tiny_scenes import FAMILIES, tiny_manager, tiny_registry, tiny_scene
 
-ROOT = Path(__file__).resolve().parents[1]
-TINY_RADAR = {"n_samples": 128, "max_range": 30.0, "n_azimuth_bins": 31}
-GEN_PLUGIN = "tests.tiny_scenes"  # the tiny scene generators corner_a, corner_b, corner_c
+ROOT = Path(__file__).resolve().parents[2]
 
 
-def simulate_tiny(config, out, **kw):
-    """simulate_dataset with the tiny scene generators registered (:func:`tests.tiny_scenes.tiny_registry`)."""
-    return simulate_dataset(config, out, registry=tiny_registry(), **kw)
-
-
-@pytest.fixture
-def tiny_cli(monkeypatch):
-    """In-process ``main([...])`` sees the tiny scene generators (as after ``xnlos -p tests.tiny_scenes``)."""
-    import xnlos_core.registry as registry_module
-
-    monkeypatch.setattr(registry_module, "_MANAGER", tiny_manager())
-
-
-def table(**over) -> dict:
-    t = {"name": "tiny", "seed": 7, "n_maps": 12, "shard_size": 2, "families": list(FAMILIES),
-         "radar": dict(TINY_RADAR), "forward_model": {"name": "image"},
-         "split": {"train": 0.5, "val": 0.25, "test": 0.25}}
-    t.update(over)
-    return t
-
-
-def cfg(**over):
-    return parse_dataset_config(table(**over), "tiny.toml")
-
-
-def hashes(out: Path) -> dict[str, str]:
-    return {s["name"]: s["sha256"] for s in read_manifest(out)["shards"]}
-
-
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory) -> Path:
-    """An uninterrupted inline run of the tiny config."""
-    out = tmp_path_factory.mktemp("ref")
-    simulate_tiny(cfg(), out, workers=1, progress=False)
-    return out
-
-
-def test_seeds_are_spawned_children_of_the_root():
+def test_seeds_are_spawned_children_of_the_root(dataset_cfg):
     root = np.random.SeedSequence(7)
     first, second = root.spawn(2)
     scenes = first.spawn(3)
@@ -76,7 +36,7 @@ def test_seeds_are_spawned_children_of_the_root():
     assert apportion([1, 1, 1], 4) == [2, 1, 1]
     labels = spread_labels([3, 1, 1])
     assert sorted(labels) == [0, 0, 0, 1, 2]
-    weighted = make_plan(cfg(families={"corner_a": 2.0, "corner_b": 1.0}))
+    weighted = make_plan(dataset_cfg(families={"corner_a": 2.0, "corner_b": 1.0}))
     assert sorted(weighted.family).count("corner_a") == 8 and weighted.family.count("corner_b") == 4
 
 
@@ -100,27 +60,27 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
         assert s.n_maps == 3 * len(s.scenes) and all(multi.split[k] == s.split for k in s.scenes)
 
 
-def test_workers_and_order_do_not_change_the_shards(reference, tmp_path):
+def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
     out = tmp_path / "pool"
-    summary = simulate_tiny(cfg(), out, workers=2, progress=False)
+    summary = simulate_tiny(dataset_cfg(), out, workers=2, progress=False)
     assert summary["generated"] == 7 and summary["splits"] == {"train": 6, "val": 3, "test": 3}
-    assert hashes(out) == hashes(reference)
-    assert all(hashes(out).values())
+    assert shard_hashes(out) == shard_hashes(reference_dataset)
+    assert all(shard_hashes(out).values())
     m = read_manifest(out)
     assert m["complete"] and m["schema_version"] == SCHEMA_VERSION and m["config_sha256"]
     assert m["versions"]["xnlos"] and m["radar"]["n_samples"] == 128
 
 
-def test_dask_local_cluster_gives_the_same_shards(reference, tmp_path):
+def test_dask_local_cluster_gives_the_same_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
-        simulate_tiny(cfg(), tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
-    assert hashes(tmp_path / "dask") == hashes(reference)
+        simulate_tiny(dataset_cfg(), tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
+    assert shard_hashes(tmp_path / "dask") == shard_hashes(reference_dataset)
 
 
-def test_resume_after_interruption_loses_and_duplicates_nothing(reference, tmp_path):
+def test_resume_after_interruption_loses_and_duplicates_nothing(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
     out = tmp_path / "killed"
 
     def stop_after_two(rec, seen=[]):  # noqa: B006 (counts calls)
@@ -129,31 +89,31 @@ def test_resume_after_interruption_loses_and_duplicates_nothing(reference, tmp_p
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        simulate_tiny(cfg(), out, workers=1, progress=False, on_shard=stop_after_two)
+        simulate_tiny(dataset_cfg(), out, workers=1, progress=False, on_shard=stop_after_two)
     assert len(read_jsonl(out / "completed.jsonl")) == 2 and not read_manifest(out)["complete"]
     # What a kill can also leave: a temporary file of a shard being written and a torn log line.
     stale = out / "shards" / ".train-00002.npz.abc123.tmp"
     stale.write_bytes(b"partial")
     with (out / "completed.jsonl").open("a") as fh:
         fh.write('{"shard": "train-00002.npz", "sha2')
-    summary = simulate_tiny(cfg(), out, workers=1, progress=False)
+    summary = simulate_tiny(dataset_cfg(), out, workers=1, progress=False)
     assert summary["skipped"] == 2 and summary["generated"] == 5
     assert not stale.exists()
     names = [r["shard"] for r in read_jsonl(out / "completed.jsonl")]
-    assert sorted(names) == sorted(hashes(reference)) and len(names) == len(set(names))
-    assert hashes(out) == hashes(reference)
-    assert sorted(p.name for p in (out / "shards").iterdir()) == sorted(hashes(reference))
+    assert sorted(names) == sorted(shard_hashes(reference_dataset)) and len(names) == len(set(names))
+    assert shard_hashes(out) == shard_hashes(reference_dataset)
+    assert sorted(p.name for p in (out / "shards").iterdir()) == sorted(shard_hashes(reference_dataset))
 
 
-def test_killed_cli_process_resumes_bit_identical(tmp_path):
+def test_killed_cli_process_resumes_bit_identical(tmp_path, dataset_table, shard_hashes, simulate_tiny, tiny_plugin, tiny_plugin_env):
     """SIGKILL a real `xnlos simulate` mid-run, rerun the same command, compare with an uninterrupted run."""
-    t = table(n_maps=24, family_overrides={f: {"delay": 0.05} for f in FAMILIES})
+    t = dataset_table(n_maps=24, family_overrides={f: {"delay": 0.05} for f in tiny_plugin.FAMILIES})
     path = tmp_path / "slow.toml"
     path.write_text(_toml(t))
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "xnlos_core", "-p", GEN_PLUGIN, "simulate", str(path), "--out", str(out),
+    cmd = [sys.executable, "-m", "xnlos_core", "-p", "tiny_scenes", "simulate", str(path), "--out", str(out),
            "--workers", "1", "-q"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=tiny_plugin_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     log = out / "completed.jsonl"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and proc.poll() is None:
@@ -164,19 +124,19 @@ def test_killed_cli_process_resumes_bit_identical(tmp_path):
     proc.communicate()
     n_before = len(read_jsonl(log))
     assert 2 <= n_before < 12, "the run should have been killed part-way"
-    assert subprocess.run(cmd, cwd=ROOT, capture_output=True).returncode == 0
+    assert subprocess.run(cmd, cwd=ROOT, env=tiny_plugin_env, capture_output=True).returncode == 0
     recs = read_jsonl(log)
     assert len(recs) == 12 and len({r["shard"] for r in recs}) == 12
     ref = tmp_path / "ref"
     simulate_tiny(parse_dataset_config(t, str(path)), ref, workers=1, progress=False)
-    assert hashes(out) == hashes(ref)
+    assert shard_hashes(out) == shard_hashes(ref)
 
 
-def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference, tmp_path):
+def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
     import shutil
 
     out = tmp_path / "copy"
-    shutil.copytree(reference, out)
+    shutil.copytree(reference_dataset, out)
     shard = out / "shards" / "val-00000.npz"
     data = bytearray(shard.read_bytes())
     data[len(data) // 2] ^= 0xFF
@@ -186,16 +146,16 @@ def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference,
     assert not rep.healthy and list(rep.corrupt) == ["val-00000.npz"] and rep.missing == ["test-00000.npz"]
     assert "val-00000.npz" in rep.render() and "--repair" in rep.render()
     with pytest.raises(DatasetError, match="val-00000.npz is corrupt"):
-        simulate_tiny(cfg(), out, workers=1, progress=False)
+        simulate_tiny(dataset_cfg(), out, workers=1, progress=False)
     with pytest.raises(DatasetError, match="val-00000.npz is corrupt"):
         list(open_dataset(out, "val"))
-    summary = simulate_tiny(cfg(), out, workers=1, progress=False, repair=True)
+    summary = simulate_tiny(dataset_cfg(), out, workers=1, progress=False, repair=True)
     assert summary["repaired"] == ["test-00000.npz", "val-00000.npz"]
-    assert verify_dataset(out).healthy and hashes(out) == hashes(reference)
+    assert verify_dataset(out).healthy and shard_hashes(out) == shard_hashes(reference_dataset)
 
 
-def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
-    c = resolve(cfg(), registry=tiny_registry())
+def test_reader_round_trips_maps_and_ground_truth_exactly(reference_dataset, dataset_cfg, tiny_plugin):
+    c = resolve(dataset_cfg(), registry=tiny_plugin.tiny_registry())
     plan = make_plan(c)
     fm = get_registry().create("forward_model", "image", c.forward_model.params)
     from xnlos_core.radar import RadarConfig
@@ -204,7 +164,7 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
     total = 0
     seen_seeds = {}
     for split, n in (("train", 6), ("val", 3), ("test", 3)):
-        ds = open_dataset(reference, split)
+        ds = open_dataset(reference_dataset, split)
         assert len(ds) == n
         frames = list(ds)
         assert len(frames) == n and ds[n - 1].index == frames[-1].index
@@ -213,7 +173,7 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
             assert plan.split[k] == split and f.meta["scene_seed"] == int(plan.scene_seed[k])
             seen_seeds.setdefault(f.meta["scene_seed"], set()).add(split)
             with _one_blas_thread():  # as the shard workers: BLAS sums in one fixed order
-                want = fm.simulate(tiny_scene(plan.family[k], int(plan.scene_seed[k])), radar,
+                want = fm.simulate(tiny_plugin.tiny_scene(plan.family[k], int(plan.scene_seed[k])), radar,
                                    np.random.default_rng(noise_seed(c.seed, k, 0)), timestamp=0.0, index=k)
             assert np.array_equal(f.ra_map.data, want.ra_map.data) and f.ra_map.data.dtype == np.complex64
             g, h = f.ground_truth, want.ground_truth
@@ -226,16 +186,16 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference):
                    [(w.name, w.start.tolist(), w.end.tolist()) for w in h.walls]
         total += n
     assert all(len(v) == 1 for v in seen_seeds.values())  # a scene seed lives in one split only
-    assert len(open_dataset(reference, None)) == total == 12
-    assert any(len(f.ground_truth.mnlos_points) for f in open_dataset(reference, "train"))
-    z = open_dataset(reference, "train").load_shard("train-00000.npz")
+    assert len(open_dataset(reference_dataset, None)) == total == 12
+    assert any(len(f.ground_truth.mnlos_points) for f in open_dataset(reference_dataset, "train"))
+    z = open_dataset(reference_dataset, "train").load_shard("train-00000.npz")
     scenes = json.loads(str(z["scenes_json"]))
     assert scenes[0]["scene"]["meta"]["family"] == scenes[0]["family"]
 
 
-def test_moving_scenes_render_frames_at_k_times_the_interval(tmp_path):
+def test_moving_scenes_render_frames_at_k_times_the_interval(tmp_path, dataset_cfg, simulate_tiny):
     out = tmp_path / "multi"
-    simulate_tiny(cfg(n_maps=12, frames_per_scene=3, shard_size=6, frame_interval=0.5), out, workers=1,
+    simulate_tiny(dataset_cfg(n_maps=12, frames_per_scene=3, shard_size=6, frame_interval=0.5), out, workers=1,
                      progress=False)
     frames = list(open_dataset(out, None))
     by_scene = {}
@@ -247,32 +207,32 @@ def test_moving_scenes_render_frames_at_k_times_the_interval(tmp_path):
         assert len({f.meta["noise_seed"] for f in fs}) == 3
 
 
-def test_schema_version_is_checked(reference, tmp_path):
+def test_schema_version_is_checked(reference_dataset, tmp_path, dataset_cfg, simulate_tiny):
     import shutil
 
     out = tmp_path / "old"
-    shutil.copytree(reference, out)
+    shutil.copytree(reference_dataset, out)
     m = json.loads((out / "manifest.json").read_text())
     m["schema_version"] = SCHEMA_VERSION + 1
     (out / "manifest.json").write_text(json.dumps(m))
     with pytest.raises(DatasetError, match="schema version"):
         open_dataset(out)
     with pytest.raises(ConfigError, match="schema version"):
-        simulate_tiny(cfg(), out, workers=1, progress=False)
+        simulate_tiny(dataset_cfg(), out, workers=1, progress=False)
     from sims.dataset.shard import encode_npz
 
     with pytest.raises(DatasetError, match="shard x.npz: schema version 99"):
         decode_npz(encode_npz({"schema_version": np.array(99)}), "x.npz")
 
 
-def test_another_config_in_out_needs_overwrite(reference, tmp_path):
+def test_another_config_in_out_needs_overwrite(reference_dataset, tmp_path, dataset_cfg, simulate_tiny):
     import shutil
 
     out = tmp_path / "o"
-    shutil.copytree(reference, out)
+    shutil.copytree(reference_dataset, out)
     with pytest.raises(ConfigError, match="another configuration.*--overwrite"):
-        simulate_tiny(cfg(seed=8), out, workers=1, progress=False)
-    simulate_tiny(cfg(seed=8), out, workers=1, progress=False, overwrite=True)
+        simulate_tiny(dataset_cfg(seed=8), out, workers=1, progress=False)
+    simulate_tiny(dataset_cfg(seed=8), out, workers=1, progress=False, overwrite=True)
     assert read_manifest(out)["config"]["seed"] == 8 and verify_dataset(out).healthy
 
 
@@ -292,17 +252,17 @@ def test_another_config_in_out_needs_overwrite(reference, tmp_path):
     ({"generator_params": {"rcs": -1.0}}, "[generator_params.rcs] Input should be greater than 0"),
     ({"radar": {"n_samples": -4}}, "radar.n_samples"),
 ])
-def test_bad_configs_are_located_errors(over, key):
+def test_bad_configs_are_located_errors(over, key, dataset_cfg, tiny_plugin):
     with pytest.raises(ConfigError) as err:
-        resolve(cfg(**over), "tiny.toml", registry=tiny_registry())
+        resolve(dataset_cfg(**over), "tiny.toml", registry=tiny_plugin.tiny_registry())
     assert "tiny.toml" in str(err.value) and key in str(err.value)
 
 
-def _smoke_copy(tmp_path: Path, real_generators: bool) -> Path:
-    """configs/datasets/smoke.toml in tmp_path; unless real_generators, on the tiny generator."""
+def _smoke_copy(tmp_path: Path, families: tuple[str, ...] | None = None) -> Path:
+    """configs/datasets/smoke.toml in tmp_path; with ``families`` (the tiny generators) in place of its own."""
     src = (ROOT / "configs/datasets/smoke.toml").read_text()
-    if not real_generators:  # fast and independent of sims.generators' speed
-        src = _replace_families(src)
+    if families:  # fast and independent of sims.generators' speed
+        src = _replace_families(src, families)
     src = src.replace('preset = "../radar/', f'preset = "{ROOT}/configs/radar/')
     path = tmp_path / "smoke.toml"
     path.write_text(src)
@@ -314,7 +274,7 @@ def test_smoke_config_with_the_real_generators(tmp_path):
     if not _have_generators():
         pytest.skip("sims.generators is not available")
     out = tmp_path / "smoke"
-    assert main(["simulate", str(_smoke_copy(tmp_path, True)), "--out", str(out), "--workers", "2", "-q"]) == 0
+    assert main(["simulate", str(_smoke_copy(tmp_path)), "--out", str(out), "--workers", "2", "-q"]) == 0
     frames = list(open_dataset(out, None))
     assert len(frames) == 24 and {f.meta["family"] for f in frames} == set(resolve_default().weights())
 
@@ -332,8 +292,8 @@ def test_default_config_resolves_against_the_installed_plugins():
     assert c.radar["carrier_frequency"] == 10e9 and c.forward_model.params and len(c.weights()) == 6
 
 
-def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli):
-    path = _smoke_copy(tmp_path, False)
+def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli, tiny_plugin):
+    path = _smoke_copy(tmp_path, tiny_plugin.FAMILIES)
     out = tmp_path / "smoke"
     assert main(["simulate", str(path), "--out", str(out), "--workers", "1", "-q"]) == 0
     text = capsys.readouterr().out
@@ -356,9 +316,9 @@ def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli):
     assert "6 map(s)" in capsys.readouterr().out and len(open_dataset(tmp_path / "six", None)) == 6
 
 
-def test_cli_errors_are_clear_not_tracebacks(tmp_path):
+def test_cli_errors_are_clear_not_tracebacks(tmp_path, dataset_table):
     path = tmp_path / "bad.toml"
-    path.write_text(_toml(table(shard_sise=4)))
+    path.write_text(_toml(dataset_table(shard_sise=4)))
     out = subprocess.run([sys.executable, "-m", "xnlos_core", "simulate", str(path), "--out", str(tmp_path / "o")],
                          capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 2 and "Traceback" not in out.stderr
@@ -374,11 +334,11 @@ def _have_generators() -> bool:
     return True
 
 
-def _replace_families(src: str) -> str:
+def _replace_families(src: str, families: tuple[str, ...]) -> str:
     lines = src.splitlines()
     start = next(i for i, ln in enumerate(lines) if ln.startswith("families = ["))
     end = next(i for i in range(start, len(lines)) if lines[i].rstrip().endswith("]"))
-    lines[start:end + 1] = [f"families = {json.dumps(list(FAMILIES))}"]
+    lines[start:end + 1] = [f"families = {json.dumps(list(families))}"]
     return "\n".join(lines) + "\n"
 
 

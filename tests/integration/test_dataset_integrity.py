@@ -18,31 +18,15 @@ from sims.dataset.shard import decode_npz, encode_npz
 from xnlos_core.cli import main
 from xnlos_core.errors import InputError, XnlosError
 
-from tests.tiny_scenes import tiny_manager, tiny_registry
 
-from .test_dataset import cfg, hashes
-
-
-@pytest.fixture(autouse=True)
-def _tiny_generators(monkeypatch):
-    """Every registry lookup (simulate, repair, ``main([...])``) sees the tiny scene generators
-    corner_a/b/c, as after ``xnlos -p tests.tiny_scenes``."""
-    import xnlos_core.registry as registry_module
-
-    monkeypatch.setattr(registry_module, "_MANAGER", tiny_manager())
-
-
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("ref")
-    simulate_dataset(cfg(), out, workers=1, progress=False, registry=tiny_registry())
-    return out
+# Every registry lookup (simulate, repair, ``main([...])``) sees the tiny scene generators.
+pytestmark = pytest.mark.usefixtures("tiny_cli")
 
 
 @pytest.fixture
-def copy(reference, tmp_path) -> Path:
+def copy(reference_dataset, tmp_path) -> Path:
     out = tmp_path / "copy"
-    shutil.copytree(reference, out)
+    shutil.copytree(reference_dataset, out)
     return out
 
 
@@ -55,25 +39,25 @@ def _edit(out: Path, fn, *, checksum: bool = True) -> None:
     (out / "manifest.json").write_text(render_manifest(man))
 
 
-def test_manifest_carries_a_checksum_of_its_own_content(reference):
-    man = read_manifest(reference)
+def test_manifest_carries_a_checksum_of_its_own_content(reference_dataset):
+    man = read_manifest(reference_dataset)
     assert man[CHECKSUM] == manifest_checksum(man)
-    assert (reference / "manifest.json").read_text() == render_manifest(man)
-    assert verify_dataset(reference).healthy and not verify_dataset(reference).problems
+    assert (reference_dataset / "manifest.json").read_text() == render_manifest(man)
+    assert verify_dataset(reference_dataset).healthy and not verify_dataset(reference_dataset).problems
 
 
 @pytest.mark.fuzz
-def test_every_single_bit_flip_of_the_manifest_is_detected(reference, tmp_path, fuzz_cases):
+def test_every_single_bit_flip_of_the_manifest_is_detected(reference_dataset, tmp_path, fuzz_cases):
     """Issue #26: 10 of 30 single-bit flips went unnoticed. Each flip: opening fails with a typed
     error naming manifest.json, and --verify reports it unhealthy."""
-    data = (reference / "manifest.json").read_bytes()
+    data = (reference_dataset / "manifest.json").read_bytes()
     rng = np.random.default_rng(26)
     n = max(30, fuzz_cases // 20)
     offsets = rng.choice(len(data), size=min(n, len(data)), replace=False)
     undetected = []
     for off in offsets:
         out = tmp_path / f"flip{off}"
-        shutil.copytree(reference, out)
+        shutil.copytree(reference_dataset, out)
         flipped = bytearray(data)
         flipped[off] ^= 1 << int(rng.integers(8))
         (out / "manifest.json").write_bytes(bytes(flipped))
@@ -105,7 +89,7 @@ def test_empty_shard_list_fails_verify(copy, capsys):
         open_dataset(copy, None)
 
 
-def test_edited_shard_n_maps_cannot_give_a_wrong_len(copy, reference):
+def test_edited_shard_n_maps_cannot_give_a_wrong_len(copy, reference_dataset):
     """Issue #26: a shard's n_maps edited 2 → 3 gave len(ds) one more than iteration yields."""
     text = (copy / "manifest.json").read_text()
     i = text.index('"n_maps": 2', text.index('"train-00000.npz"'))
@@ -119,7 +103,7 @@ def test_edited_shard_n_maps_cannot_give_a_wrong_len(copy, reference):
         m["n_maps"] += 1
         m["config"]["n_maps"] += 1
         m["splits"]["train"]["n_maps"] += 1
-    shutil.copy(reference / "manifest.json", copy / "manifest.json")
+    shutil.copy(reference_dataset / "manifest.json", copy / "manifest.json")
     _edit(copy, forge)
     with pytest.raises(DatasetError, match="shard train-00000.npz: n_maps 2 but manifest.json records 3"):
         ds = open_dataset(copy, "train")
@@ -166,61 +150,61 @@ def test_verify_checks_the_log_against_the_manifest(copy):
     (b'{"shard": "x", "n": "\xff"}\n', "completed.jsonl: line 2 is not valid UTF-8"),
     (b'{"shard": 3}\n', "completed.jsonl: line 2: shard = 3; expected a shard file name"),
 ])
-def test_damaged_completed_log_is_refused_naming_the_line(copy, bad, match):
+def test_damaged_completed_log_is_refused_naming_the_line(copy, bad, match, dataset_cfg):
     lines = (copy / "completed.jsonl").read_bytes().splitlines(keepends=True)
     (copy / "completed.jsonl").write_bytes(lines[0] + bad + b"".join(lines[1:]))
-    for call in (lambda: open_dataset(copy, None), lambda: simulate_dataset(cfg(), copy, workers=1, progress=False)):
+    for call in (lambda: open_dataset(copy, None), lambda: simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)):
         with pytest.raises(InputError, match=match):
             call()
 
 
-def test_duplicated_log_line_is_repaired_on_resume(copy, reference):
+def test_duplicated_log_line_is_repaired_on_resume(copy, reference_dataset, dataset_cfg):
     lines = (copy / "completed.jsonl").read_bytes().splitlines(keepends=True)
     (copy / "completed.jsonl").write_bytes(b"".join(lines) + lines[3])
     assert len(open_dataset(copy, None)) == 12
-    s = simulate_dataset(cfg(), copy, workers=1, progress=False)
+    s = simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)
     assert s["generated"] == 0 and (copy / "completed.jsonl").read_bytes().count(b"\n") == len(lines)
 
 
-def test_a_logged_shard_whose_file_is_gone_is_not_done(copy, reference):
+def test_a_logged_shard_whose_file_is_gone_is_not_done(copy, reference_dataset, dataset_cfg, shard_hashes):
     (copy / "shards" / "val-00000.npz").unlink()
     with pytest.raises(DatasetError, match="val-00000.npz is missing"):
-        simulate_dataset(cfg(), copy, workers=1, progress=False)
-    s = simulate_dataset(cfg(), copy, workers=1, progress=False, repair=True)
-    assert s["repaired"] == ["val-00000.npz"] and hashes(copy) == hashes(reference)
+        simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)
+    s = simulate_dataset(dataset_cfg(), copy, workers=1, progress=False, repair=True)
+    assert s["repaired"] == ["val-00000.npz"] and shard_hashes(copy) == shard_hashes(reference_dataset)
 
 
-def test_damaged_manifest_is_rebuilt_by_repair(copy, reference, capsys):
+def test_damaged_manifest_is_rebuilt_by_repair(copy, reference_dataset, capsys, dataset_cfg, shard_hashes):
     data = bytearray((copy / "manifest.json").read_bytes())
     i = data.index(b'"complete"')
     data[i + 3] ^= 0x04  # a key name: the content changes but still parses
     (copy / "manifest.json").write_bytes(bytes(data))
     with pytest.raises(DatasetError, match="manifest.json: "):
-        simulate_dataset(cfg(), copy, workers=1, progress=False)
+        simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)
     assert main(["simulate", "--repair", str(copy), "-q"]) == 0
-    assert verify_dataset(copy).healthy and hashes(copy) == hashes(reference)
-    assert read_manifest(copy)["created"] == read_manifest(reference)["created"]
+    assert verify_dataset(copy).healthy and shard_hashes(copy) == shard_hashes(reference_dataset)
+    assert read_manifest(copy)["created"] == read_manifest(reference_dataset)["created"]
 
 
-def test_manifest_without_checksum_is_read_with_a_warning_and_repair_adds_it(copy):
+def test_manifest_without_checksum_is_read_with_a_warning_and_repair_adds_it(copy, dataset_cfg):
     _edit(copy, lambda m: m.pop(CHECKSUM), checksum=False)
     with pytest.warns(UserWarning, match="before manifests carried a checksum"):
         assert len(open_dataset(copy, None)) == 12
     rep = verify_dataset(copy)
     assert not rep.healthy and any("no checksum" in p for p in rep.problems)
-    simulate_dataset(cfg(), copy, workers=1, progress=False, repair=True)
+    simulate_dataset(dataset_cfg(), copy, workers=1, progress=False, repair=True)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert CHECKSUM in read_manifest(copy) and verify_dataset(copy).healthy
 
 
 @pytest.mark.fuzz
-def test_random_manifest_edits_are_typed_errors(reference, tmp_path, fuzz_cases):
+def test_random_manifest_edits_are_typed_errors(reference_dataset, tmp_path, fuzz_cases):
     """Random multi-byte edits: opening is a typed error or (never) a silently wrong length."""
-    data = (reference / "manifest.json").read_bytes()
+    data = (reference_dataset / "manifest.json").read_bytes()
     rng = random.Random(4)
     out = tmp_path / "edit"
-    shutil.copytree(reference, out)
+    shutil.copytree(reference_dataset, out)
     for _ in range(max(20, fuzz_cases // 10)):
         b = bytearray(data)
         i = rng.randrange(len(b))

@@ -9,9 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sims.dataset import open_dataset, parse_dataset_config, simulate_dataset
-from tests.test_dataset import table as dataset_table
-from tests.tiny_scenes import tiny_registry
+from sims.dataset import open_dataset
 from xnlos_core import LOS, MNLOS, Detections, GroundTruth
 from xnlos_core.cli import main
 from xnlos_core.config import expand_sweep
@@ -21,36 +19,8 @@ from xnlos_core.io import read_jsonl
 from xnlos_core.metrics import dense_metrics
 from xnlos_core.registry import get_registry
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PNG = b"\x89PNG\r\n\x1a\n"
-
-PIPELINE = """
-name = "tiny-eval"
-[backend]
-name = "dataset"
-params = {{ path = "{path}", split = "test" }}
-[detector]
-name = "nlos_cfar"
-[wall_estimator]
-name = "lsq"
-[reconstructor]
-name = "mirror"
-"""
-
-
-@pytest.fixture(scope="module")
-def tiny_dataset(tmp_path_factory) -> Path:
-    """8 maps of the tiny corner generator of test_dataset (4 test maps), image forward model."""
-    out = tmp_path_factory.mktemp("ds")
-    cfg = parse_dataset_config(dataset_table(n_maps=8, split={"train": 0.25, "val": 0.25, "test": 0.5}), "tiny.toml")
-    simulate_dataset(cfg, out, workers=1, progress=False, registry=tiny_registry())
-    return out
-
-
-def _config(tmp_path: Path, dataset: Path, extra: str = "") -> Path:
-    p = tmp_path / "eval.toml"
-    p.write_text(PIPELINE.format(path=dataset) + extra)
-    return p
 
 
 # --- aggregation and empty-set conventions --------------------------------------------------------
@@ -145,8 +115,8 @@ def test_dataset_backend_errors_name_the_input(tiny_dataset, tmp_path):
 
 # --- xnlos eval -----------------------------------------------------------------------------------
 
-def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys):
-    cfg, out = _config(tmp_path, tiny_dataset), tmp_path / "out"
+def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys, eval_config):
+    cfg, out = eval_config(tmp_path, tiny_dataset), tmp_path / "out"
     assert main(["eval", str(cfg), "--out", str(out), "--limit", "3", "--figures", "1", "-q"]) == 0
     assert "Table 2" in capsys.readouterr().out
     res = json.loads((out / "eval.json").read_text())
@@ -173,25 +143,24 @@ def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys):
     # A larger limit extends the same records; another pipeline in the same --out is refused.
     assert main(["eval", str(cfg), "--out", str(out), "--no-figures", "-q"]) == 0
     assert [r["position"] for r in read_jsonl(log)] == [0, 1, 2, 3]
-    other = _config(tmp_path, tiny_dataset, "[run]\nmatch_radius = 2.0\n")
+    other = eval_config(tmp_path, tiny_dataset, "[run]\nmatch_radius = 2.0\n")
     capsys.readouterr()
     assert main(["eval", str(other), "--out", str(out), "-q"]) == 2
     assert "another configuration" in capsys.readouterr().err
 
 
-def test_eval_refuses_to_resume_with_other_learned_weights(tiny_dataset, tmp_path, capsys):
-    from tests.test_detectors_learned import _tiny_checkpoint
+def test_eval_refuses_to_resume_with_other_learned_weights(tiny_dataset, tmp_path, capsys, eval_config, tiny_checkpoint):
 
     ckpt = tmp_path / "unet.pt"
-    _tiny_checkpoint(ckpt, "unet", seed=0)
-    cfg = _config(tmp_path, tiny_dataset).read_text().replace('name = "nlos_cfar"', f'name = "unet"\n'
+    tiny_checkpoint(ckpt, "unet", seed=0)
+    cfg = eval_config(tmp_path, tiny_dataset).read_text().replace('name = "nlos_cfar"', f'name = "unet"\n'
                                                                 f'params = {{ checkpoint = "{ckpt}", device = "cpu" }}')
     p, out = tmp_path / "learned.toml", tmp_path / "out"
     p.write_text(cfg)
     assert main(["eval", str(p), "--out", str(out), "--limit", "2", "--no-figures", "-q"]) == 0
     state = json.loads((out / "run-000" / "run.json").read_text())["state_sha256"]
     assert set(state) == {"detector"}
-    _tiny_checkpoint(ckpt, "unet", seed=1)  # retrained into the same file; the config is unchanged
+    tiny_checkpoint(ckpt, "unet", seed=1)  # retrained into the same file; the config is unchanged
     capsys.readouterr()
     assert main(["eval", str(p), "--out", str(out), "--limit", "2", "--no-figures", "-q"]) == 2
     assert f"other learned weights (detector {state['detector'][:12]}" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from xnlos_core.registry import get_registry
 from xnlos_core.runner import run_to_dir
 from xnlos_core.types import MNLOS
 
-from .conftest import small_table
+from xnlos_core.testing import small_pipeline_table
 
 
 def test_demo_reconstructs_hidden_car_within_1m():
@@ -25,11 +25,11 @@ def test_demo_reconstructs_hidden_car_within_1m():
     assert err < 1.0, f"hidden car reconstructed {err:.2f} m from the truth"
 
 
-def _params_for(kind, name, tmp_path):
+def _params_for(kind, name, tmp_path, request):
     if (kind, name) == ("backend", "npz"):
         d = tmp_path / "frames"
         if not d.exists():
-            p = Pipeline(parse_pipeline(small_table(run={"frames": 2, "figure": False}), "t"))
+            p = Pipeline(parse_pipeline(small_pipeline_table(run={"frames": 2, "figure": False}), "t"))
             for k, f in enumerate(p.frames()):
                 save_frame(d / f"{k:03d}.npz", f)
         return {"directory": str(d)}
@@ -37,42 +37,81 @@ def _params_for(kind, name, tmp_path):
         from hardware.testing import make_recording
         from xnlos_core.radar import RadarConfig
 
-        return {"file": str(make_recording(tmp_path / "rec.blf", RadarConfig(**small_table()["radar"]), frames=2,
-                                           seed=5))}
+        return {"file": str(make_recording(tmp_path / "rec.blf", RadarConfig(**small_pipeline_table()["radar"]),
+                                           frames=2, seed=5))}
     if (kind, name) == ("backend", "dataset"):  # a tiny simulated dataset (its default path needs `make dataset`)
-        from sims.dataset import parse_dataset_config, simulate_dataset
-        from tests.test_dataset import table
-        from tests.tiny_scenes import tiny_registry
-
-        d = tmp_path / "dataset"
-        if not d.exists():
-            simulate_dataset(parse_dataset_config(table(n_maps=4), "tiny.toml"), d, workers=1, progress=False,
-                             registry=tiny_registry())
-        return {"path": str(d), "split": "all"}
+        return {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
+    if (kind, name) == ("wall_estimator", "emcee"):  # a short chain: that it runs is the point here
+        return {"n_steps": 200, "burn": 50, "min_tau_multiple": 0.0}
     return {}
 
 
+# The method through which the pipeline calls each kind of stage, and the FrameResult field that
+# holds what that call returned (the backend's and forward model's output is the frame).
+STAGE_CALL = {"forward_model": ("simulate", "frame"), "backend": ("frames", "frame"),
+              "detector": ("detect", "detections"), "wall_estimator": ("estimate", "walls"),
+              "reconstructor": ("reconstruct", "hidden"), "tracker": ("update", "tracks")}
+
+
+def _spy(stage, method: str) -> list:
+    """Record every output of ``stage.method`` (each frame a generator yields) in the returned list."""
+    outputs, call = [], getattr(stage, method)
+    if method == "frames":
+        def spied(*args, **kw):
+            for frame in call(*args, **kw):
+                outputs.append(frame)
+                yield frame
+    else:
+        def spied(*args, **kw):
+            outputs.append(call(*args, **kw))
+            return outputs[-1]
+    setattr(stage, method, spied)  # on the instance: the pipeline looks the method up at each call
+    return outputs
+
+
 @pytest.mark.parametrize("kind", STAGE_KINDS)
-def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path):
-    """For each kind, every registered name replaces the current one by changing `name` only."""
+def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path, request):
+    """For each kind, every registered name replaces the current one by changing `name` only: the
+    named plugin is the stage that runs, once per frame, and its output is what the frame's result
+    holds; every stage that ran has its time."""
     names = get_registry().names(kind)
     assert names, f"no {kind} registered"
+    method, field = STAGE_CALL[kind]
     for name in names:
-        t = small_table(run={"frames": 2, "figure": False})
+        t = small_pipeline_table(run={"frames": 2, "figure": False})
         if kind == "backend":
             t.pop("forward_model")
-        t[kind] = {"name": name, "params": _params_for(kind, name, tmp_path)}
+        t[kind] = {"name": name, "params": _params_for(kind, name, tmp_path, request)}
         if (kind, name) == ("backend", "replay"):  # recorded frames carry no ground truth: give the walls
             t["detector"] = {"name": "nlos_cfar", "params": {"wall_source": "config", "walls": [
                 [15.0, 10.0, 35.0, -10.0], [5.0, -4.0, 18.0, -4.0], [18.0, -4.0, 18.0, -30.0]]}}
-        results = list(Pipeline(parse_pipeline(t, f"swap {kind}={name}")).run())
+        pipeline = Pipeline(parse_pipeline(t, f"swap {kind}={name}"))
+        stage = pipeline.stages[kind]
+        assert type(stage) is get_registry().get(kind, name).factory, (kind, name)
+        assert pipeline.plugin_info()[kind]["name"] == name
+        outputs = _spy(stage, method)
+        results = list(pipeline.run())
         assert len(results) == 2, (kind, name)
+        # The named stage ran for each frame and its output is in the result (the reconstructor runs
+        # only on frames with a wall and an mNLOS detection).
+        held = [getattr(r, field) for r in results if kind != "reconstructor" or "reconstructor" in r.timings]
+        assert len(outputs) == len(held) and all(a is b for a, b in zip(outputs, held)), (kind, name)
+        assert outputs or kind == "reconstructor", (kind, name)
+        for r in results:
+            assert {"source", "detector", "wall_estimator"} <= set(r.timings), (kind, name, r.timings)
+            assert ("reconstructor" in r.timings) == bool(r.walls and (r.detections.label == MNLOS).any())
+            assert ("tracker" in r.timings) == (kind == "tracker")
+        if kind == "reconstructor":
+            assert any(len(r.hidden) for r in results), f"{name}: no hidden point reconstructed in either frame"
+        if kind == "wall_estimator":
+            assert all(r.walls for r in results), f"{name}: no wall in some frame: {[r.notes for r in results]}"
+            assert all(r.record()["walls"][0]["model"] == r.walls[0].model for r in results)
 
 
 def test_same_seed_same_results_other_seed_differs():
-    a = [r.record() for r in Pipeline(parse_pipeline(small_table(), "a")).run()]
-    b = [r.record() for r in Pipeline(parse_pipeline(small_table(), "b")).run()]
-    c = [r.record() for r in Pipeline(parse_pipeline(small_table(seed=6), "c")).run()]
+    a = [r.record() for r in Pipeline(parse_pipeline(small_pipeline_table(), "a")).run()]
+    b = [r.record() for r in Pipeline(parse_pipeline(small_pipeline_table(), "b")).run()]
+    c = [r.record() for r in Pipeline(parse_pipeline(small_pipeline_table(seed=6), "c")).run()]
     strip = lambda recs: [{k: v for k, v in r.items() if k != "timings_s"} for r in recs]  # noqa: E731
     assert strip(a) == strip(b)
     assert strip(a) != strip(c)
@@ -80,7 +119,7 @@ def test_same_seed_same_results_other_seed_differs():
 
 def test_wall_from_too_few_los_points_is_a_note_not_a_crash():
     # A scene with only the hidden car and no LOS wall returns: the estimator cannot fit a wall.
-    t = small_table(scene={"objects": [{"name": "car", "center": [30.0, 0.0]}]})
+    t = small_pipeline_table(scene={"objects": [{"name": "car", "center": [30.0, 0.0]}]})
     t["detector"] = {"name": "nlos_cfar", "params": {"wall_source": "config", "walls": [[25.0, -5.0, 25.0, 5.0]]}}
     (res,) = list(Pipeline(parse_pipeline(t, "t")).run())
     assert any("wall_estimator" in n and "LOS" in n for n in res.notes), res.notes
@@ -88,7 +127,7 @@ def test_wall_from_too_few_los_points_is_a_note_not_a_crash():
 
 
 def test_run_writes_outputs_and_resumes(tmp_path):
-    cfg = parse_pipeline(small_table(run={"frames": 3, "figure": True}), "t")
+    cfg = parse_pipeline(small_pipeline_table(run={"frames": 3, "figure": True}), "t")
     out = tmp_path / "run"
     run_to_dir(cfg, out, progress=False)
     full = read_jsonl(out / "results.jsonl")
@@ -111,28 +150,27 @@ def test_run_writes_outputs_and_resumes(tmp_path):
 def test_run_refuses_to_mix_configs(tmp_path):
     from xnlos_core import ConfigError
 
-    run_to_dir(parse_pipeline(small_table(), "a"), tmp_path, progress=False)
+    run_to_dir(parse_pipeline(small_pipeline_table(), "a"), tmp_path, progress=False)
     with pytest.raises(ConfigError, match="holds results of another configuration"):
-        run_to_dir(parse_pipeline(small_table(seed=9), "b"), tmp_path, progress=False)
+        run_to_dir(parse_pipeline(small_pipeline_table(seed=9), "b"), tmp_path, progress=False)
 
 
-def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys):
+def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys, tiny_checkpoint):
     """A model retrained into the same file under an unchanged config is neither resumed (run) nor
     reported as done (sweep): the provenance keeps each learned stage's weights hash."""
-    from tests.test_detectors_learned import _tiny_checkpoint
     from xnlos_core import ConfigError
     from xnlos_core.cli import main
 
     ckpt = tmp_path / "unet.pt"
-    _tiny_checkpoint(ckpt, "unet", seed=0)
-    t = small_table()
+    tiny_checkpoint(ckpt, "unet", seed=0)
+    t = small_pipeline_table()
     t["detector"] = {"name": "unet", "params": {"checkpoint": str(ckpt), "device": "cpu"}}
     cfg, out = parse_pipeline(t, "t"), tmp_path / "run"
     run_to_dir(cfg, out, progress=False)
     first = json.loads((out / "provenance.json").read_text())["state_sha256"]
     assert first == {"detector": Pipeline(cfg).stages["detector"].metadata["weights_sha256"]}
     run_to_dir(cfg, out, progress=False)  # same weights: resumes
-    _tiny_checkpoint(ckpt, "unet", seed=1)  # retrained in place
+    tiny_checkpoint(ckpt, "unet", seed=1)  # retrained in place
     with pytest.raises(ConfigError, match=rf"other learned weights \(detector {first['detector'][:12]} ≠ "):
         run_to_dir(cfg, out, progress=False)
     run_to_dir(cfg, out, progress=False, overwrite=True)
@@ -147,7 +185,7 @@ def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys
 [wall_estimator]\nname = "lsq"\n[reconstructor]\nname = "mirror"\n[run]\nframes = 1\nfigure = false
 [sweep]\n"wall_estimator.params.min_points" = [3]\n""")
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q"]) == 0
-    _tiny_checkpoint(ckpt, "unet", seed=2)
+    tiny_checkpoint(ckpt, "unet", seed=2)
     capsys.readouterr()
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--workers", "1", "-q"]) == 2
     assert "other learned weights (detector" in capsys.readouterr().err
@@ -157,7 +195,7 @@ def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys
 
 
 def test_tracker_follows_moving_hidden_car():
-    t = small_table(run={"frames": 6, "frame_interval": 0.5, "figure": False})
+    t = small_pipeline_table(run={"frames": 6, "frame_interval": 0.5, "figure": False})
     t["scene"] = {"builtin": "corner", "objects": [{"name": "car", "center": [22.0, -16.0], "heading": 1.5708,
                                                     "velocity": [0.0, 2.0]}]}
     t["tracker"] = {"name": "nearest"}

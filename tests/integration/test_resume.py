@@ -15,16 +15,13 @@ from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import InputError
 from xnlos_core.io import append_jsonl, read_jsonl, read_keyed_jsonl
 from xnlos_core.runner import run_to_dir
-
-from .conftest import small_table
-from .test_cli import SWEEP
-from .test_evaluation import _config, tiny_dataset  # noqa: F401 (a fixture)
+from xnlos_core.testing import small_pipeline_table
 
 N = 6
 
 
 def _cfg(**over):
-    return parse_pipeline(small_table(run={"frames": N, "figure": False}, **over), "resume.toml")
+    return parse_pipeline(small_pipeline_table(run={"frames": N, "figure": False}, **over), "resume.toml")
 
 
 def _strip(rec: dict) -> dict:
@@ -75,7 +72,7 @@ def test_removed_line_recomputes_exactly_that_frame(reference, tmp_path):
 
 
 def test_a_gap_with_a_tracker_gets_the_tracks_of_an_uninterrupted_run(tmp_path):
-    cfg = parse_pipeline(small_table(run={"frames": 4, "figure": False}, tracker={"name": "nearest"}), "t.toml")
+    cfg = parse_pipeline(small_pipeline_table(run={"frames": 4, "figure": False}, tracker={"name": "nearest"}), "t.toml")
     ref = tmp_path / "ref"
     run_to_dir(cfg, ref, progress=False)
     want = read_jsonl(ref / "results.jsonl")
@@ -109,9 +106,9 @@ def test_damaged_results_are_refused_naming_file_and_line(reference, tmp_path, b
     assert (out / "results.jsonl").read_bytes() == before  # nothing was overwritten
 
 
-def test_damaged_results_through_the_cli_are_an_error_not_a_traceback(tmp_path, capsys):
+def test_damaged_results_through_the_cli_are_an_error_not_a_traceback(tmp_path, capsys, sweep_toml):
     toml, out = tmp_path / "p.toml", tmp_path / "o"
-    toml.write_text(SWEEP.split("[sweep]")[0].replace("frames = 1", "frames = 2"))
+    toml.write_text(sweep_toml.split("[sweep]")[0].replace("frames = 1", "frames = 2"))
     assert main(["run", str(toml), "--out", str(out), "-q"]) == 0
     first = (out / "results.jsonl").read_bytes().splitlines(keepends=True)[0]
     (out / "results.jsonl").write_bytes(first + b"null\n")
@@ -188,9 +185,9 @@ def test_keyed_log_reader_repairs_a_repeated_identical_line(tmp_path):
 
 # --- sweep.jsonl ------------------------------------------------------------------------------------
 
-def test_sweep_point_whose_results_are_gone_is_not_done(tmp_path, capsys):
+def test_sweep_point_whose_results_are_gone_is_not_done(tmp_path, capsys, sweep_toml):
     p, out = tmp_path / "s.toml", tmp_path / "o"
-    p.write_text(SWEEP)
+    p.write_text(sweep_toml)
     assert main(["sweep", str(p), "--out", str(out), "--workers", "1", "-q"]) == 0
     first = read_keyed_jsonl(out / "sweep.jsonl", "point")
     (out / "point-001" / "results.jsonl").unlink()
@@ -210,8 +207,8 @@ def test_sweep_point_whose_results_are_gone_is_not_done(tmp_path, capsys):
 
 # --- eval frames.jsonl -------------------------------------------------------------------------------
 
-def test_eval_resume_keys_on_the_map_position(tiny_dataset, tmp_path):
-    cfg, out = _config(tmp_path, tiny_dataset), tmp_path / "out"
+def test_eval_resume_keys_on_the_map_position(tiny_dataset, tmp_path, eval_config):
+    cfg, out = eval_config(tmp_path, tiny_dataset), tmp_path / "out"
     assert main(["eval", str(cfg), "--out", str(out), "--limit", "3", "--no-figures", "-q"]) == 0
     log = out / "run-000" / "frames.jsonl"
     full = read_jsonl(log)

@@ -27,7 +27,7 @@ from xnlos_core.radar import RadarConfig
 from xnlos_core.registry import get_registry
 from xnlos_core.scene import load_scene
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TINY_TOML = ROOT / "configs" / "training" / "tiny.toml"
 TINY = {"swin_unet": dict(embed_dim=16, depths=(2, 2), heads=(2, 4), window=(4, 4), patch=(2, 2)),
         "unet": dict(base_channels=8, levels=2), "further_than_cfar": dict(base_channels=8, levels=2),

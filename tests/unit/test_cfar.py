@@ -11,7 +11,7 @@ from xnlos_core.config import parse_pipeline
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import PluginManager
 
-from .conftest import small_table
+from xnlos_core.testing import small_pipeline_table
 
 RADAR = RadarConfig()
 H, W = RADAR.n_range_bins, RADAR.n_azimuth_bins
@@ -165,8 +165,8 @@ def test_window_larger_than_the_map_is_a_clear_error(train):
 @pytest.mark.parametrize("name", ["cfar", "nlos_cfar"])
 def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
     # `xnlos check` builds the Pipeline, which checks the detector against the radar's map size
-    # (small_table's radar: 241 × 121 bins), so check refuses what run would.
-    t = small_table(detector={"name": name, "params": {"train_cells": [160, 160]}})
+    # (small_pipeline_table's radar: 241 × 121 bins), so check refuses what run would.
+    t = small_pipeline_table(detector={"name": name, "params": {"train_cells": [160, 160]}})
     with pytest.raises(ConfigError, match=r"<t>: \[detector\] (nlos_)?cfar: train_cells = \(160, 160\).*"
                                           r"must be ≤ 241, so train_cells\[0\] \+ guard_cells\[0\] ≤ 120 "
                                           r"\(train_cells\[0\] ≤ 117"):

@@ -4,7 +4,7 @@ from xnlos_core import ConfigError, PluginError
 from xnlos_core.config import expand_sweep, load_pipeline, parse_pipeline
 from xnlos_core.pipeline import Pipeline
 
-from .conftest import small_table
+from xnlos_core.testing import small_pipeline_table
 
 
 def write(tmp_path, text, name="p.toml"):
@@ -63,7 +63,7 @@ def test_radar_out_of_range(tmp_path):
 
 def test_source_must_be_exactly_one(tmp_path):
     with pytest.raises(ConfigError, match="exactly one of \\[forward_model\\] or \\[backend\\]"):
-        parse_pipeline({k: v for k, v in small_table().items() if k != "forward_model"}, "x.toml")
+        parse_pipeline({k: v for k, v in small_pipeline_table().items() if k != "forward_model"}, "x.toml")
 
 
 def test_invalid_toml_names_line(tmp_path):
@@ -79,7 +79,7 @@ def test_unknown_builtin_scene_lists_known(table):
 
 
 def test_sweep_grid_product_and_name_swap_drops_params():
-    t = small_table(detector={"name": "nlos_cfar", "params": {"wall_margin": 1.0}})
+    t = small_pipeline_table(detector={"name": "nlos_cfar", "params": {"wall_margin": 1.0}})
     t["sweep"] = {"detector.name": ["cfar", "nlos_cfar"], "seed": [1, 2, 3]}
     points = expand_sweep(t)
     assert len(points) == 6
@@ -92,7 +92,7 @@ def test_sweep_grid_product_and_name_swap_drops_params():
 
 
 def test_sweep_rejects_unknown_roots_and_empty_lists():
-    t = small_table()
+    t = small_pipeline_table()
     t["sweep"] = {"detectr.name": ["cfar"]}
     with pytest.raises(ConfigError, match="'detectr' is not a pipeline key"):
         expand_sweep(t, "s.toml")
@@ -106,7 +106,7 @@ def test_shipped_configs_are_valid():
 
     from xnlos_core.cli import main
 
-    root = Path(__file__).parents[1]
+    root = Path(__file__).parents[2]
     for p in sorted((root / "configs").rglob("*.toml")):
         if "radar" in p.parts or "scenes" in p.parts:
             continue

@@ -19,7 +19,7 @@ from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import MeshSpec
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PIPELINE = """\
 seed = 1
 [radar]

@@ -9,8 +9,6 @@ import torch
 from plugins.training.checkpoint import load_checkpoint, save_checkpoint
 from plugins.detectors.features import ra_features
 from plugins.detectors.learned import LEARNED, MODELS_DIR
-from plugins.detectors.nets import architectures
-from plugins.detectors.tasks import default_head
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig
 from xnlos_core.registry import get_registry
@@ -18,10 +16,6 @@ from xnlos_core.testing import check_component, synthetic_frame
 from xnlos_core.types import Detections, Frame, RAMap
 
 NAMES = sorted(LEARNED)
-TINY = {"swin_unet": dict(embed_dim=8, depths=(2, 2), heads=(2, 2), window=(4, 4), patch=(2, 2), stem_channels=4,
-                          head_channels=8),
-        "unet": dict(base_channels=4, levels=2), "further_than_cfar": dict(base_channels=4, levels=1),
-        "rtn": dict(base_channels=4)}
 SMALL = RadarConfig(n_samples=128, max_range=30.0, n_azimuth_bins=31)
 
 
@@ -36,19 +30,6 @@ def _frame(data, radar=None) -> Frame:
     r = np.linspace(0.0, 0.25 * (h - 1), h)
     a = np.linspace(-1.0, 1.0, w)
     return Frame(RAMap(data, r, a, radar or SMALL))
-
-
-def _tiny_checkpoint(path, name, seed=0, extra_meta=None, **params):
-    """Save a tiny untrained ``name`` (TINY hyper-parameters, ``params`` overriding) and return it."""
-    arch = architectures()[name]
-    hp = arch.HParams(**{**TINY[name], **params})
-    torch.manual_seed(seed)
-    net = arch.module(hp)
-    meta = {"architecture": name, "hparams": hp.model_dump(mode="json"),
-            "head": default_head(name, hp, (0.7, 1.0)).describe(), "decode": {"threshold": 0.5, "window": [1, 3]},
-            **(extra_meta or {})}
-    save_checkpoint(path, net, meta)
-    return net
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -128,8 +109,8 @@ def test_features_documented_properties():
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_checkpoint_round_trip(tmp_path, name):
-    net = _tiny_checkpoint(tmp_path / "m.pt", name, extra_meta={"training": {"note": "round trip"}})
+def test_checkpoint_round_trip(tmp_path, name, tiny_checkpoint):
+    net = tiny_checkpoint(tmp_path / "m.pt", name, extra_meta={"training": {"note": "round trip"}})
     sd, meta, _ = load_checkpoint(tmp_path / "m.pt", name)
     assert meta["training"] == {"note": "round trip"} and meta["hparams"] == net.hp.model_dump(mode="json")
     for key, value in net.state_dict().items():
@@ -143,15 +124,15 @@ def test_checkpoint_round_trip(tmp_path, name):
     assert isinstance(det.detect(frame), Detections)
 
 
-def test_checkpoint_of_another_architecture_is_refused(tmp_path):
-    _tiny_checkpoint(tmp_path / "unet.pt", "unet")
+def test_checkpoint_of_another_architecture_is_refused(tmp_path, tiny_checkpoint):
+    tiny_checkpoint(tmp_path / "unet.pt", "unet")
     det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "unet.pt")})
     with pytest.raises(InputError, match="holds a 'unet' model, but detector 'swin_unet' needs"):
         det.detect(synthetic_frame(SMALL))
 
 
-def test_corrupted_and_foreign_checkpoints_are_refused(tmp_path):
-    _tiny_checkpoint(tmp_path / "good.pt", "rtn")
+def test_corrupted_and_foreign_checkpoints_are_refused(tmp_path, tiny_checkpoint):
+    tiny_checkpoint(tmp_path / "good.pt", "rtn")
     raw = (tmp_path / "good.pt").read_bytes()
     (tmp_path / "truncated.pt").write_bytes(raw[: len(raw) // 2])
     (tmp_path / "garbage.pt").write_bytes(np.random.default_rng(0).bytes(4096))
@@ -170,8 +151,8 @@ def test_corrupted_and_foreign_checkpoints_are_refused(tmp_path):
             get_registry().create("detector", "rtn", {"checkpoint": str(tmp_path / fname)}).detect(synthetic_frame(SMALL))
 
 
-def test_weights_that_do_not_fit_the_hparams_are_refused(tmp_path):
-    _tiny_checkpoint(tmp_path / "a.pt", "unet")
+def test_weights_that_do_not_fit_the_hparams_are_refused(tmp_path, tiny_checkpoint):
+    tiny_checkpoint(tmp_path / "a.pt", "unet")
     sd, meta, _ = load_checkpoint(tmp_path / "a.pt")
     meta["hparams"]["base_channels"] = 6
     save_checkpoint(tmp_path / "b.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
@@ -269,10 +250,10 @@ def test_shipped_swin_unet_finds_the_corner_scene_echoes(detectors):
     assert m["los"]["f1"] > 0.3
 
 
-def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path):
+def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path, tiny_checkpoint, tiny_hparams):
     from plugins.detectors.nets.swin_unet import SwinUNet, SwinUNetParams, count_parameters
 
-    base = dict(TINY["swin_unet"])
+    base = tiny_hparams["swin_unet"]
     one, two = SwinUNet(SwinUNetParams(**base)), SwinUNet(SwinUNetParams(**base, decoder_convs=2))
     s0, s1 = base["stem_channels"], base["head_channels"]
     # one extra 3×3 conv (no bias) + BatchNorm (weight, bias) at full and at half resolution
@@ -280,7 +261,7 @@ def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path)
     x = torch.randn(1, 4, 8, 8)
     assert two.eval()(x).shape == (1, 2, 8, 8)
     # a checkpoint written before the field existed (no "decoder_convs" in its hparams) loads as 1
-    _tiny_checkpoint(tmp_path / "a.pt", "swin_unet")
+    tiny_checkpoint(tmp_path / "a.pt", "swin_unet")
     sd, meta, _ = load_checkpoint(tmp_path / "a.pt")
     del meta["hparams"]["decoder_convs"]
     save_checkpoint(tmp_path / "old.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
@@ -288,10 +269,10 @@ def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path)
     assert isinstance(det.detect(synthetic_frame(SMALL)), Detections)
 
 
-def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block():
+def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block(tiny_hparams):
     from plugins.detectors.nets.swin_unet import MixMLP, SwinUNet, SwinUNetParams, count_parameters
 
-    base = dict(TINY["swin_unet"])
+    base = tiny_hparams["swin_unet"]
     plain, mixed = SwinUNet(SwinUNetParams(**base)), SwinUNet(SwinUNetParams(**base, mlp_conv=True))
     hp = plain.hp
     # encoder stages and the decoder stages below the bottleneck; a 3×3 depthwise conv with bias
@@ -309,14 +290,14 @@ def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block():
     assert changed.nonzero().tolist() == [[i, j] for i in (2, 3, 4) for j in (3, 4, 5)]
 
 
-def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_path):
+def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_path, tiny_checkpoint, tiny_hparams):
     from plugins.detectors.nets.swin_unet import SwinUNet, SwinUNetParams
 
-    base = dict(TINY["swin_unet"])
+    base = tiny_hparams["swin_unet"]
     with pytest.raises(ValueError, match="multiple of 4"):
         SwinUNetParams(**base, stem_levels=3)  # patch (2, 2) cannot sit on a 1/4-resolution stem
     two = SwinUNet(SwinUNetParams(**base))
-    three = _tiny_checkpoint(tmp_path / "three.pt", "swin_unet", patch=(4, 4), stem_levels=3)
+    three = tiny_checkpoint(tmp_path / "three.pt", "swin_unet", patch=(4, 4), stem_levels=3)
     top = {net: {k.split(".")[0] for k in net.state_dict()} for net in (two, three)}
     # two levels keep the module names of the checkpoints made before the field; three add one level
     assert {"stem0", "stem1", "up0", "fuse0", "fuse1"} <= top[two] and not top[two] & {"stem2", "up1", "fuse2"}

@@ -8,7 +8,7 @@ finite outputs or a *typed* project error from a short list of expected causes (
 only says a core type refused a NaN would be a stage bug, so the messages are checked too). Non-finite
 maps are refused when the RAMap is built and cannot be written afterwards (arrays are read-only).
 
-Case counts come from the ``fuzz_cases`` fixture (200 in ``make test``, 10,000 in ``make fuzz``);
+Case counts come from the ``fuzz_cases`` fixture (50 in ``make test``, 10,000 in ``make fuzz``);
 the learned detectors run a tenth of them on maps of at most 48 × 48 cells (a forward pass each),
 emcee runs 40-step chains. Each test prints its tally (``pytest -s``), e.g. ``ok: 120, InputError: 80``.
 """

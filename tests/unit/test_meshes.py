@@ -12,7 +12,7 @@ from sims.meshes import check_scene_geometry, load_user_mesh
 from xnlos_core.errors import InputError
 from xnlos_core.scene import MeshSpec, ObjectSpec, Scene, WallSpec
 
-DATA = Path(__file__).parent / "data" / "meshes"
+DATA = Path(__file__).parents[1] / "data" / "meshes"
 TAGS = {"concrete_part": "concrete", "glass_part": "glass"}
 
 

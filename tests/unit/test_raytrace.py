@@ -173,7 +173,7 @@ def test_user_meshes_are_traced(tmp_path):
 
     from xnlos_core.scene import MeshSpec
 
-    meshes = Path(__file__).parent / "data" / "meshes"
+    meshes = Path(__file__).parents[1] / "data" / "meshes"
     spec = MeshSpec(name="kiosk", file="box.stl", material="concrete", roughness=2e-3, translation=(25.0, 0.0, 0.0),
                     scale=4.0)
     scene = Scene(meshes=[spec], base_dir=str(meshes),

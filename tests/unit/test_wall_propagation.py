@@ -17,7 +17,7 @@ from xnlos_core.config import parse_pipeline
 from xnlos_core.figures import credible_radius, plot_frame, plot_wall_corner
 from xnlos_core.pipeline import Pipeline
 
-from .conftest import small_table
+from xnlos_core.testing import small_pipeline_table
 
 
 def test_sample_propagation_matches_first_order_for_a_line():
@@ -144,7 +144,7 @@ def test_corner_plot_and_frame_figure(tmp_path):
     assert p.stat().st_size > 10_000
     lap = CasadiMapWallEstimator().estimate(sc.detections)[0]
     assert plot_wall_corner(lap, tmp_path / "corner_laplace.png").stat().st_size > 10_000
-    t = small_table(wall_estimator={"name": "emcee", "params": {"n_steps": 200, "burn": 50}})
+    t = small_pipeline_table(wall_estimator={"name": "emcee", "params": {"n_steps": 200, "burn": 50}})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         (res,) = list(Pipeline(parse_pipeline(t, "t")).run())
@@ -156,7 +156,7 @@ def test_corner_plot_and_frame_figure(tmp_path):
 @pytest.mark.parametrize("name", ["casadi_map", "emcee"])
 def test_pipeline_runs_with_probabilistic_walls(name):
     params = {"n_steps": 200, "burn": 50} if name == "emcee" else {}
-    t = small_table(wall_estimator={"name": name, "params": params})
+    t = small_pipeline_table(wall_estimator={"name": name, "params": params})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         (res,) = list(Pipeline(parse_pipeline(t, name)).run())
