@@ -54,7 +54,7 @@ def tiny_checkpoint():
     at ``path`` and returns the network."""
     import torch
 
-    from plugins.detectors.checkpoint import save_checkpoint
+    from plugins.training.checkpoint import save_checkpoint
     from plugins.detectors.nets import architectures
     from plugins.detectors.tasks import default_head
 

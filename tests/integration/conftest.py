@@ -113,12 +113,8 @@ def tiny_dataset(tmp_path_factory) -> Path:
     return _simulate(tmp_path_factory.mktemp("ds"), n_maps=8, split={"train": 0.25, "val": 0.25, "test": 0.5})
 
 
-EVAL_PIPELINE = """
-name = "tiny-eval"
-[backend]
-name = "dataset"
-params = {{ path = "{path}", split = "test" }}
-[detector]
+# The classical stages (CFAR peaks classified against the wall, total least squares, Eq. 7 mirror).
+CLASSICAL_STAGES = """[detector]
 name = "nlos_cfar"
 [wall_estimator]
 name = "lsq"
@@ -133,7 +129,8 @@ def eval_config():
     (nlos_cfar → lsq → mirror) plus ``extra`` TOML to tmp_path/eval.toml and return its path."""
     def write(tmp_path: Path, dataset: Path, extra: str = "") -> Path:
         p = tmp_path / "eval.toml"
-        p.write_text(EVAL_PIPELINE.format(path=dataset) + extra)
+        p.write_text(f'name = "tiny-eval"\n[backend]\nname = "dataset"\n'
+                     f'params = {{ path = "{dataset}", split = "test" }}\n' + CLASSICAL_STAGES + extra)
         return p
 
     return write
@@ -142,7 +139,7 @@ def eval_config():
 @pytest.fixture(scope="session")
 def sweep_toml() -> str:
     """A one-frame corner pipeline with a `[sweep]` over two detectors (cfar, nlos_cfar)."""
-    return """
+    return ("""
 name = "tiny-sweep"
 seed = 2
 [radar]
@@ -153,18 +150,12 @@ n_azimuth_bins = 121
 builtin = "corner"
 [forward_model]
 name = "image"
-[detector]
-name = "nlos_cfar"
-[wall_estimator]
-name = "lsq"
-[reconstructor]
-name = "mirror"
-[run]
+""" + CLASSICAL_STAGES + """[run]
 frames = 1
 figure = false
 [sweep]
 "detector.name" = ["cfar", "nlos_cfar"]
-"""
+""")
 
 
 # --- the CAN link -------------------------------------------------------------------------------

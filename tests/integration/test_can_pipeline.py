@@ -9,9 +9,7 @@ from xnlos_core.cli import main
 from xnlos_core.config import load_pipeline, parse_pipeline
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.radar import RadarConfig
-from xnlos_core.testing import check_component
-
-from xnlos_core.testing import small_pipeline_table
+from xnlos_core.testing import check_component, small_pipeline_table
 
 ROOT = Path(__file__).resolve().parents[2]
 RADAR = {"n_samples": 128, "max_range": 30.0, "n_azimuth_bins": 41}

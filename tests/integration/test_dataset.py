@@ -14,7 +14,7 @@ import pytest
 
 from sims.dataset.shard import _one_blas_thread
 from sims.dataset import (SCHEMA_VERSION, DatasetError, make_plan, open_dataset, parse_dataset_config,
-                          read_manifest, resolve, simulate_dataset, verify_dataset)
+                          read_manifest, resolve, verify_dataset)
 from sims.dataset.plan import apportion, noise_seed, scene_seed, spread_labels
 from sims.dataset.shard import decode_npz
 from xnlos_core.cli import main
@@ -60,7 +60,8 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
         assert s.n_maps == 3 * len(s.scenes) and all(multi.split[k] == s.split for k in s.scenes)
 
 
-def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
+def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes,
+                                                    simulate_tiny):
     out = tmp_path / "pool"
     summary = simulate_tiny(dataset_cfg(), out, workers=2, progress=False)
     assert summary["generated"] == 7 and summary["splits"] == {"train": 6, "val": 3, "test": 3}
@@ -71,7 +72,8 @@ def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path,
     assert m["versions"]["xnlos"] and m["radar"]["n_samples"] == 128
 
 
-def test_dask_local_cluster_gives_the_same_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
+def test_dask_local_cluster_gives_the_same_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes,
+                                                  simulate_tiny):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
                                   host="127.0.0.1", dashboard_address=None) as cluster:
@@ -80,7 +82,8 @@ def test_dask_local_cluster_gives_the_same_shards(reference_dataset, tmp_path, d
     assert shard_hashes(tmp_path / "dask") == shard_hashes(reference_dataset)
 
 
-def test_resume_after_interruption_loses_and_duplicates_nothing(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
+def test_resume_after_interruption_loses_and_duplicates_nothing(reference_dataset, tmp_path, dataset_cfg,
+                                                                shard_hashes, simulate_tiny):
     out = tmp_path / "killed"
 
     def stop_after_two(rec, seen=[]):  # noqa: B006 (counts calls)
@@ -105,7 +108,8 @@ def test_resume_after_interruption_loses_and_duplicates_nothing(reference_datase
     assert sorted(p.name for p in (out / "shards").iterdir()) == sorted(shard_hashes(reference_dataset))
 
 
-def test_killed_cli_process_resumes_bit_identical(tmp_path, dataset_table, shard_hashes, simulate_tiny, tiny_plugin, tiny_plugin_env):
+def test_killed_cli_process_resumes_bit_identical(tmp_path, dataset_table, shard_hashes, simulate_tiny, tiny_plugin,
+                                                  tiny_plugin_env):
     """SIGKILL a real `xnlos simulate` mid-run, rerun the same command, compare with an uninterrupted run."""
     t = dataset_table(n_maps=24, family_overrides={f: {"delay": 0.05} for f in tiny_plugin.FAMILIES})
     path = tmp_path / "slow.toml"
@@ -132,7 +136,8 @@ def test_killed_cli_process_resumes_bit_identical(tmp_path, dataset_table, shard
     assert shard_hashes(out) == shard_hashes(ref)
 
 
-def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference_dataset, tmp_path, dataset_cfg, shard_hashes, simulate_tiny):
+def test_corrupt_and_missing_shards_are_reported_by_name_and_repaired(reference_dataset, tmp_path, dataset_cfg,
+                                                                      shard_hashes, simulate_tiny):
     import shutil
 
     out = tmp_path / "copy"

@@ -153,7 +153,8 @@ def test_verify_checks_the_log_against_the_manifest(copy):
 def test_damaged_completed_log_is_refused_naming_the_line(copy, bad, match, dataset_cfg):
     lines = (copy / "completed.jsonl").read_bytes().splitlines(keepends=True)
     (copy / "completed.jsonl").write_bytes(lines[0] + bad + b"".join(lines[1:]))
-    for call in (lambda: open_dataset(copy, None), lambda: simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)):
+    for call in (lambda: open_dataset(copy, None),
+                 lambda: simulate_dataset(dataset_cfg(), copy, workers=1, progress=False)):
         with pytest.raises(InputError, match=match):
             call()
 

@@ -149,8 +149,8 @@ def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys, 
     assert "another configuration" in capsys.readouterr().err
 
 
-def test_eval_refuses_to_resume_with_other_learned_weights(tiny_dataset, tmp_path, capsys, eval_config, tiny_checkpoint):
-
+def test_eval_refuses_to_resume_with_other_learned_weights(tiny_dataset, tmp_path, capsys, eval_config,
+                                                           tiny_checkpoint):
     ckpt = tmp_path / "unet.pt"
     tiny_checkpoint(ckpt, "unet", seed=0)
     cfg = eval_config(tmp_path, tiny_dataset).read_text().replace('name = "nlos_cfar"', f'name = "unet"\n'

@@ -11,9 +11,8 @@ from xnlos_core.io import read_jsonl, save_frame
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import get_registry
 from xnlos_core.runner import run_to_dir
-from xnlos_core.types import MNLOS
-
 from xnlos_core.testing import small_pipeline_table
+from xnlos_core.types import MNLOS
 
 
 def test_demo_reconstructs_hidden_car_within_1m():

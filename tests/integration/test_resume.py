@@ -72,7 +72,8 @@ def test_removed_line_recomputes_exactly_that_frame(reference, tmp_path):
 
 
 def test_a_gap_with_a_tracker_gets_the_tracks_of_an_uninterrupted_run(tmp_path):
-    cfg = parse_pipeline(small_pipeline_table(run={"frames": 4, "figure": False}, tracker={"name": "nearest"}), "t.toml")
+    cfg = parse_pipeline(small_pipeline_table(run={"frames": 4, "figure": False}, tracker={"name": "nearest"}),
+                         "t.toml")
     ref = tmp_path / "ref"
     run_to_dir(cfg, ref, progress=False)
     want = read_jsonl(ref / "results.jsonl")

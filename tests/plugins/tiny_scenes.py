@@ -1,8 +1,10 @@
 """A test plugin: three tiny corner scene generators (``corner_a``, ``corner_b``, ``corner_c``).
 
-Registered by hand, the way a user's own plugin is: ``xnlos -p tests.tiny_scenes`` on the
-command line, or ``tiny_registry()`` in-process. Dataset workers receive the classes from the
-parent process (module-level, so they pickle by reference).
+Registered by hand, the way a user's own plugin is: ``xnlos -p tiny_scenes`` on the command line
+(tests/plugins on PYTHONPATH; pytest puts it on sys.path through its ``pythonpath`` setting), or
+``tiny_registry()`` in-process. Only tests/integration/conftest.py imports this module; tests get it
+through fixtures. Dataset workers receive the classes from the parent process (module-level, so
+they pickle by reference).
 """
 from __future__ import annotations
 
@@ -79,7 +81,7 @@ def tiny_manager():
     from xnlos_core.registry import PluginManager
 
     mgr = PluginManager()
-    mgr.register(sys.modules[__name__], name="tests.tiny_scenes", provider="tests.tiny_scenes")
+    mgr.register(sys.modules[__name__], name="tiny_scenes", provider="tiny_scenes")
     return mgr
 
 

@@ -10,7 +10,6 @@ from xnlos_core import UNCLASSIFIED, ConfigError, Frame, InputError, RadarConfig
 from xnlos_core.config import parse_pipeline
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import PluginManager
-
 from xnlos_core.testing import small_pipeline_table
 
 RADAR = RadarConfig()

@@ -3,7 +3,6 @@ import pytest
 from xnlos_core import ConfigError, PluginError
 from xnlos_core.config import expand_sweep, load_pipeline, parse_pipeline
 from xnlos_core.pipeline import Pipeline
-
 from xnlos_core.testing import small_pipeline_table
 
 
