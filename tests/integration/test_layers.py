@@ -12,7 +12,7 @@ from importlinter.contracts.forbidden import ForbiddenContract
 from importlinter.contracts.independence import IndependenceContract
 from importlinter.contracts.layers import LayersContract
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CONFIG = read_configuration(str(ROOT / "pyproject.toml"))
 TYPES = {c.type_name: c for c in (ForbiddenContract, IndependenceContract, LayersContract, AcyclicSiblingsContract)}
 CONTRACTS = {c["id"]: c for c in CONFIG["contracts_options"]}
