@@ -241,11 +241,18 @@ def thirdparty_env(tmp_path_factory) -> dict[str, str]:
     installs it (built offline from a copy of its source, so the tree stays clean) into a temporary
     ``--target`` directory that goes on PYTHONPATH. importlib.metadata finds its dist-info and so its
     ``xnlos.plugins`` entry point there, as in site-packages; the running environment is untouched."""
+    import importlib.metadata as md
+
+    def installed() -> set[tuple[str, str]]:
+        return {(d.metadata["Name"], d.version) for d in md.distributions()}
+
     base = tmp_path_factory.mktemp("thirdparty")
     src, target = base / "src", base / "site"
     shutil.copytree(TESTS / "thirdparty_plugin", src)
+    before = installed()
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",
                     "--no-index", "--disable-pip-version-check", "--target", str(target), str(src)],
                    check=True, capture_output=True)
+    assert installed() == before, "pip --target changed the environment running the tests"
     path = os.pathsep.join(p for p in (str(target), os.environ.get("PYTHONPATH")) if p)
-    return {**os.environ, "PYTHONPATH": path}
+    return {**os.environ, "PYTHONPATH": path, "XNLOS_TEST_PLUGIN_TARGET": str(target)}

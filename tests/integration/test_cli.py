@@ -91,10 +91,10 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys, sweep_toml, mo
     assert "cannot connect to a Dask scheduler" in capsys.readouterr().err
 
 
-def test_check_refuses_a_wall_of_unknown_material(tmp_path, capsys):
+def test_check_refuses_a_wall_of_unknown_material(tmp_path, capsys, sweep_toml):
     # the core no longer knows the materials: the forward model's check must still refuse the name
     p = tmp_path / "bad_material.toml"
-    p.write_text(SWEEP.split("[sweep]")[0].replace('builtin = "corner"',
+    p.write_text(sweep_toml.split("[sweep]")[0].replace('builtin = "corner"',
                  '[[scene.walls]]\nname = "facade"\nstart = [20.0, 5.0]\nend = [20.0, -5.0]\nmaterial = "concret"'))
     assert main(["check", str(p)]) == 2
     assert "walls[0] ('facade'): unknown material 'concret' — did you mean 'concrete'?" in capsys.readouterr().err
