@@ -15,10 +15,12 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/xnlos demo --out demo-out --overwrite
 
-# The layer contracts of pyproject.toml ([tool.importlinter]) first, then the tests.
+# The layer contracts of pyproject.toml ([tool.importlinter]) first, then the tests, spread over
+# the machine's cores by pytest-xdist (XDIST=0 runs them in one process).
+XDIST ?= auto
 test: $(STAMP)
 	$(VENV)/bin/lint-imports --no-cache
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(XDIST)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
