@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 from .errors import ConfigError
 from .files import load_toml, resolve_config_path
@@ -80,6 +80,14 @@ class RadarConfig(BaseModel):
     max_range: float = Field(100.0, gt=0, description="RA maps are cropped to [0, max_range] [m]")
     range_window: str = Field("hann", description="scipy.signal window for the range FFT")
     azimuth_window: str = Field("taylor", description="scipy.signal window for beamforming")
+    # TDM-MIMO slow-time timing (issue 28). None keeps the implied back-to-back timing, and unset
+    # fields are left out of the serialised config, so existing configs keep their JSON and digest.
+    chirp_period: float | None = Field(
+        None, gt=0, le=1, description="T_c [s]: start-to-start interval of consecutive chirps (any TX), "
+                                      "≥ chirp_duration; None: chirp_duration (back-to-back chirps)")
+    frame_period: float | None = Field(
+        None, gt=0, le=3600, description="start-to-start interval of frames [s], ≥ n_chirps·n_tdm·T_c; "
+                                         "None: n_chirps·n_tdm·T_c (back-to-back frames)")
 
     @model_validator(mode="after")
     def _check_range(self) -> "RadarConfig":
@@ -92,10 +100,27 @@ class RadarConfig(BaseModel):
             raise ValueError(f"max_range={self.max_range} m is below two range bins ({self.range_resolution:.3f} m each)")
         for name in ("range_window", "azimuth_window"):
             _check_window(name, getattr(self, name))
+        if self.chirp_period is not None and self.chirp_period < self.chirp_duration:
+            raise ValueError(f"chirp_period={self.chirp_period} s is shorter than chirp_duration="
+                             f"{self.chirp_duration} s; a chirp must end before the next starts")
+        if self.frame_period is not None and self.frame_period < self.chirp_loop_time * self.n_chirps:
+            raise ValueError(f"frame_period={self.frame_period} s is shorter than the frame's chirps "
+                             f"n_chirps·n_tdm·T_c = {self.chirp_loop_time * self.n_chirps:.6g} s")
         if self.coupling_db is not None and self.coupling_file is not None:
             raise ValueError("coupling_db and coupling_file are exclusive: give the modelled level or a "
                              "measured matrix, not both")
         return self
+
+    @model_serializer(mode="wrap")
+    def _omit_unset_timing(self, handler):
+        # the timing fields arrived after configs, digests and saved frames existed: leave them out
+        # while unset so those stay byte-identical; a set value serialises and round-trips
+        data = handler(self)
+        if isinstance(data, dict):
+            for name in _OPTIONAL_TIMING:
+                if data.get(name, 0) is None:
+                    del data[name]
+        return data
 
     # --- derived quantities (float64) ----------------------------------------------------
     @property
@@ -174,6 +199,53 @@ class RadarConfig(BaseModel):
         tx = np.arange(self.n_tx) * tx_step * lam
         v = (tx[:, None] + rx[None, :]).ravel()
         return v - v.mean()
+
+    # --- slow time (TDM-MIMO chirp sequence, issue 28) -------------------------------------
+    @property
+    def chirp_interval(self) -> float:
+        """T_c [s]: start-to-start time of consecutive chirps, ``chirp_period`` or chirp_duration."""
+        return self.chirp_duration if self.chirp_period is None else self.chirp_period
+
+    @property
+    def n_tdm(self) -> int:
+        """N_tx of the slow-time formulas: TX slots per chirp loop (n_tx with MIMO, 1 without: all TX at once)."""
+        return self.n_tx if self.mimo else 1
+
+    @property
+    def chirp_loop_time(self) -> float:
+        """T_c·N_tx [s]: slow-time sampling interval of one virtual channel (one chirp per TX)."""
+        return self.chirp_interval * self.n_tdm
+
+    @property
+    def frame_interval(self) -> float:
+        """Frame start-to-start time [s]: ``frame_period``, or n_chirps·T_c·N_tx (back-to-back)."""
+        return self.n_chirps * self.chirp_loop_time if self.frame_period is None else self.frame_period
+
+    @property
+    def max_unambiguous_velocity(self) -> float:
+        """v_max = λ / (4·T_c·N_tx) [m/s]: radial velocities fold into [−v_max, v_max)."""
+        return self.wavelength / (4.0 * self.chirp_loop_time)
+
+    @property
+    def velocity_resolution(self) -> float:
+        """Δv = λ / (2·N·T_c·N_tx) [m/s] (N = n_chirps), also the Doppler-bin spacing in velocity."""
+        return self.wavelength / (2.0 * self.n_chirps * self.chirp_loop_time)
+
+    @property
+    def doppler_axis(self) -> np.ndarray:
+        """Doppler-bin centres f_D [Hz], shape (n_chirps,), ascending (fft-shifted), spacing 1/(N·T_c·N_tx)."""
+        return np.fft.fftshift(np.fft.fftfreq(self.n_chirps, d=self.chirp_loop_time))
+
+    @property
+    def velocity_axis(self) -> np.ndarray:
+        """Radial velocity v_r = λ·f_D/2 [m/s] of each Doppler bin, shape (n_chirps,), ascending from −v_max.
+
+        v_r is the range rate dR/dt: positive receding (the sign :func:`dechirp` gives f_D).
+        """
+        return 0.5 * self.wavelength * self.doppler_axis
+
+
+_OPTIONAL_TIMING = ("chirp_period", "frame_period")
 
 
 def _check_window(name: str, window: str) -> None:
