@@ -222,14 +222,24 @@ class RadarConfig(BaseModel):
         return self.n_chirps * self.chirp_loop_time if self.frame_period is None else self.frame_period
 
     @property
+    def doppler_wavelength(self) -> float:
+        """λ₀ = c / (f_c + B/2) [m]: the wavelength of the sweep's centre frequency.
+
+        A range bin's phase follows the echo's phase at the middle of the chirp (the range FFT's
+        phase centre), so a mover's slow-time frequency is 2·v_r/λ₀, not 2·v_r/λ (3 % apart for
+        the default 600 MHz sweep at 10 GHz). The velocity formulas below use λ₀.
+        """
+        return SPEED_OF_LIGHT / (self.carrier_frequency + 0.5 * self.bandwidth)
+
+    @property
     def max_unambiguous_velocity(self) -> float:
-        """v_max = λ / (4·T_c·N_tx) [m/s]: radial velocities fold into [−v_max, v_max)."""
-        return self.wavelength / (4.0 * self.chirp_loop_time)
+        """v_max = λ₀ / (4·T_c·N_tx) [m/s]: radial velocities fold into [−v_max, v_max)."""
+        return self.doppler_wavelength / (4.0 * self.chirp_loop_time)
 
     @property
     def velocity_resolution(self) -> float:
-        """Δv = λ / (2·N·T_c·N_tx) [m/s] (N = n_chirps), also the Doppler-bin spacing in velocity."""
-        return self.wavelength / (2.0 * self.n_chirps * self.chirp_loop_time)
+        """Δv = λ₀ / (2·N·T_c·N_tx) [m/s] (N = n_chirps), also the Doppler-bin spacing in velocity."""
+        return self.doppler_wavelength / (2.0 * self.n_chirps * self.chirp_loop_time)
 
     @property
     def doppler_axis(self) -> np.ndarray:
@@ -238,11 +248,12 @@ class RadarConfig(BaseModel):
 
     @property
     def velocity_axis(self) -> np.ndarray:
-        """Radial velocity v_r = λ·f_D/2 [m/s] of each Doppler bin, shape (n_chirps,), ascending from −v_max.
+        """Radial velocity v_r = λ₀·f_D/2 [m/s] of each Doppler bin, shape (n_chirps,), ascending from −v_max.
 
-        v_r is the range rate dR/dt: positive receding (the sign :func:`dechirp` gives f_D).
+        v_r is the range rate dR/dt: positive receding (the sign
+        :func:`xnlos_core.signal_chain.dechirp` gives f_D); λ₀ is :attr:`doppler_wavelength`.
         """
-        return 0.5 * self.wavelength * self.doppler_axis
+        return 0.5 * self.doppler_wavelength * self.doppler_axis
 
 
 _OPTIONAL_TIMING = ("chirp_period", "frame_period")
