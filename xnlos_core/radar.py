@@ -155,7 +155,8 @@ class RadarConfig(BaseModel):
         The cube is the coherent mean of ``n_chirps`` chirps per transmitter: a static scene's
         echo is the same in every chirp and the noise is independent, so averaging keeps the
         signal and divides the noise power by n_chirps (an SNR gain of 10·log10(n_chirps) dB;
-        18.1 dB for the default 64). Motion within the 4·n_chirps·T frame is not modelled.
+        18.1 dB for the default 64). A mover's echo turns in phase from chirp to chirp and is lost
+        in the mean; :mod:`xnlos_core.doppler` keeps the chirps (per-chirp noise: n_chirps times this).
         """
         return BOLTZMANN * self.temperature * self.sample_rate * 10 ** (self.noise_figure_db / 10) / self.n_chirps
 
