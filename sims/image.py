@@ -38,6 +38,7 @@ from xnlos_core.types import Frame
 
 from . import walls as wall_em
 from .params import ForwardParams, components_needed
+from .motion_paths import mirror_velocity, object_velocity
 from .paths import LOS, MNLOS, PathList, Paths
 from .propagation import received_power
 from .render import render_paths
@@ -122,11 +123,14 @@ class ImageForwardModel(ForwardModel):
         wall_phase, obj_phase = drawn[:len(walls)], drawn[len(walls):]
         out = PathList()
 
-        def emit(points, power, phase, kind, hidden=None, obj=-1, centre=-1):
+        vel = [object_velocity(o, timestamp) for o in scene.objects]
+
+        def emit(points, power, phase, kind, hidden=None, obj=-1, centre=-1, velocity=(0.0, 0.0)):
             r, th = cartesian_to_polar(points)
             out.add(length=2 * r, azimuth=th, power=power, phase=phase, kind=kind,
                     order=kind,  # image paths: LOS direct, mNLOS one bounce
-                    pos=points, hidden=points if hidden is None else hidden, obj=obj, centre=centre)
+                    pos=points, hidden=points if hidden is None else hidden, obj=obj, centre=centre,
+                    velocity=velocity)
 
         # --- LOS: diffuse wall returns, σ = σ⁰(ψ)·Δs·h per cell --------------------------------
         for i, (spec, seg, (pts, ds)) in enumerate(zip(planar, segs, walls)):
@@ -148,7 +152,7 @@ class ImageForwardModel(ForwardModel):
             vis = face & (gain > 0)
             r, th = cartesian_to_polar(pts[vis])
             emit(pts[vis], received_power(radar, r, th, rcs[vis] * gain[vis]), obj_phase[j][vis], LOS, obj=j,
-                 centre=np.flatnonzero(vis))
+                 centre=np.flatnonzero(vis), velocity=vel[j])
 
         # --- mNLOS: one specular bounce on each side of the object (Eq. 3, 5) ------------------
         if p.mirror_paths:
@@ -168,7 +172,8 @@ class ImageForwardModel(ForwardModel):
                     inc = np.arccos(np.clip(np.abs(w[ok] @ n) / np.linalg.norm(w[ok], axis=1), 0.0, 1.0))
                     alpha = wall_em.specular_alpha(spec, radar, inc, p.reflection)
                     power = received_power(radar, r, th, rcs[ok], alpha)
-                    emit(img[ok], power, obj_phase[j][ok], MNLOS, hidden=pts[ok], obj=j, centre=np.flatnonzero(ok))
+                    emit(img[ok], power, obj_phase[j][ok], MNLOS, hidden=pts[ok], obj=j, centre=np.flatnonzero(ok),
+                         velocity=mirror_velocity(vel[j], n))  # the echo's Doppler is the virtual target's
         return out.paths()
 
 

@@ -44,6 +44,11 @@ class ForwardParams(BaseModel):
                                                    "reaches tolerance_db")
     coupling: Switch = Field("auto", description="the radar's mutual-coupling matrix mixes the channels; auto: on "
                                                  "when the radar has one")
+    doppler: bool = Field(False, description="render the chirp sequence (n_chirps loops of TDM chirps, timing "
+                                             "from the radar [s]) with each path's radial velocity [m/s] and "
+                                             "form the RA map by Doppler processing (peak Doppler bin per cell, "
+                                             "with velocity [m/s] and σ maps); off: one snapshot chirp, movers "
+                                             "frozen at the frame's timestamp")
     tolerance_db: float = Field(0.1, ge=0, le=60, description="'auto' leaves out a loss term whose largest "
                                                               "effect stays below this [dB]")
 

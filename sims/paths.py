@@ -30,7 +30,10 @@ class Paths:
     pos (P, 2) float [m]: ground-truth BEV position (the LOS point, or the virtual point o');
     hidden (P, 2) float [m]: the scatterer o itself;
     obj (P,) int: object index ≥ 0, or −1 − s for a wall cell or strip of static surface s;
-    centre (P,) int: scattering-centre index within the object, −1 for wall cells and strips.
+    centre (P,) int: scattering-centre index within the object, −1 for wall cells and strips;
+    velocity (P, 2) float [m/s] or None: horizontal velocity of the point ``pos`` (for a mirrored
+    path the virtual scatterer's, (I − 2nnᵀ)v, :func:`sims.motion_paths.mirror_velocity`; for a
+    mixed path of raytrace only its range-rate component along ``pos``); None: all static.
     """
 
     length: np.ndarray
@@ -44,6 +47,7 @@ class Paths:
     hidden: np.ndarray
     obj: np.ndarray
     centre: np.ndarray
+    velocity: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.length)
@@ -54,6 +58,7 @@ class Paths:
 
 
 _SCALAR = ("length", "azimuth", "power", "amp", "phase", "kind", "order", "obj", "centre")
+_VECTOR = ("pos", "hidden", "velocity")
 _INT = ("kind", "order", "obj", "centre")
 
 
@@ -61,11 +66,13 @@ _INT = ("kind", "order", "obj", "centre")
 class PathList:
     """Collects paths group by group (:meth:`add`); :meth:`paths` concatenates them into :class:`Paths`."""
 
-    cols: dict[str, list] = field(default_factory=lambda: {k: [] for k in (*_SCALAR, "pos", "hidden")})
+    cols: dict[str, list] = field(default_factory=lambda: {k: [] for k in (*_SCALAR, *_VECTOR)})
 
-    def add(self, *, length, azimuth, power, kind, order, pos, hidden, obj, centre, amp=None, phase=0.0) -> None:
-        """Append n paths: each column (n,) or a scalar broadcast to n, pos/hidden (n, 2).
-        Give ``amp`` for every group or for none (then :attr:`Paths.amp` is None)."""
+    def add(self, *, length, azimuth, power, kind, order, pos, hidden, obj, centre, amp=None, phase=0.0,
+            velocity=(0.0, 0.0)) -> None:
+        """Append n paths: each column (n,) or a scalar broadcast to n, pos/hidden (n, 2), velocity
+        (n, 2) or (2,) broadcast [m/s] (default static). Give ``amp`` for every group or for none
+        (then :attr:`Paths.amp` is None)."""
         given = dict(length=length, azimuth=azimuth, power=power, amp=amp, phase=phase, kind=kind, order=order,
                      obj=obj, centre=centre)
         if (amp is None) != (not self.cols["amp"]) and self.cols["length"]:
@@ -78,6 +85,7 @@ class PathList:
             self.cols[k].append(np.broadcast_to(v, (n,)) if v.ndim == 0 else v)
         for k, v in (("pos", pos), ("hidden", hidden)):
             self.cols[k].append(np.asarray(v, dtype=np.float64).reshape(n, 2))
+        self.cols["velocity"].append(np.broadcast_to(np.asarray(velocity, dtype=np.float64), (n, 2)))
 
     def paths(self) -> Paths:
         """All paths added so far, concatenated in the order they were added."""
@@ -86,7 +94,7 @@ class PathList:
             if parts:
                 out[k] = np.concatenate(parts)
             else:
-                out[k] = np.zeros((0, 2)) if k in ("pos", "hidden") else np.zeros(0)
+                out[k] = np.zeros((0, 2)) if k in _VECTOR else np.zeros(0)
         for k in _INT:
             out[k] = out[k].astype(np.int64)
         out["phase"] = out["phase"].astype(np.float64)

@@ -50,13 +50,18 @@ class RAMap(_ReadOnlyArrays):
     """Complex range–azimuth map κ ∈ ℂ^{H×W} (Sec. 3.2).
 
     data: complex64 (n_range, n_azimuth); range_axis: float64 (n_range,) [m], ascending;
-    azimuth_axis: float64 (n_azimuth,) [rad], ascending; radar: the configuration that made it.
+    azimuth_axis: float64 (n_azimuth,) [rad], ascending; radar: the configuration that made it;
+    velocity, velocity_std: float64 (n_range, n_azimuth) or None: each cell's radial velocity
+    v̂_r = dR/dt [m/s] (positive receding) and its σ [m/s] when the map came from Doppler
+    processing (:func:`xnlos_core.doppler.doppler_ra_maps`), both or neither.
     """
 
     data: np.ndarray
     range_axis: np.ndarray
     azimuth_axis: np.ndarray
     radar: RadarConfig
+    velocity: np.ndarray | None = None
+    velocity_std: np.ndarray | None = None
 
     def __post_init__(self):
         data = as_array("RAMap.data", self.data, dtype=np.complex64, ndim=2, readonly=True)
@@ -77,6 +82,14 @@ class RAMap(_ReadOnlyArrays):
         _set(self, "data", data)
         _set(self, "range_axis", r)
         _set(self, "azimuth_axis", a)
+        if (self.velocity is None) != (self.velocity_std is None):
+            raise InputError("RAMap.velocity, RAMap.velocity_std: give both (Doppler maps) or neither")
+        if self.velocity is not None:
+            _set(self, "velocity", as_array("RAMap.velocity", self.velocity, shape=data.shape, readonly=True))
+            std = as_array("RAMap.velocity_std", self.velocity_std, shape=data.shape, readonly=True)
+            if np.any(std < 0):
+                raise InputError("RAMap.velocity_std: σ must be ≥ 0 m/s")
+            _set(self, "velocity_std", std)
 
     @classmethod
     def from_radar(cls, data, radar: RadarConfig) -> "RAMap":

@@ -26,6 +26,7 @@ from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
 from sims import walls as wall_em
+from sims.motion_paths import mirror_velocity, object_velocity
 from sims.params import ForwardParams, components_needed
 from sims.paths import OTHER, PathList
 from sims.propagation import received_power
@@ -88,17 +89,19 @@ class RaytraceForwardModel(ForwardModel):
                    snr_floor_db=p.min_snr_db - p.depth_margin_db, sigma_bound=sigma_bound,
                    reflection=p.reflection, diffuse=use["diffuse"] == "on", paths=paths,
                    keep_segments=keep_segments)
-        self._object_paths(world, radar, origin, scene, centres, tr, paths)
+        self._object_paths(world, radar, origin, scene, centres, tr, paths, timestamp)
         return world, paths.paths(), tr, use
 
-    def _object_paths(self, world, radar, origin, scene, centres, tr: Trace, paths: PathList) -> None:
+    def _object_paths(self, world, radar, origin, scene, centres, tr: Trace, paths: PathList,
+                      timestamp: float) -> None:
         p = self.params
         chains = {(): None, **tr.chains}
         for j, (pts2, nrm2, rcs) in enumerate(centres):
             z = min(p.radar_height, scene.objects[j].height)
             pts = np.column_stack([pts2, np.full(len(pts2), z)])
             nrm = np.column_stack([nrm2, np.zeros(len(nrm2))])
-            found = []  # (order, mask, one-way length, departure azimuth, complex α)
+            v3 = np.append(object_velocity(scene.objects[j], timestamp), 0.0)
+            found = []  # (order, mask, one-way length, departure azimuth, complex α, one-way range rate)
             for planes, sector in chains.items():
                 ok, virt, _, th = image_paths(world, origin, pts, nrm, planes, sector, p.az_step)
                 if not ok.any():
@@ -110,19 +113,22 @@ class RaytraceForwardModel(ForwardModel):
                 for k, pl in enumerate(planes):
                     spec = world.surfaces[world.plane_surface[pl]]
                     alpha *= wall_em.specular_alpha(spec, radar, th[:, k], p.reflection)
-                found.append((len(planes), ok, L, az, alpha))
+                # the virtual point moves at the velocity reflected like the point (image_paths' order)
+                vv = mirror_velocity(v3, [world.plane_n[pl] for pl in reversed(planes)]) if planes else v3
+                rate = rel @ vv / np.maximum(L, 1e-12)
+                found.append((len(planes), ok, L, az, alpha, rate))
                 P = received_power(radar, L[ok], az[ok], rcs[ok], np.abs(alpha[ok]))
                 amp = np.sqrt(P) * np.exp(2j * np.angle(alpha[ok]))
                 paths.add(length=2 * L[ok], azimuth=az[ok], amp=amp, power=P,
                           kind=np.where(len(planes) == 0, 0, np.where(len(planes) == 1, 1, 2)), order=len(planes),
-                          pos=virt[ok, :2], hidden=pts[ok, :2], obj=j, centre=np.flatnonzero(ok))
+                          pos=virt[ok, :2], hidden=pts[ok, :2], obj=j, centre=np.flatnonzero(ok), velocity=vv[:2])
             if p.mixed_paths:
                 for a in range(len(found)):
                     for b in range(len(found)):
                         if a == b:
                             continue
-                        ka, oka, La, aza, ala = found[a]
-                        kb, okb, Lb, azb, alb = found[b]
+                        ka, oka, La, aza, ala, ra = found[a]
+                        kb, okb, Lb, azb, alb, rb = found[b]
                         both = oka & okb
                         if not both.any():
                             continue
@@ -133,7 +139,8 @@ class RaytraceForwardModel(ForwardModel):
                         u = np.stack([np.cos(azb[both]), np.sin(azb[both])], axis=1)
                         paths.add(length=Lr, azimuth=azb[both], amp=amp, power=P, kind=OTHER, order=ka + kb,
                                   pos=u * (Lr / 2)[:, None], hidden=pts[both, :2], obj=j,
-                                  centre=np.flatnonzero(both))
+                                  centre=np.flatnonzero(both),
+                                  velocity=u * ((ra[both] + rb[both]) / 2)[:, None])  # d(Lr/2)/dt along pos
 
     def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                      index: int = 0) -> tuple[np.ndarray, Frame]:
