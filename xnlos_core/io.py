@@ -170,7 +170,7 @@ def json_default(o):
 
 
 def save_frame(path: str | Path, frame: Frame) -> None:
-    """Write a Frame (RA map, axes, radar config, ground truth) as ``.npz``, atomically."""
+    """Write a Frame (RA map, axes, its velocity maps if any, radar config, ground truth) as ``.npz``, atomically."""
     import io as _io
 
     gt = frame.ground_truth
@@ -185,6 +185,8 @@ def save_frame(path: str | Path, frame: Frame) -> None:
         "meta_json": np.array(json.dumps(frame.meta, default=json_default)),
         "has_gt": np.array(gt is not None),
     }
+    if frame.ra_map.velocity is not None:  # Doppler maps only: other frames keep their bytes
+        arrays.update(ra_velocity=frame.ra_map.velocity, ra_velocity_std=frame.ra_map.velocity_std)
     if gt is not None:
         arrays.update(
             gt_los=gt.los_points, gt_mnlos=gt.mnlos_points, gt_hidden=gt.hidden_points,
@@ -206,7 +208,8 @@ def load_frame(path: str | Path) -> Frame:
             if schema != FRAME_SCHEMA:
                 raise InputError(f"{path}: frame schema {schema}, this xnlos reads schema {FRAME_SCHEMA}")
             radar = RadarConfig.model_validate_json(str(z["radar_json"]))
-            ra = RAMap(z["data"], z["range_axis"], z["azimuth_axis"], radar)
+            vel = (z["ra_velocity"], z["ra_velocity_std"]) if "ra_velocity" in z.files else (None, None)
+            ra = RAMap(z["data"], z["range_axis"], z["azimuth_axis"], radar, *vel)
             gt = None
             if bool(z["has_gt"]):
                 walls = tuple(WallSegment(s, e, str(n)) for (s, e), n in zip(z["gt_walls"], z["gt_wall_names"]))
