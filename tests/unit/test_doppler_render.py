@@ -12,6 +12,7 @@ from xnlos_core.scene import load_scene
 from xnlos_core.signal_chain import ra_map_from_cube
 from xnlos_core.types import RAMap
 from sims.image import ImageForwardModel
+from sims.raytrace.model import RaytraceForwardModel
 from sims.motion_paths import mirror_velocity, radial_velocity
 
 # small MIMO radar reaching the corner scene's virtual car (39 m): 2 TX × 4 RX, 32 chirp loops
@@ -111,6 +112,18 @@ def test_velocity_at_the_mnlos_echo_is_the_mirrored_targets(moving_frame):
     assert abs(ra.velocity[i, j] - truth) < 3 * ra.velocity_std[i, j]
     unmirrored = img @ np.array([0.0, 5.0]) / np.hypot(*img)  # the car's own velocity along the virtual line of sight
     assert abs(ra.velocity[i, j] - unmirrored) > 4
+
+
+def test_raytrace_mnlos_echo_carries_the_mirrored_velocity():
+    fm = RaytraceForwardModel(RaytraceForwardModel.Params(doppler=True))
+    f = fm.simulate(_scene((0.0, 5.0), shape="point"), SMALL, np.random.default_rng(2))
+    gt, ra = f.ground_truth, f.ra_map
+    k = int(np.flatnonzero(gt.mnlos_object == gt.object_names.index("car"))[0])
+    np.testing.assert_allclose(gt.mnlos_points[k], [39.0, 3.0], atol=1e-6)
+    truth = f.meta["doppler"]["mnlos_radial_velocity"][k]
+    assert truth == pytest.approx(-5 * 39 / np.hypot(39, 3))
+    _, (i, j) = _peak_near(ra.power, gt.mnlos_points[k])
+    assert abs(ra.velocity[i, j] - truth) < 3 * ra.velocity_std[i, j]
 
 
 def test_velocity_maps_are_read_only_and_checked():
