@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_serializer
 
 from xnlos_core.radar import RadarConfig
 
@@ -51,6 +51,14 @@ class ForwardParams(BaseModel):
                                              "frozen at the frame's timestamp")
     tolerance_db: float = Field(0.1, ge=0, le=60, description="'auto' leaves out a loss term whose largest "
                                                               "effect stays below this [dB]")
+
+    @model_serializer(mode="wrap")
+    def _omit_doppler_off(self, handler):
+        # doppler arrived after dataset digests existed: left out while off so they stay the same
+        data = handler(self)
+        if isinstance(data, dict) and data.get("doppler") is False:
+            del data["doppler"]
+        return data
 
 
 def components_needed(p: ForwardParams, scene, radar: RadarConfig) -> dict[str, str]:

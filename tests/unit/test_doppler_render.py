@@ -56,6 +56,10 @@ def test_mirror_and_radial_velocity_closed_forms():
 def test_doppler_off_keeps_the_snapshot_render():
     # off (the default): a mover renders exactly as the same car frozen at the timestamp, no velocity maps
     assert ImageForwardModel.Params().doppler is False
+    # left out of the dump while off, so dataset digests stay; on, it round-trips
+    assert "doppler" not in RaytraceForwardModel.Params().model_dump()
+    on = ImageForwardModel.Params(doppler=True)
+    assert ImageForwardModel.Params.model_validate_json(on.model_dump_json()) == on
     cube_m, moving = _render(_scene((0.0, 5.0)), doppler=False, noise=True)
     cube_s, static = _render(_scene((0.0, 0.0)), doppler=False, noise=True)
     assert cube_m.shape == (SMALL.n_samples, SMALL.n_channels) and np.array_equal(cube_m, cube_s)
