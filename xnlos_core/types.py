@@ -202,7 +202,10 @@ class Detections(_ReadOnlyArrays):
     """Peaks found in an RA map.
 
     range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
-    confidence (K,) in [0, 1]; range_std / azimuth_std (K,) 1-σ measurement errors [m], [rad].
+    confidence (K,) in [0, 1]; range_std / azimuth_std (K,) 1-σ measurement errors [m], [rad];
+    velocity (K,) or None: radial (Doppler) velocity [m/s], positive receding, along the line of
+    sight (for mNLOS the virtual one, radar → o'); velocity_var (K,) its variance [m²/s²] (zeros
+    when velocity is given without it; None without velocity).
     ``position`` (K, 2) [m] is derived: (r cos θ, r sin θ). For mNLOS it is the virtual point o'.
     """
 
@@ -212,6 +215,8 @@ class Detections(_ReadOnlyArrays):
     confidence: np.ndarray
     range_std: np.ndarray | None = None
     azimuth_std: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    velocity_var: np.ndarray | None = None
 
     def __post_init__(self):
         r = as_array("Detections.range", self.range, ndim=1, readonly=True)
@@ -237,6 +242,20 @@ class Detections(_ReadOnlyArrays):
                         ("range_std", rs), ("azimuth_std", az)):
             _set(self, name, v)
         _set(self, "position", frozen(polar_to_cartesian(r, a)))
+        self._doppler(k)
+
+    def _doppler(self, k: int):
+        if self.velocity is None:
+            if self.velocity_var is not None:
+                raise InputError("Detections.velocity_var: given without Detections.velocity")
+            return
+        v = as_array("Detections.velocity", self.velocity, shape=(k,), readonly=True)
+        var = as_array("Detections.velocity_var", np.zeros(k) if self.velocity_var is None else self.velocity_var,
+                       shape=(k,), readonly=True)
+        if k and var.min() < 0:
+            raise InputError(f"Detections.velocity_var: variances must be ≥ 0 [m²/s²], got min {var.min()}")
+        _set(self, "velocity", v)
+        _set(self, "velocity_var", var)
 
     @classmethod
     def empty(cls) -> "Detections":
@@ -256,7 +275,10 @@ class Detections(_ReadOnlyArrays):
     def concat(cls, *parts: "Detections") -> "Detections":
         """Rows of several Detections, in order."""
         fields = ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std")
-        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields))
+        doppler = ("velocity", "velocity_var")
+        if not all(p.velocity is not None for p in parts):  # a velocity for every row or none
+            doppler = ()
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields + doppler))
 
     def __len__(self) -> int:
         return len(self.range)
@@ -264,8 +286,9 @@ class Detections(_ReadOnlyArrays):
     def select(self, mask) -> "Detections":
         """Subset by boolean mask or index array (the rows keep their order)."""
         idx = np.asarray(mask)
+        doppler = () if self.velocity is None else (self.velocity[idx], self.velocity_var[idx])
         return Detections(self.range[idx], self.azimuth[idx], self.label[idx], self.confidence[idx],
-                          self.range_std[idx], self.azimuth_std[idx])
+                          self.range_std[idx], self.azimuth_std[idx], *doppler)
 
     def of_class(self, label: int) -> np.ndarray:
         """Indices of detections with this label."""
@@ -411,13 +434,18 @@ class HiddenPoints(_ReadOnlyArrays):
     """Reconstructed hidden points o with uncertainty.
 
     mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
-    wall_index (M,): the wall (index into the estimator's list) used for the mirror.
+    wall_index (M,): the wall (index into the estimator's list) used for the mirror;
+    velocity (M, 2) [m/s] and velocity_cov (M, 2, 2) [m²/s²], or None: the hidden velocity where
+    the reconstructor had one (from a radial velocity only its observed component,
+    :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`).
     """
 
     mean: np.ndarray
     cov: np.ndarray
     source_index: np.ndarray
     wall_index: np.ndarray
+    velocity: np.ndarray | None = None
+    velocity_cov: np.ndarray | None = None
 
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
@@ -429,6 +457,12 @@ class HiddenPoints(_ReadOnlyArrays):
             raise InputError("HiddenPoints.source_index/wall_index: indices must be ≥ 0")
         for name, v in (("mean", m), ("cov", c), ("source_index", s), ("wall_index", w)):
             _set(self, name, v)
+        if (self.velocity is None) != (self.velocity_cov is None):
+            raise InputError("HiddenPoints.velocity/velocity_cov: give both or neither")
+        if self.velocity is not None:
+            _set(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
+            _set(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
+                                                readonly=True))
 
     @classmethod
     def empty(cls) -> "HiddenPoints":

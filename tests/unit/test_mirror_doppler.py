@@ -82,3 +82,36 @@ def test_bad_input_is_an_input_error():
         unmirror_radial_velocity(_virtual(), np.zeros(2), -np.ones(2), wall)
     with pytest.raises(InputError, match="WallPosterior"):
         unmirror_velocity(_virtual(), np.zeros((2, 2)), np.zeros((2, 2, 2)), None)
+
+
+def test_mirror_reconstructor_fills_the_velocity_only_when_detections_carry_one():
+    from plugins.mirror.mirror import MirrorReconstructor
+    from xnlos_core import MNLOS, Detections
+
+    wall = WallPosterior("line", WALL_MEAN, WALL_COV)
+    virt = _virtual()
+    plain = Detections.from_points(virt, MNLOS, 1.0, 0.1, 0.01)
+    with_doppler = Detections(*(getattr(plain, f) for f in ("range", "azimuth", "label", "confidence", "range_std",
+                                                            "azimuth_std")), velocity=[4.0, -2.5],
+                              velocity_var=[0.01, 0.04])
+    rec = MirrorReconstructor()
+    before, after = rec.reconstruct(plain, [wall]), rec.reconstruct(with_doppler, [wall])
+    assert before.velocity is None and before.velocity_cov is None
+    np.testing.assert_array_equal(after.mean, before.mean)
+    np.testing.assert_array_equal(after.cov, before.cov)
+    w, cov = unmirror_radial_velocity(virt, [4.0, -2.5], [0.01, 0.04], wall, point_cov=plain.position_cov())
+    np.testing.assert_allclose(after.velocity, w, rtol=1e-12)
+    np.testing.assert_allclose(after.velocity_cov, cov, rtol=1e-12)
+    # the rows keep their velocity through select / concat
+    assert np.array_equal(with_doppler.select([1]).velocity, [-2.5])
+    assert Detections.concat(with_doppler, plain).velocity is None
+
+
+@pytest.mark.parametrize("kwargs, match", [({"velocity_var": [0.1]}, "without Detections.velocity"),
+                                           ({"velocity": [1.0], "velocity_var": [-0.1]}, "velocity_var"),
+                                           ({"velocity": [1.0, 2.0]}, "Detections.velocity")])
+def test_detections_doppler_fields_are_checked(kwargs, match):
+    from xnlos_core import Detections
+
+    with pytest.raises(InputError, match=match):
+        Detections([10.0], [0.1], [1], [1.0], **kwargs)
