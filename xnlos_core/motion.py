@@ -38,11 +38,13 @@ Component = Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=Fa
 
 @dataclass(frozen=True)
 class MotionState:
-    """Object state at times t (T,): position (T, 2) [m], velocity (T, 2) [m/s], heading (T,) [rad]."""
+    """Object state at times t (T,): position (T, 2) [m], velocity (T, 2) [m/s], heading (T,) [rad],
+    yaw_rate (T,) [rad/s] (dθ/dt: a point p of a rigid box moves at velocity + yaw_rate × (p − position))."""
 
     position: np.ndarray
     velocity: np.ndarray
     heading: np.ndarray
+    yaw_rate: np.ndarray
 
 
 def _sinc(x):
@@ -70,9 +72,9 @@ def _times(t) -> np.ndarray:
     return np.atleast_1d(np.asarray(t, dtype=np.float64))
 
 
-def _state(start, pos, speed, heading) -> MotionState:
+def _state(start, pos, speed, heading, yaw_rate) -> MotionState:
     vel = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
-    return MotionState(np.asarray(start, float) + pos, vel, heading)
+    return MotionState(np.asarray(start, float) + pos, vel, heading, yaw_rate)
 
 
 class ConstantVelocity(BaseModel):
@@ -86,7 +88,7 @@ class ConstantVelocity(BaseModel):
         t = _times(t)
         v = np.asarray(self.velocity, float)
         return MotionState(np.asarray(start, float) + t[:, None] * v, np.broadcast_to(v, (len(t), 2)).copy(),
-                           np.full(len(t), float(heading)))
+                           np.full(len(t), float(heading)), np.zeros(len(t)))
 
 
 class ConstantTurn(BaseModel):
@@ -100,7 +102,8 @@ class ConstantTurn(BaseModel):
     def state(self, t, start=(0.0, 0.0), heading: float = 0.0) -> MotionState:
         t = _times(t)
         psi = self.yaw_rate * t
-        return _state(start, _arc(self.speed * t, psi, heading), np.full(len(t), self.speed), heading + psi)
+        return _state(start, _arc(self.speed * t, psi, heading), np.full(len(t), self.speed), heading + psi,
+                      np.full(len(t), self.yaw_rate))
 
 
 class ConstantAcceleration(BaseModel):
@@ -115,7 +118,7 @@ class ConstantAcceleration(BaseModel):
     def state(self, t, start=(0.0, 0.0), heading: float = 0.0) -> MotionState:
         t = _times(t)
         s, v = _speed_profile(t, self.speed, self.acceleration)
-        return _state(start, _arc(s, np.zeros_like(s), heading), v, np.full(len(t), float(heading)))
+        return _state(start, _arc(s, np.zeros_like(s), heading), v, np.full(len(t), float(heading)), np.zeros(len(t)))
 
 
 class Bicycle(BaseModel):
@@ -132,8 +135,8 @@ class Bicycle(BaseModel):
     def state(self, t, start=(0.0, 0.0), heading: float = 0.0) -> MotionState:
         t = _times(t)
         s, v = _speed_profile(t, self.speed, self.acceleration)
-        psi = s * math.tan(self.steering) / self.wheelbase
-        return _state(start, _arc(s, psi, heading), v, heading + psi)
+        kappa = math.tan(self.steering) / self.wheelbase
+        return _state(start, _arc(s, kappa * s, heading), v, heading + kappa * s, kappa * v)
 
 
 Trajectory = Annotated[Union[ConstantVelocity, ConstantTurn, ConstantAcceleration, Bicycle],

@@ -43,6 +43,30 @@ def mirror_velocity(velocity, normal) -> np.ndarray:
     return mirror_reflect(velocity, normal, 0.0)  # the linear part of Eq. 7: b drops out of a velocity
 
 
+def point_velocities(scene: Scene, t: float, obj, points) -> np.ndarray:
+    """Velocities (M, 2) [m/s] at time t [s] of scatterers at ``points`` (M, 2) [m] on the objects
+    ``obj`` (M,) (index into scene.objects; < 0 for static surfaces, velocity 0): the rigid-body
+    velocity v + ω × (p − c) of the object's centre c, velocity v and yaw rate ω."""
+    obj = np.asarray(obj, dtype=np.int64).reshape(-1)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    out = np.zeros((len(obj), 2))
+    for k in np.unique(obj[obj >= 0]):
+        s = scene.objects[k].motion(float(t))
+        r = p[obj == k] - s.position[0]
+        out[obj == k] = s.velocity[0] + s.yaw_rate[0] * np.stack([-r[:, 1], r[:, 0]], axis=-1)
+    return out
+
+
+def image_velocities(hidden, virtual, velocity) -> np.ndarray:
+    """Velocities (M, 2) [m/s] of virtual points o' (M, 2) [m], images of hidden points o (M, 2) [m]
+    moving at ``velocity`` (M, 2): (I − 2nnᵀ)v with n ∥ o − o' (each pair's own mirror line)."""
+    d = np.asarray(hidden, dtype=np.float64) - np.asarray(virtual, dtype=np.float64)
+    v = np.asarray(velocity, dtype=np.float64)
+    norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    n = np.divide(d, norm, out=np.zeros_like(d), where=norm > 0)  # o = o' only on the wall: no reflection
+    return v - 2 * np.sum(v * n, axis=-1, keepdims=True) * n
+
+
 def scene_truth(scene: Scene, t: float, walls: Sequence[WallSegment] | None = None) -> SceneTruth:
     """Objects of ``scene`` at time ``t`` [s] and their mirror images across ``walls`` (default: the
     planar pieces of the scene's relay walls, :meth:`Scene.planar_walls`). InputError for a

@@ -139,6 +139,9 @@ class GroundTruth(_ReadOnlyArrays):
     los_snr_db (N,), mnlos_snr_db (M,): the expected RA-map SNR [dB] of each point's return (its
     resolution cell's power over the noise power per RA cell); NaN where the simulator did not
     record it. Simulators list points above a detectability threshold (``min_snr_db``).
+    hidden_velocity (M, 2) [m/s] or None: the velocity of each hidden point o (rigid-body, of its
+    object; 0 for static surfaces); mnlos_velocity (M, 2) [m/s] or None: that of its virtual image o',
+    (I − 2nnᵀ)·hidden_velocity across its wall (mirror Doppler). Both or neither.
     """
 
     los_points: np.ndarray = None
@@ -149,6 +152,8 @@ class GroundTruth(_ReadOnlyArrays):
     walls: tuple[WallSegment, ...] = ()
     los_snr_db: np.ndarray = None
     mnlos_snr_db: np.ndarray = None
+    hidden_velocity: np.ndarray | None = None
+    mnlos_velocity: np.ndarray | None = None
 
     def __post_init__(self):
         _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
@@ -168,14 +173,20 @@ class GroundTruth(_ReadOnlyArrays):
             v = getattr(self, name)
             v = np.full(n, np.nan) if v is None else v
             _set(self, name, as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False, readonly=True))
+        if (self.hidden_velocity is None) != (self.mnlos_velocity is None):
+            raise InputError("GroundTruth.hidden_velocity/mnlos_velocity: give both or neither")
+        for name in ("hidden_velocity", "mnlos_velocity") if self.hidden_velocity is not None else ():
+            _set(self, name, as_array(f"GroundTruth.{name}", getattr(self, name), shape=(len(m), 2), readonly=True))
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
         """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
         keep_l = ~(self.los_snr_db < min_snr_db)
         keep_m = ~(self.mnlos_snr_db < min_snr_db)
+        velocities = () if self.hidden_velocity is None else (self.hidden_velocity[keep_m],
+                                                               self.mnlos_velocity[keep_m])
         return GroundTruth(self.los_points[keep_l], self.mnlos_points[keep_m], self.hidden_points[keep_m],
                            self.mnlos_object[keep_m], self.object_names, self.walls, self.los_snr_db[keep_l],
-                           self.mnlos_snr_db[keep_m])
+                           self.mnlos_snr_db[keep_m], *velocities)
 
 
 @dataclass(frozen=True, eq=False)

@@ -24,6 +24,7 @@ def test_constant_turn_runs_on_a_circle_of_radius_v_over_omega(omega):
     np.testing.assert_allclose(np.linalg.norm(s.position - _centre_of_turn(start, heading, radius), axis=1),
                                abs(radius), rtol=1e-12)
     np.testing.assert_allclose(s.heading, heading + omega * T, rtol=1e-12)
+    np.testing.assert_array_equal(s.yaw_rate, omega)
     np.testing.assert_allclose(np.linalg.norm(s.velocity, axis=1), v, rtol=1e-12)
     # velocity is the time derivative of position
     np.testing.assert_allclose(np.gradient(s.position, T, axis=0)[1:-1], s.velocity[1:-1], atol=2e-3)
@@ -65,6 +66,7 @@ def test_bicycle_with_constant_steering_runs_on_a_circle_of_radius_l_over_tan_de
     # heading rate v·tan δ / L (the bicycle's kinematics)
     speed = np.linalg.norm(s.velocity, axis=1)
     np.testing.assert_allclose(np.gradient(s.heading, T)[1:-1], (speed * math.tan(delta) / L)[1:-1], rtol=1e-3)
+    np.testing.assert_allclose(s.yaw_rate, speed * math.tan(delta) / L, rtol=1e-12)
 
 
 def test_constant_velocity_object_is_unchanged():

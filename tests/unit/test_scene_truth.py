@@ -43,3 +43,22 @@ def test_bad_input_is_an_input_error():
         scene_truth(_scene(), float("nan"))
     with pytest.raises(InputError, match=r"walls\[0\]"):
         scene_truth(_scene(), 0.0, walls=[(0.0, 1.0)])
+
+
+def test_image_model_ground_truth_carries_the_hidden_and_mirrored_velocities():
+    from sims.image import ImageForwardModel
+    from xnlos_core.radar import RadarConfig
+
+    wall = WallSpec(name="facade", start=(20.0, -30.0), end=(20.0, 30.0), reflectivity=0.6, backscatter_db=-80)
+    car = ObjectSpec(name="car", shape="point", center=(12.0, -8.0), heading=0.3,
+                     trajectory={"model": "constant_turn", "speed": 4.0, "yaw_rate": 0.2})
+    frame = ImageForwardModel({"noise": False}).simulate(Scene(walls=[wall], objects=[car]), RadarConfig(),
+                                                         np.random.default_rng(0), timestamp=1.5)
+    gt = frame.ground_truth
+    assert len(gt.mnlos_points) >= 1
+    truth = scene_truth(Scene(walls=[wall], objects=[car]), 1.5)
+    np.testing.assert_allclose(gt.hidden_velocity, np.broadcast_to(truth.velocity[0], gt.hidden_velocity.shape),
+                               atol=1e-12)
+    np.testing.assert_allclose(gt.mnlos_velocity, gt.hidden_velocity * [-1.0, 1.0], atol=1e-12)
+    kept = gt.above_snr(-1e9)
+    np.testing.assert_array_equal(kept.mnlos_velocity, gt.mnlos_velocity)
