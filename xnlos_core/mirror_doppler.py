@@ -31,7 +31,7 @@ import numpy as np
 from .errors import InputError
 from .types import WallPosterior
 from .wall import check_model
-from .wall_propagation import point_jacobian
+from .wall_propagation import point_jacobian, symmetric, theta_jacobian
 
 
 def _check(points, wall, who: str) -> np.ndarray:
@@ -54,14 +54,8 @@ def _array(name: str, value, shape, who: str) -> np.ndarray:
 def _propagated_cov(f, points, wall: WallPosterior, point_cov) -> np.ndarray:
     """D_x Σ_o' D_xᵀ + D_θ Σ_θ D_θᵀ (M, 2, 2) of f(points (M, 2), θ (P,)) → (M, 2), central differences."""
     p = np.asarray(points, dtype=np.float64)
-    theta = np.asarray(wall.mean, dtype=np.float64)
-    sd = np.sqrt(np.clip(np.diag(wall.cov), 0, None))
-    steps = np.maximum(1e-4 * sd, 1e-8 * (1.0 + np.abs(theta)))
-    d_theta = np.empty((len(p), 2, len(theta)))
-    for j, h in enumerate(steps):
-        e = np.zeros(len(theta))
-        e[j] = h
-        d_theta[:, :, j] = (f(p, theta + e) - f(p, theta - e)) / (2 * h)
+    theta = wall.mean
+    d_theta = theta_jacobian(lambda th: f(p, th), wall)
     cov = d_theta @ wall.cov @ np.swapaxes(d_theta, -1, -2)
     if point_cov is not None:
         h = 1e-4 * np.maximum(1.0, np.linalg.norm(p, axis=1))[:, None]
@@ -72,10 +66,6 @@ def _propagated_cov(f, points, wall: WallPosterior, point_cov) -> np.ndarray:
             d_x[:, :, k] = (f(p + e, theta) - f(p - e, theta)) / (2 * h)
         cov = cov + d_x @ point_cov @ np.swapaxes(d_x, -1, -2)
     return cov
-
-
-def _sym(c: np.ndarray) -> np.ndarray:
-    return 0.5 * (c + np.swapaxes(c, -1, -2))
 
 
 def unmirror_velocity(points, velocity, velocity_cov, wall: WallPosterior,
@@ -96,7 +86,7 @@ def unmirror_velocity(points, velocity, velocity_cov, wall: WallPosterior,
 
     jx = point_jacobian(wall, p)
     cov = jx @ vc @ np.swapaxes(jx, -1, -2) + _propagated_cov(f, p, wall, pc)
-    return np.einsum("mij,mj->mi", jx, vp), _sym(cov)
+    return np.einsum("mij,mj->mi", jx, vp), symmetric(cov)
 
 
 def observed_direction(points, wall: WallPosterior, theta=None) -> np.ndarray:
@@ -132,4 +122,4 @@ def unmirror_radial_velocity(points, radial_velocity, radial_var, wall: WallPost
     a = gain(p, wall.mean)
     cov = var[:, None, None] * a[:, :, None] * a[:, None, :]
     cov = cov + _propagated_cov(lambda x, theta: vr[:, None] * gain(x, theta), p, wall, pc)
-    return vr[:, None] * a, _sym(cov)
+    return vr[:, None] * a, symmetric(cov)

@@ -115,3 +115,14 @@ def test_detections_doppler_fields_are_checked(kwargs, match):
 
     with pytest.raises(InputError, match=match):
         Detections([10.0], [0.1], [1], [1.0], **kwargs)
+
+
+def test_velocity_across_an_arc_is_the_rate_of_the_mirrored_position():
+    wall = WallPosterior("arc", np.array([np.pi, 20.0, 0.02]), np.diag([1e-4, 1e-2, 1e-5]),
+                         param_names=("phi", "b", "kappa"), anchor=np.array([20.0, 0.0]))
+    virt, vp, dt = np.array([[26.0, -9.0], [30.0, 4.0]]), np.array([[-3.0, 2.0], [1.0, -4.0]]), 1e-5
+    v, cov = unmirror_velocity(virt, vp, np.zeros((2, 2, 2)), wall)
+    rate = (mirror("arc", wall.mean, virt + dt * vp, wall.anchor)[0]
+            - mirror("arc", wall.mean, virt - dt * vp, wall.anchor)[0]) / (2 * dt)
+    np.testing.assert_allclose(v, rate, atol=1e-5)
+    assert np.all(np.linalg.eigvalsh(cov) > 0)  # the wall's uncertainty reaches the velocity
