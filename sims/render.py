@@ -21,6 +21,7 @@ import numpy as np
 from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
 from xnlos_core.metrics import resolution_cell
 from xnlos_core.radar import RadarConfig
+from xnlos_core.scene_truth import image_velocities, point_velocities
 from xnlos_core.signal_chain import add_noise, dechirp, ra_map_from_cube
 from xnlos_core.types import Frame, GroundTruth, RAMap
 
@@ -77,9 +78,11 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
             & (paths.length / 2 <= radar.max_range))
     los, mn = seen & (paths.kind == LOS), seen & (paths.kind == MNLOS)
     names, owner = mnlos_owners([o.name for o in scene.objects], surface_names, paths.obj[mn])
+    hidden_velocity = point_velocities(scene, timestamp, paths.obj[mn], paths.hidden[mn])
     gt = GroundTruth(los_points=paths.pos[los], mnlos_points=paths.pos[mn], hidden_points=paths.hidden[mn],
                      mnlos_object=owner, object_names=names, walls=walls,
-                     los_snr_db=snr[los], mnlos_snr_db=snr[mn])
+                     los_snr_db=snr[los], mnlos_snr_db=snr[mn], hidden_velocity=hidden_velocity,
+                     mnlos_velocity=image_velocities(paths.hidden[mn], paths.pos[mn], hidden_velocity))
     meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (paths.kind == LOS)).sum()),
             "n_mnlos_paths": int((live & (paths.kind == MNLOS)).sum()), "forward_model": forward_model,
             **(describe(live) if describe is not None else {}), "components": use}

@@ -16,6 +16,8 @@ Example (see ``xnlos_core/defaults/corner.toml``)::
     heading = 1.5708          # [rad], 0 = along +x
     rcs = 10.0                # total radar cross-section [m²]
     velocity = [0.0, 2.0]     # [m/s]; position at time t is center + t·velocity
+    # or, instead of velocity, a trajectory from center and heading (xnlos_core.motion):
+    # trajectory = { model = "constant_turn", speed = 5.0, yaw_rate = 0.2 }
 """
 from __future__ import annotations
 
@@ -25,12 +27,13 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
+
+from .motion import MAX_SPEED, ConstantVelocity, MotionState, Trajectory
 
 from .types import WallSegment
 
 MAX_COORD = 10_000.0  # m: a scene is metres to kilometres around the radar
-MAX_SPEED = 1_000.0  # m/s
 MAX_SCATTERERS = 1_000_000  # per wall or object outline (length / spacing): bounds the forward models' arrays
 # Finite and bounded: 1e308 overflows the image model's squares, 2**31 m walls allocate 64 GiB of scatterers.
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
@@ -135,7 +138,12 @@ class WallSpec(BaseModel):
 
 
 class ObjectSpec(BaseModel):
-    """A point or box-shaped (vehicle-like) scatterer, optionally moving at constant velocity."""
+    """A point or box-shaped (vehicle-like) scatterer, optionally moving.
+
+    Motion: ``velocity`` (vx, vy) [m/s] is constant velocity, centre c₀ + t·velocity; or a
+    ``trajectory`` table (:mod:`xnlos_core.motion`) started from ``center`` and ``heading`` at
+    t = 0, whose heading also turns the box. Not both.
+    """
 
     model_config = ConfigDict(extra="forbid")
     name: str = "object"
@@ -149,9 +157,22 @@ class ObjectSpec(BaseModel):
     rcs: float = Field(10.0, gt=0, le=1e6, description="total radar cross-section [m²]")
     velocity: Velocity = (0.0, 0.0)
     spacing: float = Field(0.3, gt=0.005, le=10, description="scatterer spacing on a box outline [m]")
+    trajectory: Trajectory | None = Field(None, description="motion model table (xnlos_core.motion); "
+                                                            "replaces velocity")
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # Without a trajectory the dump (scene digests, dataset shards) stays what it was before the
+        # key existed; with one, the unused velocity is left out so the dump validates again.
+        out = handler(self)
+        if isinstance(out, dict):
+            out.pop("trajectory" if self.trajectory is None else "velocity", None)
+        return out
 
     @model_validator(mode="after")
     def _outline(self):
+        if self.trajectory is not None and "velocity" in self.model_fields_set:
+            raise ValueError(f"object {self.name!r}: give velocity (constant velocity) or trajectory, not both")
         if self.shape == "box" and 2 * sum(self.size) / self.spacing > MAX_SCATTERERS:
             raise ValueError(f"object {self.name!r}: a {self.size} m box at spacing {self.spacing} m is more than "
                              f"{MAX_SCATTERERS} scatterers; raise spacing")
@@ -165,8 +186,21 @@ class ObjectSpec(BaseModel):
         return v
 
     def center_at(self, t: float) -> np.ndarray:
-        """Centre position [m] at time t [s]."""
-        return np.asarray(self.center, float) + t * np.asarray(self.velocity, float)
+        """Centre position (2,) [m] at time t [s] (a number; :meth:`motion` takes arrays of times)."""
+        if self.trajectory is None:
+            return np.asarray(self.center, float) + t * np.asarray(self.velocity, float)
+        return self.trajectory.state(t, self.center, self.heading).position[0]
+
+    def heading_at(self, t: float) -> float:
+        """Box heading [rad] at time t [s]: ``heading`` unless a trajectory turns it."""
+        if self.trajectory is None:
+            return self.heading
+        return float(self.trajectory.state(t, self.center, self.heading).heading[0])
+
+    def motion(self, t) -> MotionState:
+        """Centre position (T, 2) [m], velocity (T, 2) [m/s] and heading (T,) [rad] at times t (T,) [s]."""
+        model = self.trajectory or ConstantVelocity(velocity=self.velocity)
+        return model.state(t, self.center, self.heading)
 
     def scatterers(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Scatterer positions (K, 2) [m], outward normals (K, 2) (zero for a point), RCS (K,) [m²].
@@ -177,7 +211,8 @@ class ObjectSpec(BaseModel):
         if self.shape == "point":
             return c[None, :], np.zeros((1, 2)), np.array([self.rcs])
         length, width = self.size
-        u = np.array([math.cos(self.heading), math.sin(self.heading)])
+        heading = self.heading_at(t)
+        u = np.array([math.cos(heading), math.sin(heading)])
         v = np.array([-u[1], u[0]])
         pts, nrm = [], []
         for half, along, normal, extent in ((length / 2, v, u, width), (-length / 2, v, -u, width),

@@ -152,6 +152,9 @@ class GroundTruth(_ReadOnlyArrays):
     los_snr_db (N,), mnlos_snr_db (M,): the expected RA-map SNR [dB] of each point's return (its
     resolution cell's power over the noise power per RA cell); NaN where the simulator did not
     record it. Simulators list points above a detectability threshold (``min_snr_db``).
+    hidden_velocity (M, 2) [m/s] or None: the velocity of each hidden point o (rigid-body, of its
+    object; 0 for static surfaces); mnlos_velocity (M, 2) [m/s] or None: that of its virtual image o',
+    (I − 2nnᵀ)·hidden_velocity across its wall (mirror Doppler). Both or neither.
     """
 
     los_points: np.ndarray = None
@@ -162,6 +165,8 @@ class GroundTruth(_ReadOnlyArrays):
     walls: tuple[WallSegment, ...] = ()
     los_snr_db: np.ndarray = None
     mnlos_snr_db: np.ndarray = None
+    hidden_velocity: np.ndarray | None = None
+    mnlos_velocity: np.ndarray | None = None
 
     def __post_init__(self):
         _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
@@ -181,14 +186,20 @@ class GroundTruth(_ReadOnlyArrays):
             v = getattr(self, name)
             v = np.full(n, np.nan) if v is None else v
             _set(self, name, as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False, readonly=True))
+        if (self.hidden_velocity is None) != (self.mnlos_velocity is None):
+            raise InputError("GroundTruth.hidden_velocity/mnlos_velocity: give both or neither")
+        for name in ("hidden_velocity", "mnlos_velocity") if self.hidden_velocity is not None else ():
+            _set(self, name, as_array(f"GroundTruth.{name}", getattr(self, name), shape=(len(m), 2), readonly=True))
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
         """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
         keep_l = ~(self.los_snr_db < min_snr_db)
         keep_m = ~(self.mnlos_snr_db < min_snr_db)
+        velocities = () if self.hidden_velocity is None else (self.hidden_velocity[keep_m],
+                                                               self.mnlos_velocity[keep_m])
         return GroundTruth(self.los_points[keep_l], self.mnlos_points[keep_m], self.hidden_points[keep_m],
                            self.mnlos_object[keep_m], self.object_names, self.walls, self.los_snr_db[keep_l],
-                           self.mnlos_snr_db[keep_m])
+                           self.mnlos_snr_db[keep_m], *velocities)
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,7 +226,10 @@ class Detections(_ReadOnlyArrays):
     """Peaks found in an RA map.
 
     range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
-    confidence (K,) in [0, 1]; range_std / azimuth_std (K,) 1-σ measurement errors [m], [rad].
+    confidence (K,) in [0, 1]; range_std / azimuth_std (K,) 1-σ measurement errors [m], [rad];
+    velocity (K,) or None: radial (Doppler) velocity [m/s], positive receding, along the line of
+    sight (for mNLOS the virtual one, radar → o'); velocity_var (K,) its variance [m²/s²] (zeros
+    when velocity is given without it; None without velocity).
     ``position`` (K, 2) [m] is derived: (r cos θ, r sin θ). For mNLOS it is the virtual point o'.
     """
 
@@ -225,6 +239,8 @@ class Detections(_ReadOnlyArrays):
     confidence: np.ndarray
     range_std: np.ndarray | None = None
     azimuth_std: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    velocity_var: np.ndarray | None = None
 
     def __post_init__(self):
         r = as_array("Detections.range", self.range, ndim=1, readonly=True)
@@ -250,6 +266,20 @@ class Detections(_ReadOnlyArrays):
                         ("range_std", rs), ("azimuth_std", az)):
             _set(self, name, v)
         _set(self, "position", frozen(polar_to_cartesian(r, a)))
+        self._doppler(k)
+
+    def _doppler(self, k: int):
+        if self.velocity is None:
+            if self.velocity_var is not None:
+                raise InputError("Detections.velocity_var: given without Detections.velocity")
+            return
+        v = as_array("Detections.velocity", self.velocity, shape=(k,), readonly=True)
+        var = as_array("Detections.velocity_var", np.zeros(k) if self.velocity_var is None else self.velocity_var,
+                       shape=(k,), readonly=True)
+        if k and var.min() < 0:
+            raise InputError(f"Detections.velocity_var: variances must be ≥ 0 [m²/s²], got min {var.min()}")
+        _set(self, "velocity", v)
+        _set(self, "velocity_var", var)
 
     @classmethod
     def empty(cls) -> "Detections":
@@ -269,7 +299,10 @@ class Detections(_ReadOnlyArrays):
     def concat(cls, *parts: "Detections") -> "Detections":
         """Rows of several Detections, in order."""
         fields = ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std")
-        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields))
+        doppler = ("velocity", "velocity_var")
+        if not all(p.velocity is not None for p in parts):  # a velocity for every row or none
+            doppler = ()
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in fields + doppler))
 
     def __len__(self) -> int:
         return len(self.range)
@@ -277,8 +310,9 @@ class Detections(_ReadOnlyArrays):
     def select(self, mask) -> "Detections":
         """Subset by boolean mask or index array (the rows keep their order)."""
         idx = np.asarray(mask)
+        doppler = () if self.velocity is None else (self.velocity[idx], self.velocity_var[idx])
         return Detections(self.range[idx], self.azimuth[idx], self.label[idx], self.confidence[idx],
-                          self.range_std[idx], self.azimuth_std[idx])
+                          self.range_std[idx], self.azimuth_std[idx], *doppler)
 
     def of_class(self, label: int) -> np.ndarray:
         """Indices of detections with this label."""
@@ -424,13 +458,18 @@ class HiddenPoints(_ReadOnlyArrays):
     """Reconstructed hidden points o with uncertainty.
 
     mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
-    wall_index (M,): the wall (index into the estimator's list) used for the mirror.
+    wall_index (M,): the wall (index into the estimator's list) used for the mirror;
+    velocity (M, 2) [m/s] and velocity_cov (M, 2, 2) [m²/s²], or None: the hidden velocity where
+    the reconstructor had one (from a radial velocity only its observed component,
+    :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`).
     """
 
     mean: np.ndarray
     cov: np.ndarray
     source_index: np.ndarray
     wall_index: np.ndarray
+    velocity: np.ndarray | None = None
+    velocity_cov: np.ndarray | None = None
 
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
@@ -442,6 +481,12 @@ class HiddenPoints(_ReadOnlyArrays):
             raise InputError("HiddenPoints.source_index/wall_index: indices must be ≥ 0")
         for name, v in (("mean", m), ("cov", c), ("source_index", s), ("wall_index", w)):
             _set(self, name, v)
+        if (self.velocity is None) != (self.velocity_cov is None):
+            raise InputError("HiddenPoints.velocity/velocity_cov: give both or neither")
+        if self.velocity is not None:
+            _set(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
+            _set(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
+                                                readonly=True))
 
     @classmethod
     def empty(cls) -> "HiddenPoints":

@@ -25,7 +25,8 @@ from .types import WallPosterior
 from .wall import check_model, mirror
 
 
-def _sym(c: np.ndarray) -> np.ndarray:
+def symmetric(c: np.ndarray) -> np.ndarray:
+    """(C + Cᵀ)/2 over the last two axes (round-off asymmetry of a propagated covariance removed)."""
     return 0.5 * (c + np.swapaxes(c, -1, -2))
 
 
@@ -52,16 +53,22 @@ def wall_jacobian(wall: WallPosterior, points: np.ndarray) -> np.ndarray:
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if wall.model == "line":
         return mirror_jacobians(p, float(wall.mean[0]), float(wall.mean[1]))[1]
+    return theta_jacobian(lambda theta: mirror(wall.model, theta, p, wall.anchor)[0], wall)
+
+
+def theta_jacobian(f, wall: WallPosterior) -> np.ndarray:
+    """∂f/∂θ (M, 2, P) at the wall's mean of f(θ (P,)) → (M, 2), by central differences with steps
+    of 1e-4 posterior standard deviations (at least 1e-8·(1 + |θ|))."""
     theta = wall.mean
     sd = np.sqrt(np.clip(np.diag(wall.cov), 0, None))
     steps = np.maximum(1e-4 * sd, 1e-8 * (1.0 + np.abs(theta)))
-    jac = np.empty((len(p), 2, len(theta)))
+    jac = None
     for j, h in enumerate(steps):
         e = np.zeros(len(theta))
         e[j] = h
-        plus = mirror(wall.model, theta + e, p, wall.anchor)[0]
-        minus = mirror(wall.model, theta - e, p, wall.anchor)[0]
-        jac[:, :, j] = (plus - minus) / (2 * h)
+        d = (f(theta + e) - f(theta - e)) / (2 * h)
+        jac = np.empty(d.shape + (len(theta),)) if jac is None else jac
+        jac[..., j] = d
     return jac
 
 
@@ -82,7 +89,7 @@ def propagate(points, point_cov, wall: WallPosterior, use_samples: bool = True) 
         mean = o.mean(axis=0)
         d = o - mean
         wall_cov = np.einsum("smi,smj->mij", d, d) / (len(o) - 1)
-        return mean, _sym(wall_cov + det_cov)
+        return mean, symmetric(wall_cov + det_cov)
     mean = mirror(wall.model, wall.mean, p, wall.anchor)[0].reshape(-1, 2)
     jw = wall_jacobian(wall, p)
-    return mean, _sym(det_cov + jw @ wall.cov @ np.swapaxes(jw, -1, -2))
+    return mean, symmetric(det_cov + jw @ wall.cov @ np.swapaxes(jw, -1, -2))

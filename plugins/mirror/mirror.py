@@ -25,6 +25,11 @@ along the tangent line lies between the extent ends' (± margin). If none is cro
 ``fallback``: "nearest" takes the wall with o' on its far side (signed distance δ(o') < 0:
 nᵀo' + b for a line) that is closest to o', "drop" leaves o' unanchored. Unanchored detections are
 recorded in ``last_unanchored_`` (indices into the detections) and logged, never silently lost.
+
+Mirror Doppler: when the detections carry a radial velocity (``Detections.velocity``), each hidden
+point also gets the observed component of its velocity along the mirrored line of sight, with
+covariance from the velocity variance, the detection's position and the wall
+(:func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`); otherwise velocity stays None.
 """
 from __future__ import annotations
 
@@ -37,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import mirror_jacobians, mirror_reflect
 from xnlos_core.interfaces import Reconstructor
+from xnlos_core.mirror_doppler import unmirror_radial_velocity
 from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
 from xnlos_core.wall_propagation import propagate
 
@@ -110,4 +116,16 @@ class MirrorReconstructor(Reconstructor):
             jx, jw = mirror_jacobians(pts[m], float(w.mean[0]), float(w.mean[1]))
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)
             cov[m] = 0.5 * (c + np.swapaxes(c, -1, -2))
-        return HiddenPoints(mean, cov, src, choice), pts
+        return HiddenPoints(mean, cov, src, choice, *self._velocities(detections, walls, pts, pcov, choice, src)), pts
+
+    @staticmethod
+    def _velocities(detections: Detections, walls, pts, pcov, choice, src) -> tuple:
+        """(velocity (M, 2), velocity_cov (M, 2, 2)) of the hidden points from the radial velocities, or ()."""
+        if detections.velocity is None:
+            return ()
+        vel, vcov = np.empty_like(pts), np.empty((len(pts), 2, 2))
+        for j in np.unique(choice):
+            m = choice == j
+            vel[m], vcov[m] = unmirror_radial_velocity(pts[m], detections.velocity[src[m]],
+                                                       detections.velocity_var[src[m]], walls[j], point_cov=pcov[m])
+        return vel, vcov

@@ -96,7 +96,8 @@ def footprint(obj: ObjectSpec, t: float = 0.0) -> np.ndarray:
     if obj.shape == "point":
         return c[None, :]
     length, width = obj.size
-    u = np.array([math.cos(obj.heading), math.sin(obj.heading)])
+    heading = obj.heading_at(t)
+    u = np.array([math.cos(heading), math.sin(heading)])
     v = np.array([-u[1], u[0]])
     hl, hw = length / 2, width / 2
     return np.stack([c + hl * u + hw * v, c - hl * u + hw * v, c - hl * u - hw * v, c + hl * u - hw * v])

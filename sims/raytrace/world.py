@@ -111,7 +111,7 @@ def object_box(obj, t: float) -> trimesh.Trimesh | None:
     dims = (max(length - 2 * OBJECT_MARGIN, 0.01), max(width - 2 * OBJECT_MARGIN, 0.01), obj.height)
     m = trimesh.creation.box(extents=dims)
     c = obj.center_at(t)
-    m.apply_transform(trimesh.transformations.rotation_matrix(obj.heading, (0, 0, 1)))
+    m.apply_transform(trimesh.transformations.rotation_matrix(obj.heading_at(t), (0, 0, 1)))
     m.apply_translation((c[0], c[1], obj.height / 2))
     return m
 
