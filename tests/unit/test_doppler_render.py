@@ -149,3 +149,16 @@ def test_velocity_maps_survive_save_and_load(moving_frame, tmp_path):
     back = load_frame(tmp_path / "f.npz").ra_map
     assert np.array_equal(back.velocity, moving_frame.ra_map.velocity)
     assert np.array_equal(back.velocity_std, moving_frame.ra_map.velocity_std)
+
+
+def test_a_braking_trajectory_renders_its_velocity_at_the_frame_time():
+    # LOS point car braking from 6 m/s (towards the radar) at 2 m/s²: 4 m/s at t = 1 s, stopped from 3 s
+    traj = {"model": "constant_acceleration", "speed": 6.0, "acceleration": -2.0}
+    objs = [{"name": "braking", "shape": "point", "center": [15.0, 0.0], "heading": math.pi, "trajectory": traj}]
+    scene = load_scene({"builtin": "corner", "objects": objs}, "test")
+    fm = ImageForwardModel(ImageForwardModel.Params(doppler=True, noise=False))
+    for t, speed in ((1.0, 4.0), (4.0, 0.0)):
+        f = fm.simulate(scene, SMALL, np.random.default_rng(0), timestamp=t)
+        x = scene.objects[0].center_at(t)[0]  # on the boresight: radial velocity = −speed
+        _, (i, j) = _peak_near(f.ra_map.power, (x, 0.0))
+        assert f.ra_map.velocity[i, j] == pytest.approx(-speed, abs=0.05)
