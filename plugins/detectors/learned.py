@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from xnlos_core.detection_doppler import nearest_cells, with_cell_velocity
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.types import Detections, Frame, RAMap
@@ -119,7 +120,9 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     threshold: one confidence threshold, or (LOS, mNLOS) thresholds (peaks are found at the lower
     one, then each class keeps those reaching its own). cells: keep the most confident peak per
     radar resolution cell (and class; of both classes with ``class_nms``), see :mod:`.decode`.
-    Ordered by descending confidence, at most ``max_detections``."""
+    Ordered by descending confidence, at most ``max_detections``. With Doppler maps on ``ra_map``
+    each detection carries the radial velocity of the cell nearest its refined position (the peak
+    cell, refinement being ≤ ½ cell; :mod:`xnlos_core.detection_doppler`), else velocity is None."""
     thr = (float(threshold),) * 2 if np.ndim(threshold) == 0 else (float(threshold[0]), float(threshold[1]))
     h, w = ra_map.shape
     if out.ndim != 3:
@@ -138,6 +141,7 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     rs = cal.get("range_cells", UNIFORM_STD) * dr
     azs = cal.get("azimuth_cells", UNIFORM_STD) * da
     det = Detections(rng, az, k.astype(np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+    det = with_cell_velocity(det, ra_map, *nearest_cells(fr, fc, (h, w)))
     if cells and len(rng):
         from xnlos_core.metrics import resolution_groups
 

@@ -12,6 +12,7 @@ empty Detections even when its wall source is missing.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 from typing import Literal
 
@@ -98,4 +99,4 @@ class NLOSCFARDetector(Detector):
             return det
         walls = self._walls(frame)
         label = np.where(behind_walls(det.position, walls, self.params.wall_margin), MNLOS, LOS).astype(np.int8)
-        return Detections(det.range, det.azimuth, label, det.confidence, det.range_std, det.azimuth_std)
+        return dataclasses.replace(det, label=label)  # every other field (radial velocity too) kept

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from xnlos_core.detection_doppler import with_cell_velocity
 from xnlos_core.errors import InputError
 from xnlos_core.types import UNCLASSIFIED, Detections, RAMap
 
@@ -192,7 +193,9 @@ def cfar_peaks(ra_map: RAMap, pfa: float, guard: tuple[int, int], train: tuple[i
     cells. Range/azimuth are refined to sub-bin accuracy (:func:`refine_peaks`, interpolated on
     the map's axes); confidence = 1 − threshold/power ∈ [0, 1) (how far above the threshold the
     peak is; 1 only if all its training cells are exactly zero); stds from
-    :func:`resolution_stds`. Detections are ordered by descending power.
+    :func:`resolution_stds`. Detections are ordered by descending power. With Doppler maps on
+    ``ra_map`` each detection carries the radial velocity of its peak cell (before refinement,
+    :func:`xnlos_core.detection_doppler.with_cell_velocity`); without, velocity is None.
     """
     if not isinstance(ra_map, RAMap):
         raise InputError(f"cfar_peaks: expected an RAMap, got {type(ra_map).__name__}")
@@ -213,4 +216,5 @@ def cfar_peaks(ra_map: RAMap, pfa: float, guard: tuple[int, int], train: tuple[i
     az = np.interp(fc, np.arange(p.shape[1]), ra_map.azimuth_axis)
     conf = 1.0 - thr[rows, cols] / p[rows, cols]
     rs, azs = resolution_stds(ra_map, az)
-    return Detections(rng, az, np.full(len(rng), UNCLASSIFIED, np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+    det = Detections(rng, az, np.full(len(rng), UNCLASSIFIED, np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
+    return with_cell_velocity(det, ra_map, rows, cols)
