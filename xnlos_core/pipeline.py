@@ -36,9 +36,29 @@ class FrameResult:
     notes: list[str] = field(default_factory=list)
 
     def record(self) -> dict[str, Any]:
-        """JSON-ready summary of this frame (one line of results.jsonl); NaN becomes None."""
+        """JSON-ready summary of this frame (one line of results.jsonl); NaN becomes None.
+
+        With Doppler (issue 28) two keys are added, only then (records without it stay as they were):
+        ``detection_doppler`` (per detection: range [m], azimuth [rad], label, radial velocity [m/s]
+        and its variance [m²/s²]) and ``hidden_velocity`` (per hidden point, in the order of
+        ``hidden_points``: velocity (2,) [m/s], velocity_cov (2, 2) [m²/s²] and source_index, the
+        row of ``detection_doppler`` it was mirrored from)."""
+        return _no_nan({**self._base_record(), **self._doppler_record()})
+
+    def _doppler_record(self) -> dict[str, Any]:
+        d, h, out = self.detections, self.hidden, {}
+        if d.velocity is not None:
+            out["detection_doppler"] = {"range": d.range.tolist(), "azimuth": d.azimuth.tolist(),
+                                        "label": d.label.tolist(), "velocity": d.velocity.tolist(),
+                                        "velocity_var": d.velocity_var.tolist()}
+        if h.velocity is not None:
+            out["hidden_velocity"] = {"velocity": h.velocity.tolist(), "velocity_cov": h.velocity_cov.tolist(),
+                                      "source_index": h.source_index.tolist()}
+        return out
+
+    def _base_record(self) -> dict[str, Any]:
         d = self.detections
-        return _no_nan({
+        return {
             "frame": self.frame.index,
             "timestamp": self.frame.timestamp,
             "detections": {"LOS": int((d.label == 0).sum()), "mNLOS": int((d.label == 1).sum()),
@@ -52,7 +72,7 @@ class FrameResult:
             "metrics": self.metrics,
             "timings_s": self.timings,
             "notes": self.notes,
-        })
+        }
 
 
 def _no_nan(x):
