@@ -117,3 +117,17 @@ def test_bad_parameters_name_the_key(family, overrides, pattern):
     with pytest.raises(InputError, match=pattern):
         generate_scene(family, 0, **overrides)
     assert family_params(family)().horizon == 3.0
+
+
+def test_the_sequences_dataset_config_stays_within_the_horizon():
+    from pathlib import Path
+
+    from sims.dataset import load_dataset_config, resolve
+
+    path = Path(__file__).resolve().parents[2] / "configs/datasets/sequences.toml"
+    cfg = load_dataset_config(path)
+    resolve(cfg, str(path))  # registered families, valid parameters
+    assert set(cfg.weights()) == set(SEQUENCE_FAMILIES) and cfg.frames_per_scene == 30
+    assert cfg.shard_size % cfg.frames_per_scene == 0
+    last = (cfg.frames_per_scene - 1) * cfg.frame_interval
+    assert all(last <= family_params(f)().horizon for f in SEQUENCE_FAMILIES)
