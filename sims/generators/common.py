@@ -269,20 +269,25 @@ class Visibility:
 @dataclass(frozen=True)
 class Generator:
     """A scene family: its name, parameter model, one-line description and layout function
-    ``layout(params, rng) -> Layout`` (for a hidden arm on the right; raises Reject)."""
+    ``layout(params, rng) -> Layout`` (for a hidden arm on the right; raises Reject). ``motion``
+    (optional, sequence families): ``motion(params, obj, arm, rng, walls) -> ObjectSpec`` sets a
+    freshly drawn hidden object moving (raises Reject when its path leaves the street); None
+    draws nothing, so families without it keep their scenes."""
 
     name: str
     Params: type[BaseParams]
     description: str
     layout: Callable[[BaseParams, np.random.Generator], Layout]
+    motion: Callable[..., ObjectSpec] | None = None
 
 
 PLACEMENTS = 3  # hidden-object placements tried per drawn layout
 
 
 def _hidden_object(p: BaseParams, i: int, arm: Region, rng, vis: Visibility, walls, planar,
-                   polys) -> tuple[ObjectSpec, dict]:
-    """Hidden object i in ``arm``: out of line of sight, with a mirror path (else Reject)."""
+                   polys, motion=None) -> tuple[ObjectSpec, dict]:
+    """Hidden object i in ``arm`` (set moving by ``motion``, see Generator): out of line of sight,
+    with a mirror path at t = 0 (else Reject)."""
     d = uniform(rng, p.hidden_distance)
     if d > arm.length:
         raise Reject(f"hidden_distance beyond the {arm.name} arm")
@@ -290,6 +295,8 @@ def _hidden_object(p: BaseParams, i: int, arm: Region, rng, vis: Visibility, wal
     if o is None:
         raise Reject("no room across the hidden arm")
     o = o.model_copy(update={"name": f"hidden{i}_{o.kind}"})
+    if motion is not None:
+        o = motion(p, o, arm, rng, walls)
     why = clear_of(o, walls, polys)
     if why:
         raise Reject(why)
@@ -304,7 +311,7 @@ def _hidden_object(p: BaseParams, i: int, arm: Region, rng, vis: Visibility, wal
                "mirror_snr_db": round(snr, 3) if math.isfinite(snr) else None}
 
 
-def _place(p: BaseParams, lay: Layout, rng, vis: Visibility) -> tuple[list[ObjectSpec], list[dict]]:
+def _place(p: BaseParams, lay: Layout, rng, vis: Visibility, motion=None) -> tuple[list[ObjectSpec], list[dict]]:
     """The layout's fixed objects, then the hidden objects (each tried PLACEMENTS times), then the
     extra objects; Reject when they do not fit."""
     walls = g.wall_arrays(lay.walls)
@@ -323,7 +330,7 @@ def _place(p: BaseParams, lay: Layout, rng, vis: Visibility) -> tuple[list[Objec
         arm = lay.arms[i % len(lay.arms)]
         for k in range(PLACEMENTS):
             try:
-                o, rec = _hidden_object(p, i, arm, rng, vis, walls, planar, polys)
+                o, rec = _hidden_object(p, i, arm, rng, vis, walls, planar, polys, motion)
                 break
             except Reject:
                 if k == PLACEMENTS - 1:
@@ -359,7 +366,7 @@ def generate(gen: Generator, seed: int, p: BaseParams) -> Scene:
             lay = gen.layout(p, rng)
             if side == "left":
                 lay = lay.flipped()
-            objects, info = _place(p, lay, rng, vis)
+            objects, info = _place(p, lay, rng, vis, gen.motion)
         except Reject as why:
             reasons[str(why)] += 1
             continue

@@ -15,7 +15,8 @@ from xnlos_core.errors import InputError
 from xnlos_core.interfaces import SceneGenerator
 from xnlos_core.scene import Scene
 
-from . import corner_split, crossroads, curved_wall, parking_lot, residential_street, t_junction
+from . import (corner_split, crossroads, curved_wall, hidden_car_approach, hidden_cyclist, hidden_pedestrian,
+               parking_lot, residential_street, t_junction)
 from .common import Generator, generate
 
 
@@ -45,7 +46,11 @@ class ParkingLot(FamilyGenerator, family=parking_lot.GENERATOR): pass
 class ResidentialStreet(FamilyGenerator, family=residential_street.GENERATOR): pass
 class CurvedWall(FamilyGenerator, family=curved_wall.GENERATOR): pass
 class CornerSplit(FamilyGenerator, family=corner_split.GENERATOR): pass
+class HiddenCarApproach(FamilyGenerator, family=hidden_car_approach.GENERATOR): pass
+class HiddenCyclist(FamilyGenerator, family=hidden_cyclist.GENERATOR): pass
+class HiddenPedestrian(FamilyGenerator, family=hidden_pedestrian.GENERATOR): pass
 
 
 COMPONENTS: dict[str, type[FamilyGenerator]] = {c.GENERATOR.name: c for c in (
-    Crossroads, TJunction, ParkingLot, ResidentialStreet, CurvedWall, CornerSplit)}
+    Crossroads, TJunction, ParkingLot, ResidentialStreet, CurvedWall, CornerSplit, HiddenCarApproach, HiddenCyclist,
+    HiddenPedestrian)}

@@ -33,7 +33,7 @@ def hidden_objects(s: Scene):
 
 def test_the_paper_families_are_there():
     assert set(FAMILIES) == {"crossroads", "t_junction", "parking_lot", "residential_street", "curved_wall",
-                             "corner_split"}
+                             "corner_split", "hidden_car_approach", "hidden_cyclist", "hidden_pedestrian"}
     for name, gen in FAMILIES.items():
         assert gen.name == name and family_params(name) is gen.Params
         assert all(f.description for f in gen.Params.model_fields.values()), name
