@@ -41,6 +41,7 @@ from xnlos_core.validation import as_array
 
 FEATURES = ("vx", "vy")
 MIN_SAMPLES = 8
+MAX_NFEV = 60  # refit budget: ill-posed supports (turn terms on a straight path) would crawl on
 XI_MAX = 2.0  # [1/s] bound on |Ξ_ij|: turn rates ≤ 2 rad/s, speed e-folding ≥ 0.5 s
 
 
@@ -100,7 +101,19 @@ def _positions(theta: np.ndarray, mask: np.ndarray, dts: np.ndarray) -> np.ndarr
     M = np.zeros((4, 4))
     M[0:2, 2:4] = np.eye(2)
     M[2:4, 2:4][mask] = theta[4:]
-    return (expm(M[None] * np.asarray(dts)[:, None, None])[:, :2] @ theta[:4])
+    return _expm_series(M, np.asarray(dts, dtype=np.float64))[:, :2] @ theta[:4]
+
+
+def _expm_series(M: np.ndarray, dts: np.ndarray) -> np.ndarray:
+    """expm(M·dt) (K, 4, 4) for every dt; on a uniform grid by repeated products of one step (fast)."""
+    steps = np.diff(dts)
+    if len(dts) < 3 or not np.allclose(steps, steps[0], rtol=1e-9, atol=1e-12):
+        return expm(M[None] * dts[:, None, None])
+    out = np.empty((len(dts), 4, 4))
+    out[0], step = expm(M * dts[0]), expm(M * steps[0])
+    for k in range(1, len(dts)):
+        out[k] = out[k - 1] @ step
+    return out
 
 
 def _jacobian(theta: np.ndarray, mask: np.ndarray, dts: np.ndarray) -> np.ndarray:
@@ -117,12 +130,13 @@ def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray):
     Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ²], residual sum of squares [m²])."""
     mask = xi != 0
     dts = t - t[-1]
-    Phi = expm(_system(xi)[None] * dts[:, None, None])[:, :2]   # (n, 2, 4): the initial-state guess
+    Phi = _expm_series(_system(xi), dts)[:, :2]   # (n, 2, 4): the initial-state guess
     s0, *_ = np.linalg.lstsq(Phi.reshape(-1, 4), z.ravel(), rcond=None)
     theta0 = np.r_[s0, np.clip(xi[mask], -XI_MAX, XI_MAX)]
     if mask.any():
         lo = np.r_[np.full(4, -np.inf), np.full(mask.sum(), -XI_MAX)]
-        fit = least_squares(lambda th: (_positions(th, mask, dts) - z).ravel(), theta0, bounds=(lo, -lo))
+        fit = least_squares(lambda th: (_positions(th, mask, dts) - z).ravel(), theta0, bounds=(lo, -lo),
+                            x_scale="jac", max_nfev=MAX_NFEV)
         theta, J, rss = fit.x, fit.jac, 2 * fit.cost
     else:
         theta, J = theta0, Phi.reshape(-1, 4)
@@ -192,6 +206,9 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
     sigma_smooth = sigma or float(1.4826 * np.median(np.abs(np.diff(z, 2, axis=0))) / np.sqrt(6)) or 1e-3
     smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd)
     v, a = smooth[:, 2:4], smooth[:, 4:6]
+    if np.linalg.norm(v, axis=0).min() < 1e-9:  # a velocity component ≡ 0 (noise-free axis-aligned path)
+        raise InsufficientDataError("identify_motion: a velocity component is identically zero; the "
+                                    "library columns cannot be normalised (add the measurement noise)")
     full = _sindy_fit(_stlsq(0.0), v, a)
     norms = np.linalg.norm(v, axis=0)
     cuts = np.unique(np.abs(full * norms).ravel())
