@@ -28,11 +28,11 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
-from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
+from .frames import frame_time, no_tracks
 
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 
@@ -110,14 +110,7 @@ class KalmanTracker(Tracker):
         """Ingest one frame's hidden points at ``timestamp`` [s]; return the confirmed tracks."""
         if not hasattr(self, "_tracks"):
             self.reset()
-        if not isinstance(points, HiddenPoints):
-            raise InputError(f"KalmanTracker.update: expected HiddenPoints, got {type(points).__name__}")
-        t = float(timestamp)
-        if not np.isfinite(t):
-            raise InputError(f"KalmanTracker.update: timestamp must be finite, got {timestamp}")
-        if self._t_last is not None and t < self._t_last:
-            raise InputError(f"KalmanTracker.update: timestamp {t} s is before the previous frame's "
-                             f"{self._t_last} s; timestamps must not decrease (call reset() to start over)")
+        t = frame_time("KalmanTracker", points, timestamp, self._t_last)
         p = self.params
         z, R = cluster_measurements(points, p.cluster_distance, p.sigma_floor)
         for tr in self._tracks:
@@ -173,8 +166,7 @@ class KalmanTracker(Tracker):
     def _report(self, t: float) -> Tracks:
         trs = [tr for tr in self._tracks if tr.confirmed]
         if not trs:
-            e = np.empty((0, 2))
-            return Tracks(np.empty(0, np.int64), e, e, e, t)
+            return no_tracks(t)
         x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
         return Tracks(np.array([tr.id for tr in trs]), pos, vel, pos + vel * self._dt_frame, t)
