@@ -1,5 +1,5 @@
 """Entry point ``xnlos-estimators``: registers the wall estimators lsq, casadi_map and emcee and
-the tracker nearest."""
+the trackers nearest and kalman."""
 from xnlos_core import hookimpl
 
 
@@ -8,9 +8,11 @@ def xnlos_register_components(registry):
     from .casadi_map import CasadiMapWallEstimator
     from .emcee_wall import EmceeWallEstimator
     from .lsq import LSQWallEstimator
+    from .trackers.kalman import KalmanTracker
     from .trackers.nearest import NearestTracker
 
     registry.add("wall_estimator", "lsq", LSQWallEstimator)
     registry.add("wall_estimator", "casadi_map", CasadiMapWallEstimator)
     registry.add("wall_estimator", "emcee", EmceeWallEstimator)
     registry.add("tracker", "nearest", NearestTracker)
+    registry.add("tracker", "kalman", KalmanTracker)

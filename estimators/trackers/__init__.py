@@ -1,1 +1,2 @@
-"""Trackers: hidden points of successive frames → tracks (α–β ``nearest``; more models to come)."""
+"""Trackers: hidden points of successive frames → tracks (α–β ``nearest``, Kalman ``kalman``) and
+motion identification with ensemble SINDy (``sindy_model``)."""

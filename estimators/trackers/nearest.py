@@ -22,11 +22,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.optimize import linear_sum_assignment
 
-from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
+from .frames import frame_time, no_tracks
 
 
 class NearestParams(BaseModel):
@@ -81,14 +81,7 @@ class NearestTracker(Tracker):
         """Ingest one frame's hidden points at ``timestamp`` [s]; return the live tracks."""
         if not hasattr(self, "_tracks"):
             self.reset()
-        if not isinstance(points, HiddenPoints):
-            raise InputError(f"NearestTracker.update: expected HiddenPoints, got {type(points).__name__}")
-        t = float(timestamp)
-        if not np.isfinite(t):
-            raise InputError(f"NearestTracker.update: timestamp must be finite, got {timestamp}")
-        if self._t_last is not None and t < self._t_last:
-            raise InputError(f"NearestTracker.update: timestamp {t} s is before the previous frame's "
-                             f"{self._t_last} s; timestamps must not decrease (call reset() to start over)")
+        t = frame_time("NearestTracker", points, timestamp, self._t_last)
         z = cluster_centroids(points.mean, self.params.cluster_distance)
         pred = np.array([tr.predict(t) for tr in self._tracks]).reshape(-1, 2)
         matched_tr, matched_z = self._associate(pred, z)
@@ -129,8 +122,7 @@ class NearestTracker(Tracker):
     def _report(self, t: float) -> Tracks:
         trs = self._tracks
         if not trs:
-            e = np.empty((0, 2))
-            return Tracks(np.empty(0, np.int64), e, e, e, t)
+            return no_tracks(t)
         pos = np.array([tr.predict(t) for tr in trs])
         vel = np.array([tr.velocity for tr in trs])
         return Tracks(np.array([tr.id for tr in trs]), pos, vel, pos + vel * self._dt_frame, t)

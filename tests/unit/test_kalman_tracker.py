@@ -1,0 +1,92 @@
+"""Constant-velocity Kalman tracker: closed-form filter steps, gating, M-of-N birth, K-miss death."""
+import numpy as np
+import pytest
+
+from estimators.trackers.kalman import KalmanTracker, cluster_measurements, cv_transition
+from xnlos_core import ConfigError, HiddenPoints, InputError
+from xnlos_core.testing import check_component
+
+
+def hidden(points, sigma=0.1):
+    pts = np.asarray(points, float).reshape(-1, 2)
+    k = len(pts)
+    return HiddenPoints(pts, np.tile(sigma ** 2 * np.eye(2), (k, 1, 1)), np.arange(k), np.zeros(k))
+
+
+def test_conformance_kit():
+    check_component("tracker", "kalman")
+
+
+def test_transition_matches_white_noise_acceleration_closed_form():
+    F, Q = cv_transition(0.5, 2.0)
+    assert np.allclose(F @ [1.0, 2.0, 3.0, -4.0], [2.5, 0.0, 3.0, -4.0])
+    assert Q[0, 0] == pytest.approx(2.0 * 0.5 ** 3 / 3) and Q[0, 2] == pytest.approx(2.0 * 0.5 ** 2 / 2)
+    assert Q[2, 2] == pytest.approx(1.0) and Q[0, 1] == 0.0
+
+
+def test_cluster_covariance_is_mean_of_independent_points():
+    pts = HiddenPoints(np.array([[0.0, 0.0], [1.0, 0.0], [50.0, 0.0]]),
+                       np.array([np.eye(2) * 0.04, np.eye(2) * 0.16, np.eye(2) * 0.09]), [0, 1, 2], [0, 0, 0])
+    z, R = cluster_measurements(pts, 2.0, floor=0.1)
+    order = np.argsort(z[:, 0])
+    assert np.allclose(z[order], [[0.5, 0.0], [50.0, 0.0]])
+    assert np.allclose(R[order][:, 0, 0], [(0.04 + 0.16) / 4 + 0.01, 0.09 + 0.01])
+
+
+def test_noisy_constant_velocity_converges_with_one_id():
+    rng = np.random.default_rng(1)
+    v = np.array([3.0, -2.0])
+    tracker = KalmanTracker({"accel_psd": 0.1})
+    for k in range(50):
+        t = 0.1 * k
+        tracks = tracker.update(hidden(np.array([20.0, 5.0]) + v * t + 0.1 * rng.standard_normal(2)), t)
+        if k >= 1:
+            assert tracks.track_id.tolist() == [0]
+    assert np.linalg.norm(tracks.velocity[0] - v) < 0.3
+    assert np.linalg.norm(tracks.position[0] - (np.array([20.0, 5.0]) + v * 4.9)) < 0.15
+    assert np.allclose(tracks.predicted[0], tracks.position[0] + 0.1 * tracks.velocity[0])
+
+
+def test_m_of_n_birth_and_k_miss_death():
+    tracker = KalmanTracker({"confirm_hits": 2, "confirm_window": 3, "max_misses": 2})
+    assert len(tracker.update(hidden([[0.0, 0.0]]), 0.0)) == 0          # tentative: not reported
+    assert len(tracker.update(hidden(np.empty((0, 2))), 0.1)) == 0     # 1 hit in 2 frames: still tentative
+    assert tracker.update(hidden([[0.0, 0.0]]), 0.2).track_id.tolist() == [0]  # 2 of 3: confirmed
+    assert tracker.update(hidden(np.empty((0, 2))), 0.3).track_id.tolist() == [0]  # one miss: coasts
+    assert len(tracker.update(hidden(np.empty((0, 2))), 0.4)) == 0     # second miss: deleted
+    tracker.reset()
+    tracker.update(hidden([[0.0, 0.0]]), 0.0)
+    tracker.update(hidden(np.empty((0, 2))), 0.1)
+    tracker.update(hidden(np.empty((0, 2))), 0.2)                     # 1 of 3: the tentative track dies
+    assert tracker.update(hidden([[0.0, 0.0]]), 0.3).track_id.tolist() == []
+    assert tracker.update(hidden([[0.0, 0.0]]), 0.4).track_id.tolist() == [1]
+
+
+def test_mahalanobis_gate_uses_measurement_covariance():
+    # The same 2 m jump is inside the gate for a 1 m measurement σ and outside it for 0.05 m.
+    for sigma, same in ((1.0, True), (0.05, False)):
+        tracker = KalmanTracker({"confirm_hits": 1, "initial_speed_sigma": 0.1})
+        tracker.update(hidden([[0.0, 0.0]], sigma), 0.0)
+        ids = tracker.update(hidden([[2.0, 0.0]], sigma), 0.1).track_id.tolist()
+        assert (ids == [0]) is same
+
+
+def test_crossing_targets_keep_their_ids():
+    tracker = KalmanTracker({"accel_psd": 0.5, "cluster_distance": 0.5})
+    for k in range(30):
+        t = 0.1 * k
+        a, b = np.array([10.0 + 5 * t, 0.0 + 5 * t]), np.array([10.0 + 5 * t, 15.0 - 5 * t])
+        tracks = tracker.update(hidden([a, b], 0.05), t)
+    ids = dict(zip(tracks.track_id.tolist(), tracks.position[:, 1]))
+    assert ids[0] > ids[1]  # track 0 was born at y = 0 and moves up; it crossed track 1
+
+
+def test_errors():
+    tracker = KalmanTracker()
+    tracker.update(hidden([[0.0, 0.0]]), 1.0)
+    with pytest.raises(InputError, match="must not decrease"):
+        tracker.update(hidden([[0.0, 0.0]]), 0.5)
+    with pytest.raises(InputError, match="expected HiddenPoints"):
+        tracker.update(np.zeros((1, 2)), 2.0)
+    with pytest.raises(ConfigError, match="confirm_window"):
+        KalmanTracker({"confirm_hits": 4, "confirm_window": 3})
