@@ -499,13 +499,34 @@ class HiddenPoints(_ReadOnlyArrays):
 @dataclass(frozen=True, eq=False)
 class Tracks(_ReadOnlyArrays):
     """Tracked objects after a frame: id (T,), position (T, 2) [m], velocity (T, 2) [m/s],
-    predicted (T, 2) [m] position at the next expected timestamp, timestamp [s]."""
+    predicted (T, 2) [m] position at the next expected timestamp, timestamp [s].
+
+    Optional forecast (all or none, a tracker that forecasts fills them):
+    horizons (K,) [s] ahead of ``timestamp`` (each in [0, 3]); forecast (T, K, 2) [m] the predicted
+    mean position of each track at each horizon; radius50 / radius90 (T, K) [m] the radii of discs
+    around ``forecast`` that hold 50 % / 90 % of the predictive distribution (NaN where the tracker
+    has no interval yet); model (T,) str, the motion model each track follows ("cv", or the
+    identified terms such as "vx'=vy vy'=vx").
+    Optional time-to-appearance (both or none): arrival (T,) [s] the predicted absolute time at which
+    each track enters the tracker's named region (NaN: not within the horizon; ``timestamp`` when it
+    is already inside), arrival_interval (T, 2) [s] its 5 %–95 % interval (upper +inf when fewer
+    than 95 % of the predictive draws arrive within the horizon).
+    """
 
     track_id: np.ndarray
     position: np.ndarray
     velocity: np.ndarray
     predicted: np.ndarray
     timestamp: float = 0.0
+    horizons: np.ndarray | None = None
+    forecast: np.ndarray | None = None
+    radius50: np.ndarray | None = None
+    radius90: np.ndarray | None = None
+    model: tuple | None = None
+    arrival: np.ndarray | None = None
+    arrival_interval: np.ndarray | None = None
+
+    FORECAST = ("horizons", "forecast", "radius50", "radius90", "model")
 
     def __post_init__(self):
         i = as_array("Tracks.track_id", self.track_id, dtype=np.int64, ndim=1, readonly=True)
@@ -513,6 +534,28 @@ class Tracks(_ReadOnlyArrays):
         _set(self, "track_id", i)
         for name in ("position", "velocity", "predicted"):
             _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2), readonly=True))
+        given = [getattr(self, n) is not None for n in self.FORECAST]
+        if any(given) and not all(given):
+            raise InputError(f"Tracks: give all of {', '.join(self.FORECAST)} or none")
+        if all(given):
+            h = as_array("Tracks.horizons", self.horizons, ndim=1, readonly=True)
+            if len(h) and (h.min() < 0 or h.max() > 3.0):
+                raise InputError(f"Tracks.horizons: each must be within [0, 3] s, got {h.tolist()}")
+            _set(self, "horizons", h)
+            _set(self, "forecast", as_array("Tracks.forecast", self.forecast, shape=(k, len(h), 2), readonly=True))
+            for name in ("radius50", "radius90"):
+                _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, len(h)),
+                                          finite=False, readonly=True))
+            model = tuple(str(m) for m in self.model)
+            if len(model) != k:
+                raise InputError(f"Tracks.model: expected {k} entries (one per track), got {len(model)}")
+            _set(self, "model", model)
+        if (self.arrival is None) != (self.arrival_interval is None):
+            raise InputError("Tracks.arrival/arrival_interval: give both or neither")
+        if self.arrival is not None:
+            _set(self, "arrival", as_array("Tracks.arrival", self.arrival, shape=(k,), finite=False, readonly=True))
+            _set(self, "arrival_interval", as_array("Tracks.arrival_interval", self.arrival_interval, shape=(k, 2),
+                                                    finite=False, readonly=True))
 
     def __len__(self) -> int:
         return len(self.track_id)
