@@ -129,9 +129,13 @@ def beamform(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
 
     κ(r, θ) = Σ_k w_k a_k*(θ) X_k(r) / Σ w_k, so a unit plane wave from a grid angle gives 1.
     """
+    return range_profiles @ beam_weights(radar)
+
+
+def beam_weights(radar: RadarConfig) -> np.ndarray:
+    """Delay-and-sum weights w_k a_k*(θ) / Σ w_k of :func:`beamform`, (n_channels, n_azimuth_bins) complex128."""
     w = azimuth_weights(radar)
-    weights = (w / w.sum())[:, None] * steering_vector(radar, radar.azimuth_axis).conj()  # (M, n_az)
-    return range_profiles @ weights
+    return (w / w.sum())[:, None] * steering_vector(radar, radar.azimuth_axis).conj()
 
 
 def decouple(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
