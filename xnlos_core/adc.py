@@ -4,7 +4,9 @@ Hardware hands over samples × chirps × channels in some axis order, as complex
 integer I/Q pairs, with channels tx-major or rx-major and a scale from ADC counts to √W. An
 :class:`AdcLayout` describes that; :func:`adc_cube_to_ra_map` brings the cube into the canonical
 (n_samples, n_channels) complex √W form (chirps integrated coherently) and runs
-:func:`xnlos_core.signal_chain.ra_map_from_cube` — the same code the simulator uses.
+:func:`xnlos_core.signal_chain.ra_map_from_cube` — the same code the simulator uses;
+:func:`adc_cube_to_doppler_maps` keeps the chirps and runs the Doppler chain of
+:mod:`xnlos_core.doppler` (movers keep their SNR, every cell gets a radial velocity).
 :func:`encode_adc_cube` is the inverse (simulator or emulator → raw layout), with int16 clipping.
 """
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from .doppler import DopplerRAMaps, doppler_ra_maps
 from .errors import InputError
 from .radar import RadarConfig
 from .signal_chain import ra_map_from_cube
@@ -57,8 +60,10 @@ def _channel_permutation(radar: RadarConfig, order: str) -> np.ndarray | None:
     return j_rx * radar.n_tx + i_tx
 
 
-def canonical_cube(raw, layout: AdcLayout, radar: RadarConfig) -> np.ndarray:
-    """Raw cube → (n_samples, n_channels) complex128 [√W]: validate, reorder, scale, integrate chirps.
+def chirp_cube(raw, layout: AdcLayout, radar: RadarConfig) -> np.ndarray:
+    """Raw cube → (n_samples, n_chirps_recorded, n_channels) complex128 [√W], chirps kept in slow time:
+    validate, reorder (axes, channel order), scale, optional DC removal. The layout of
+    :mod:`xnlos_core.doppler`'s chirp-sequence cubes, so real recordings take the same Doppler path.
 
     Raises InputError naming the mismatch (axis count, I/Q axis, sizes, dtype, non-finite values).
     """
@@ -94,12 +99,32 @@ def canonical_cube(raw, layout: AdcLayout, radar: RadarConfig) -> np.ndarray:
         cube = cube[:, :, perm]
     if layout.remove_dc:
         cube = cube - cube.mean(axis=0, keepdims=True)
-    return cube.mean(axis=1)
+    return cube
+
+
+def canonical_cube(raw, layout: AdcLayout, radar: RadarConfig) -> np.ndarray:
+    """Raw cube → (n_samples, n_channels) complex128 [√W]: :func:`chirp_cube`, chirps integrated coherently."""
+    return chirp_cube(raw, layout, radar).mean(axis=1)
 
 
 def adc_cube_to_ra_map(raw, layout: AdcLayout, radar: RadarConfig) -> RAMap:
     """Raw ADC cube in ``layout`` → RAMap via the shared chain (range FFT, decoupling, beamforming)."""
     return ra_map_from_cube(canonical_cube(raw, layout, radar), radar)
+
+
+def adc_cube_to_doppler_maps(raw, layout: AdcLayout, radar: RadarConfig, *, window: str = "hann",
+                             remove_static: bool = False) -> DopplerRAMaps:
+    """Raw ADC cube of one frame's chirp sequence → :class:`xnlos_core.doppler.DopplerRAMaps` (range–Doppler,
+    beamforming per Doppler bin, velocity per cell) through the chain the simulator's Doppler model uses.
+
+    The recording must hold ``radar.n_chirps`` chirp loops (one chirp per TX each, TDM order as the
+    radar's timing fields describe); raises InputError otherwise.
+    """
+    cube = chirp_cube(raw, layout, radar)
+    if cube.shape[1] != radar.n_chirps:
+        raise InputError(f"adc cube: Doppler processing needs the radar's n_chirps={radar.n_chirps} chirp loops "
+                         f"on the 'chirp' axis, the recording has {cube.shape[1]}")
+    return doppler_ra_maps(cube, radar, window=window, remove_static=remove_static)
 
 
 def encode_adc_cube(cube, layout: AdcLayout, radar: RadarConfig, n_chirps: int = 1,

@@ -126,3 +126,25 @@ def test_bad_inputs_raise_input_errors():
         range_doppler(np.zeros((SMALL.n_samples, SMALL.n_chirps, SMALL.n_channels), complex), SMALL, window="nope")
     with pytest.raises(InputError, match="n_chirps"):
         doppler_ra_maps(np.zeros((64, 2, 8), complex), SMALL.model_copy(update={"n_chirps": 2}))
+
+
+def test_raw_recording_takes_the_same_doppler_chain():
+    # a mover's chirp sequence laid out as a radar might record it (chirp, channel rx-major, sample;
+    # I/Q pairs in counts) comes back through adc_cube_to_doppler_maps with the maps of the direct path
+    from xnlos_core.adc import adc_cube_to_doppler_maps, chirp_cube
+
+    v = 3.3 * SMALL.velocity_resolution
+    cube = add_chirp_noise(chirp_sequence_cube(SMALL, [6.0], [0.25], [2e-3], [v]), SMALL, np.random.default_rng(4))
+    scale = 1e-6
+    perm = np.argsort(np.arange(SMALL.n_channels).reshape(SMALL.n_tx, SMALL.n_rx).T.ravel())  # tx- → rx-major
+    raw = np.transpose(cube[:, :, np.argsort(perm)] / scale, (1, 2, 0))
+    raw = np.stack([raw.real, raw.imag], axis=-1)
+    layout = AdcLayout(axes=("chirp", "channel", "sample"), sample_format="iq", channel_order="rx_major", scale=scale)
+    np.testing.assert_allclose(chirp_cube(raw, layout, SMALL), cube, rtol=1e-12, atol=1e-18)
+    direct, recorded = doppler_ra_maps(cube, SMALL), adc_cube_to_doppler_maps(raw, layout, SMALL)
+    np.testing.assert_allclose(recorded.power, direct.power, rtol=1e-5)
+    i, j = np.unravel_index(np.argmax(recorded.power), recorded.power.shape)
+    assert recorded.velocity[i, j] == pytest.approx(direct.velocity[i, j], abs=1e-9)
+    assert recorded.velocity[i, j] == pytest.approx(v, abs=0.01 * SMALL.velocity_resolution)
+    with pytest.raises(InputError, match="n_chirps=32"):
+        adc_cube_to_doppler_maps(raw[:8], layout, SMALL)
