@@ -6,7 +6,10 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    over the last ``window`` [s].
 2. Identification (:func:`estimators.trackers.sindy_model.identify_motion`): once a track has
    ≥ ``min_samples`` samples in the window, and then every ``refit_every`` frames (not every frame:
-   the time budget), its motion is identified from the window with σ² = mean tr(R)/2 [m²]. At most
+   the time budget), its motion is identified from the window with the noise σ profiled out of the
+   selection (identify_motion's sigma=None): a hidden point's R understates the scatter of a car's
+   centroid (which parts of the body reflect changes), and a too-small σ inflates χ² until spurious
+   turn terms pass any evidence margin. At most
    ``max_fits_per_frame`` tracks are fitted in one frame, the longest-unfitted first.
 3. Model choice: the identified Ξ (turn / acceleration terms) replaces constant velocity only when it
    is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
@@ -135,10 +138,9 @@ class SindyTracker(KalmanTracker):
         p = self.params
         ts = np.array([h[0] for h in tr.history])
         zs = np.array([h[1] for h in tr.history])
-        sigma = float(np.sqrt(np.mean([np.trace(h[2]) / 2 for h in tr.history])))
         tr.fitted_frame = self._frame
         try:
-            model = identify_motion(ts, zs, sigma, n_models=p.n_models, seed=p.seed + tr.id)
+            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id)
         except InsufficientDataError:  # e.g. an axis-aligned noiseless path: nothing to identify
             tr.identified, tr.motion = None, CV
             return
