@@ -56,7 +56,7 @@ class SindyParams(KalmanParams):
                                                                         "the window before its motion is identified")
     window: float = Field(3.0, gt=0, le=60, description="length [s] of the history identified from")
     refit_every: int = Field(5, ge=1, le=10_000, description="frames between two identifications of a track")
-    max_fits_per_frame: int = Field(2, ge=1, le=1000, description="identifications at most per frame "
+    max_fits_per_frame: int = Field(1, ge=1, le=1000, description="identifications at most per frame "
                                                                   "(the longest-unfitted due tracks first)")
     n_models: int = Field(10, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
