@@ -1,5 +1,5 @@
 """Entry point ``xnlos-estimators``: registers the wall estimators lsq, casadi_map and emcee and
-the trackers nearest and kalman."""
+the trackers nearest, kalman and sindy."""
 from xnlos_core import hookimpl
 
 
@@ -10,9 +10,11 @@ def xnlos_register_components(registry):
     from .lsq import LSQWallEstimator
     from .trackers.kalman import KalmanTracker
     from .trackers.nearest import NearestTracker
+    from .trackers.sindy import SindyTracker
 
     registry.add("wall_estimator", "lsq", LSQWallEstimator)
     registry.add("wall_estimator", "casadi_map", CasadiMapWallEstimator)
     registry.add("wall_estimator", "emcee", EmceeWallEstimator)
     registry.add("tracker", "nearest", NearestTracker)
     registry.add("tracker", "kalman", KalmanTracker)
+    registry.add("tracker", "sindy", SindyTracker)

@@ -3,38 +3,53 @@
 Per frame at time t [s]:
 1. The hidden points are grouped by single linkage (cut at ``cluster_distance`` [m]); each cluster
    gives one measurement z (2,) [m], its centroid, with covariance R (2, 2) [m²] = Σ cov_i / n² from
-   the points' ``HiddenPoints.cov`` (independent points) plus ``sigma_floor``² I.
+   the points' ``HiddenPoints.cov`` (independent points) plus ``sigma_floor``² I; and, when the points
+   carry velocities and ``use_doppler``, the radial velocity y = ĝᵀv along the mirrored line of sight ĝ
+   with variance s (:mod:`estimators.trackers.measurements`).
 2. Every track (state x = (p_x, p_y, v_x, v_y) [m, m/s], covariance P) predicts to t with the
    white-noise-acceleration model: F = [[I, Δt I], [0, I]], Q = q [[Δt³/3 I, Δt²/2 I], [Δt²/2 I, Δt I]]
    (q = ``accel_psd`` [m²/s³]).
 3. Gating: the squared Mahalanobis distance d² = rᵀ S⁻¹ r of the innovation r = z − H x̂ with
    S = H P Hᵀ + R; pairs with d² above the χ²₂ quantile of ``gate_probability`` stay unassigned.
    The remaining pairs are assigned one-to-one by scipy.optimize.linear_sum_assignment on d².
-4. Matched tracks take the Kalman update (Joseph form). Unmatched measurements start tentative
-   tracks at p = z, v = 0 with P = diag(R, ``initial_speed_sigma``² I).
+4. Matched tracks take the Kalman update (Joseph form) with H = [I, 0] and R, or with Doppler the
+   extended H = [[I, 0], [0, ĝᵀ]] (3, 4), measurement (z, y) and R ⊕ s. Unmatched measurements start
+   tentative tracks from the prior p = z, v = 0, P = diag(R, ``initial_speed_sigma``² I), which the
+   Doppler row (if any) then updates: a new track starts with its radial velocity.
 5. Birth: a tentative track is confirmed once it has ``confirm_hits`` (M) hits within its first
    ``confirm_window`` (N) frames, else deleted. Death: a confirmed track is deleted after
    ``max_misses`` (K) consecutive misses.
 
 Only confirmed tracks are reported; ``predicted`` is the position at t + Δt_frame, the last frame
-interval (0 on the first frame). Timestamps must not decrease.
+interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
+measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
+
+Forecast (every report, :mod:`estimators.trackers.forecast`): at each of ``horizons`` h [s] the mean
+p + v h and the covariance F(h) P F(h)ᵀ + Q(h) (position block) plus the track's last R, with the exact
+50 %/90 % disc radii of that Gaussian; model "cv". With a ``region`` polygon, the time-to-appearance
+(:mod:`estimators.trackers.region`) from the mean path and ``arrival_draws`` seeded path draws.
+Subclasses change the motion model per track through :meth:`KalmanTracker._motion`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import chi2
 
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
-from ..lsq import single_linkage
+from . import forecast as fc
 from .frames import frame_time, no_tracks
+from .measurements import Measurements, cluster
+from .region import Region, arrival
 
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
+CV = fc.LinearMotion()
+ARRIVAL_HORIZON = 3.0  # [s]
 
 
 class KalmanParams(BaseModel):
@@ -55,6 +70,35 @@ class KalmanParams(BaseModel):
     initial_speed_sigma: float = Field(10.0, gt=0, le=1e3, description="prior standard deviation [m/s] per axis of "
                                                                        "a new track's velocity (it starts at 0)")
 
+    use_doppler: bool = Field(True, description="use the hidden points' radial velocities in the update "
+                                                "(ignored when the points carry none)")
+    doppler_floor: float = Field(0.1, gt=0, le=100, description="standard deviation [m/s] added to each "
+                                                               "point's radial-velocity error")
+    horizons: tuple[float, ...] = Field((0.5, 1.0, 1.5, 2.0, 2.5, 3.0), min_length=1, max_length=64,
+                                        description="forecast horizons [s] ahead of each frame, each in [0, 3]")
+    region: list[tuple[float, float]] | None = Field(None, description="polygon [[x, y], …] [m] in the ego "
+                                                                       "frame (e.g. the ego lane) whose "
+                                                                       "time-to-appearance is reported; None: none")
+    arrival_step: float = Field(0.1, gt=0, le=1.0, description="time step [s] of the predicted paths "
+                                                               "searched for the region entry")
+    arrival_draws: int = Field(100, ge=20, le=100_000, description="predictive path draws for the "
+                                                                   "arrival interval")
+    seed: int = Field(0, ge=0, description="seed of the arrival draws (with the frame index)")
+
+    @field_validator("horizons")
+    @classmethod
+    def _horizons_in_range(cls, h):
+        if any(not (0.0 <= x <= 3.0) for x in h):
+            raise ValueError(f"each horizon must be within [0, 3] s, got {list(h)}")
+        return h
+
+    @field_validator("region")
+    @classmethod
+    def _region_is_polygon(cls, v):
+        if v is not None:
+            Region(v)  # InputError (a ValueError) for fewer than 3 vertices, non-finite or zero area
+        return v
+
     @model_validator(mode="after")
     def _window_holds_hits(self):
         if self.confirm_hits > self.confirm_window:
@@ -72,6 +116,7 @@ class _Track:
     hits: int = 1
     misses: int = 0
     confirmed: bool = False
+    R: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))  # last measurement covariance [m²]
 
 
 def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
@@ -84,14 +129,8 @@ def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
 
 def cluster_measurements(points: HiddenPoints, distance: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
     """Cluster centroids z (C, 2) [m] and their covariances R (C, 2, 2) [m²] (see module docstring)."""
-    if len(points) == 0:
-        return np.empty((0, 2)), np.empty((0, 2, 2))
-    labels = single_linkage(np.asarray(points.mean, np.float64), distance)
-    n = np.bincount(labels).astype(np.float64)
-    z = np.stack([np.bincount(labels, points.mean[:, 0]), np.bincount(labels, points.mean[:, 1])], axis=1) / n[:, None]
-    R = np.zeros((len(n), 2, 2))
-    np.add.at(R, labels, points.cov)
-    return z, R / n[:, None, None] ** 2 + floor ** 2 * np.eye(2)
+    m = cluster(points, distance, floor, use_doppler=False)
+    return m.z, m.R
 
 
 class KalmanTracker(Tracker):
@@ -105,20 +144,25 @@ class KalmanTracker(Tracker):
         self._next_id = 0
         self._t_last: float | None = None
         self._dt_frame = 0.0
+        self._frame = 0
+        self._region = None if self.params.region is None else Region(self.params.region)
 
     def update(self, points: HiddenPoints, timestamp: float) -> Tracks:
         """Ingest one frame's hidden points at ``timestamp`` [s]; return the confirmed tracks."""
         if not hasattr(self, "_tracks"):
             self.reset()
-        t = frame_time("KalmanTracker", points, timestamp, self._t_last)
+        t = self._frame_time(points, timestamp)
         p = self.params
-        z, R = cluster_measurements(points, p.cluster_distance, p.sigma_floor)
+        meas = cluster(points, p.cluster_distance, p.sigma_floor, p.doppler_floor, p.use_doppler, type(self).__name__)
+        z, R = meas.z, meas.R
         for tr in self._tracks:
-            F, Q = cv_transition(t - tr.t, p.accel_psd)
+            dt = t - tr.t
+            F = self._motion(tr).transition(dt)
+            Q = fc.cv_process_noise(dt, p.accel_psd)
             tr.x, tr.P, tr.t, tr.frames = F @ tr.x, F @ tr.P @ F.T + Q, t, tr.frames + 1
         rows, cols = self._associate(z, R)
         for i, k in zip(rows, cols):
-            self._correct(self._tracks[i], z[k], R[k])
+            self._correct(self._tracks[i], meas, k)
         for i in np.setdiff1d(np.arange(len(self._tracks)), rows):
             self._tracks[i].misses += 1
         for tr in self._tracks:
@@ -127,14 +171,33 @@ class KalmanTracker(Tracker):
         for k in np.setdiff1d(np.arange(len(z)), cols):
             P0 = np.zeros((4, 4))
             P0[:2, :2], P0[2:, 2:] = R[k], p.initial_speed_sigma ** 2 * np.eye(2)
-            tr = _Track(self._next_id, np.r_[z[k], 0.0, 0.0], P0, t)
+            tr = self._new_track(self._next_id, np.r_[z[k], 0.0, 0.0], P0, t)
+            if meas.doppler[k]:
+                self._filter(tr, meas, k, position=False)
+            tr.R = R[k]
             tr.confirmed = p.confirm_hits == 1
             self._tracks.append(tr)
             self._next_id += 1
         if self._t_last is not None:
             self._dt_frame = t - self._t_last
         self._t_last = t
+        self._after_update(t)
+        self._frame += 1
         return self._report(t)
+
+    # hooks for subclasses (the sindy tracker): time checks, track records, per-track motion model
+    def _frame_time(self, points, timestamp) -> float:
+        return frame_time(type(self).__name__, points, timestamp, self._t_last)
+
+    def _new_track(self, track_id: int, x: np.ndarray, P: np.ndarray, t: float) -> _Track:
+        return _Track(track_id, x, P, t)
+
+    def _motion(self, tr: _Track) -> fc.LinearMotion:
+        """The motion model that track ``tr`` predicts and forecasts with (CV here)."""
+        return CV
+
+    def _after_update(self, t: float) -> None:
+        """Called once per frame after association, updates, births and deaths."""
 
     def _alive(self, tr: _Track) -> bool:
         if tr.confirmed:
@@ -155,18 +218,60 @@ class KalmanTracker(Tracker):
         ok = d2[rows, cols] <= gate
         return rows[ok], cols[ok]
 
-    def _correct(self, tr: _Track, z: np.ndarray, R: np.ndarray) -> None:
-        S = H @ tr.P @ H.T + R
-        K = np.linalg.solve(S, H @ tr.P).T
-        IKH = np.eye(4) - K @ H
-        tr.x = tr.x + K @ (z - H @ tr.x)
-        tr.P = IKH @ tr.P @ IKH.T + K @ R @ K.T
+    def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
+        self._filter(tr, meas, k, position=True)
+        tr.R = meas.R[k]
         tr.hits, tr.misses = tr.hits + 1, 0
+
+    @staticmethod
+    def _filter(tr: _Track, meas: Measurements, k: int, position: bool) -> None:
+        """Joseph-form Kalman update of ``tr`` with measurement ``k``: its position row(s) when
+        ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]])."""
+        rows, z, r = [], [], []
+        if position:
+            rows.append(H), z.append(meas.z[k]), r.append(np.diag(meas.R[k]))
+        if meas.doppler[k]:
+            rows.append(np.r_[0.0, 0.0, meas.g[k]][None]), z.append(meas.y[k:k + 1]), r.append(meas.s[k:k + 1])
+        if not rows:
+            return
+        Hx, zx = np.vstack(rows), np.concatenate(z)
+        Rx = np.diag(np.concatenate(r))
+        if position:
+            Rx[:2, :2] = meas.R[k]
+        S = Hx @ tr.P @ Hx.T + Rx
+        K = np.linalg.solve(S, Hx @ tr.P).T
+        IKH = np.eye(4) - K @ Hx
+        tr.x = tr.x + K @ (zx - Hx @ tr.x)
+        tr.P = IKH @ tr.P @ IKH.T + K @ Rx @ K.T
 
     def _report(self, t: float) -> Tracks:
         trs = [tr for tr in self._tracks if tr.confirmed]
+        h = np.asarray(self.params.horizons, dtype=np.float64)
         if not trs:
-            return no_tracks(t)
+            e = no_tracks(t)
+            extra = {"arrival": np.empty(0), "arrival_interval": np.empty((0, 2))} if self._region else {}
+            return Tracks(e.track_id, e.position, e.velocity, e.predicted, t, h, np.empty((0, len(h), 2)),
+                          np.empty((0, len(h))), np.empty((0, len(h))), (), **extra)
         x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
-        return Tracks(np.array([tr.id for tr in trs]), pos, vel, pos + vel * self._dt_frame, t)
+        q = self.params.accel_psd
+        fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, q, tr.R) for tr in trs]
+        mean = np.array([m for m, _ in fcs])
+        r50, r90 = fc.radii(np.array([c for _, c in fcs]))
+        labels = tuple(self._motion(tr).label for tr in trs)
+        pred = np.array([self._motion(tr).transition(self._dt_frame)[:2] @ tr.x for tr in trs])
+        extra = self._arrivals(trs, t) if self._region else {}
+        return Tracks(np.array([tr.id for tr in trs]), pos, vel, pred, t, h, mean, r50, r90, labels, **extra)
+
+    def _arrivals(self, trs: list[_Track], t: float) -> dict:
+        """Time-to-appearance of each track in the region (module docstring; seeded by seed and frame)."""
+        p = self.params
+        n = int(round(ARRIVAL_HORIZON / p.arrival_step)) + 1
+        rng = np.random.default_rng([p.seed, self._frame])
+        out, interval = np.empty(len(trs)), np.empty((len(trs), 2))
+        for i, tr in enumerate(trs):
+            motion = self._motion(tr)
+            mean = fc.mean_path(motion, tr.x, p.arrival_step, n)
+            draws = fc.draw_paths(motion, tr.x, tr.P, p.arrival_step, n, p.accel_psd, p.arrival_draws, rng)
+            out[i], interval[i] = arrival(self._region, mean, draws, p.arrival_step, t)
+        return {"arrival": out, "arrival_interval": interval}

@@ -12,21 +12,22 @@ Per frame at time t [s]:
 4. Unmatched tracks coast (p̂ kept) and are deleted after ``max_misses`` consecutive misses.
 
 The reported ``predicted`` position is at t + Δt_frame, the last frame interval (0 on the first
-frame). Timestamps must not decrease.
+frame). Timestamps must not decrease. Forecast: the CV mean p + v·h at each of ``horizons`` h [s],
+model "cv"; the α–β filter keeps no covariance, so the interval radii are NaN.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 from scipy.optimize import linear_sum_assignment
 
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
-from .frames import frame_time, no_tracks
+from .frames import frame_time
 
 
 class NearestParams(BaseModel):
@@ -39,6 +40,15 @@ class NearestParams(BaseModel):
     alpha: float = Field(0.5, gt=0, le=1, description="α–β filter position gain")
     beta: float = Field(0.17, ge=0, le=2, description="α–β filter velocity gain (Kalata's optimal pair "
                                                       "for α = 0.5: β = 2(2 − α) − 4√(1 − α) ≈ 0.17)")
+    horizons: tuple[float, ...] = Field((0.5, 1.0, 1.5, 2.0, 2.5, 3.0), min_length=1, max_length=64,
+                                        description="forecast horizons [s] ahead of each frame, each in [0, 3]")
+
+    @field_validator("horizons")
+    @classmethod
+    def _horizons_in_range(cls, h):
+        if any(not (0.0 <= x <= 3.0) for x in h):
+            raise ValueError(f"each horizon must be within [0, 3] s, got {list(h)}")
+        return h
 
 
 @dataclass
@@ -121,8 +131,10 @@ class NearestTracker(Tracker):
 
     def _report(self, t: float) -> Tracks:
         trs = self._tracks
-        if not trs:
-            return no_tracks(t)
-        pos = np.array([tr.predict(t) for tr in trs])
-        vel = np.array([tr.velocity for tr in trs])
-        return Tracks(np.array([tr.id for tr in trs]), pos, vel, pos + vel * self._dt_frame, t)
+        h = np.asarray(self.params.horizons, dtype=np.float64)
+        pos = np.array([tr.predict(t) for tr in trs]).reshape(-1, 2)
+        vel = np.array([tr.velocity for tr in trs]).reshape(-1, 2)
+        nan = np.full((len(trs), len(h)), np.nan)
+        ids = np.array([tr.id for tr in trs], dtype=np.int64)
+        return Tracks(ids, pos, vel, pos + vel * self._dt_frame, t, h,
+                      pos[:, None, :] + vel[:, None, :] * h[:, None], nan, nan, ("cv",) * len(trs))

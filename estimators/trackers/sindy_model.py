@@ -17,7 +17,9 @@ Identification (``identify_motion``):
 3. Selection by the Bayesian information criterion on the *positions*: each candidate Ξ is an
    affine linear ODE, so the positions are affine in the initial state (p₀, v₀), which is fitted by
    linear least squares; BIC = χ² + k ln(2n) with χ² = Σ |z − p(t)|²/σ² and k = 4 + nnz(Ξ). The
-   sparsest model wins ties (CV when nothing more is supported).
+   sparsest model wins ties (CV when nothing more is supported). ``MotionModel.evidence`` is
+   BIC(CV) − BIC(selected) ≥ 0, for a caller that demands stronger evidence than the BIC's own.
+   Candidates with the same support share one refit.
 4. Ensemble: pysindy's EnsembleOptimizer with bagging at the chosen threshold; each member keeps
    its own Ξ_m and refits (p₀, v₀) with covariance σ² (JᵀJ)⁻¹.
 
@@ -62,13 +64,15 @@ class MotionModel:
     """An identified motion model: coefficients Ξ (2, 2) [1/s] (rows dv_x/dt, dv_y/dt; columns
     FEATURES) of the selected model refitted on the positions; ensemble (M, 2, 2) the bagging members'
     SINDy coefficients; fits (M,) per member (support mask (2, 2), θ = (p, v at ``t_last``, Ξ on the
-    support), covariance of θ); t_last [s]; sigma [m] the per-axis measurement noise."""
+    support), covariance of θ); t_last [s]; sigma [m] the per-axis measurement noise; evidence the
+    BIC difference BIC(CV) − BIC(this model) ≥ 0 (0 for CV)."""
 
     coefficients: np.ndarray
     ensemble: np.ndarray
     fits: tuple
     t_last: float
     sigma: float
+    evidence: float = 0.0
 
     def terms(self) -> list[str]:
         """Names of the nonzero terms, e.g. ``["vx'=vy", "vy'=vx"]`` for a turn; [] for CV."""
@@ -215,7 +219,10 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
     cuts = cuts[cuts > 0]
     thresholds = np.r_[(cuts[:-1] + cuts[1:])[::-1] / 2, 0.0]  # sparsest first
     candidates = [(np.inf, np.zeros((2, 2)))] + [(th, _sindy_fit(_stlsq(th), v, a)) for th in thresholds]
-    refits = [_refit(xi, t, z) for _, xi in candidates]
+    cache = {}  # support → refit: the nonlinear refit depends on Ξ only through its support and start
+    for _, xi in candidates:
+        cache.setdefault((xi != 0).tobytes(), _refit(xi, t, z))
+    refits = [cache[(xi != 0).tobytes()] for _, xi in candidates]
     n2, k = 2 * len(t), np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
     if sigma is None:  # Gaussian likelihood with the variance profiled out
@@ -239,10 +246,11 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
         ensemble = np.array(opt.coef_list)
     by_support = {}  # members sharing a support share its refit
     for m in ensemble:
-        if (m != 0).tobytes() not in by_support:
-            msk, th, jtj_inv, _ = _refit(m, t, z)
-            by_support[(m != 0).tobytes()] = (msk, th, sigma ** 2 * jtj_inv)
+        key = (m != 0).tobytes()
+        if key not in by_support:
+            msk, th, jtj_inv, _ = cache[key] if key in cache else _refit(m, t, z)
+            by_support[key] = (msk, th, sigma ** 2 * jtj_inv)
     fits = tuple(by_support[(m != 0).tobytes()] for m in ensemble)
     xi = np.zeros((2, 2))
     xi[mask] = theta[4:]
-    return MotionModel(xi, ensemble, fits, float(t[-1]), float(sigma))
+    return MotionModel(xi, ensemble, fits, float(t[-1]), float(sigma), float(bic[0] - bic[best]))

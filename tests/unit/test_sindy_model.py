@@ -65,3 +65,14 @@ def test_errors():
     model = identify_motion(T, turn(T, 0.0, 5.0, heading=1.0), 0.1, n_models=5)
     with pytest.raises(InputError, match=r"within \[0, 3\] s"):
         model.predict([4.0])
+
+
+def test_noiseless_constant_turn_coefficients_within_1e3():
+    # Acceptance (issue 28): the closed-form constant turn of xnlos_core.motion, no noise.
+    from xnlos_core.motion import ConstantTurn
+
+    xy = ConstantTurn(speed=10.0, yaw_rate=0.3).state(T, (5.0, 2.0), 0.7).position
+    model = identify_motion(T, xy, 1e-3, n_models=5)
+    assert model.terms() == ["vx'=vy", "vy'=vx"]
+    assert np.allclose(model.coefficients, [[0.0, -0.3], [0.3, 0.0]], atol=1e-3)
+    assert model.evidence > 100

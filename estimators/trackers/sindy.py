@@ -1,0 +1,148 @@
+"""Multi-target tracker ``sindy``: the Kalman tracker's association, birth and death (and Doppler
+update), with each confirmed track's motion model identified by ensemble SINDy.
+
+Per frame, on top of :mod:`estimators.trackers.kalman`:
+1. Every confirmed track keeps its history of (t, z, R) — the measurements it was updated with —
+   over the last ``window`` [s].
+2. Identification (:func:`estimators.trackers.sindy_model.identify_motion`): once a track has
+   ≥ ``min_samples`` samples in the window, and then every ``refit_every`` frames (not every frame:
+   the time budget), its motion is identified from the window with the noise σ profiled out of the
+   selection (identify_motion's sigma=None): a hidden point's R understates the scatter of a car's
+   centroid (which parts of the body reflect changes), and a too-small σ inflates χ² until spurious
+   turn terms pass any evidence margin. At most
+   ``max_fits_per_frame`` tracks are fitted in one frame, the longest-unfitted first.
+3. Model choice: the identified Ξ (turn / acceleration terms) replaces constant velocity only when it
+   is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
+   Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
+   tracks). Otherwise, and until the first fit, the track stays CV: it then behaves exactly as
+   ``kalman``.
+4. Invariant form. SINDy's library is the world-frame (v_x, v_y), so over a short arc it often keeps only
+   part of a turn (e.g. dv_y/dt = c v_x on a path heading along x), which extrapolates as a different
+   motion once the heading changes. The tracker therefore reads each identified Ξ at the track's
+   velocity v̂ as a tangential and a normal acceleration per speed, α = v̂ᵀΞv̂/|v̂|² [1/s] (braking
+   < 0) and ω = (Jv̂)ᵀΞv̂/|v̂|² [rad/s] (J the +90° rotation), and forecasts with the rotation-invariant
+   Ξ' = αI + ωJ: a car that turns keeps turning at ω, one that brakes keeps slowing by e^{αh} — the
+   same two motions whatever the road's direction. Ξ' = Ξ for an exact turn or along-path braking.
+   α is clipped to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no exponential blow-up from a
+   track that is nearly at rest, where Ξ is unconstrained); below ``min_speed`` the track stays CV.
+5. With a model, the track's filter predicts with Φ(Δt) = expm(A(Ξ)Δt) (:mod:`estimators.trackers.forecast`)
+   and the forecast is the mixture over M = ``n_models`` members Ξ_m: member m takes the refitted
+   coefficients of the m-th bagging model's support (model uncertainty: which terms) plus one seeded
+   draw from their refit covariance (coefficient uncertainty). Reported ``model``: the terms, e.g.
+   "vx'=vy vy'=vx" (a turn), "vx'=vx vy'=vy" (braking or speeding up along the path), or "cv".
+
+Timestamps must increase strictly: a repeated timestamp (Δt = 0) is an InputError here — the
+identification needs distinct sample times — where ``kalman`` takes it as a second measurement.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydantic import Field
+
+from xnlos_core.errors import InputError, InsufficientDataError
+
+from . import forecast as fc
+from .kalman import CV, KalmanParams, KalmanTracker, _Track
+from .measurements import Measurements
+from .sindy_model import MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
+
+J = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+class SindyParams(KalmanParams):
+    min_samples: int = Field(12, ge=MIN_SAMPLES, le=10_000, description="measurements a track needs within "
+                                                                        "the window before its motion is identified")
+    window: float = Field(3.0, gt=0, le=60, description="length [s] of the history identified from")
+    refit_every: int = Field(5, ge=1, le=10_000, description="frames between two identifications of a track")
+    max_fits_per_frame: int = Field(1, ge=1, le=1000, description="identifications at most per frame "
+                                                                  "(the longest-unfitted due tracks first)")
+    n_models: int = Field(10, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture)")
+    min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
+                                                                "needs to replace constant velocity")
+    min_speed: float = Field(0.5, ge=0, le=100, description="speed [m/s] below which a track stays constant "
+                                                            "velocity (its turn and acceleration are unobservable)")
+    max_growth: float = Field(0.5, ge=0, le=XI_MAX, description="largest tangential growth rate α [1/s] "
+                                                               "(speeding up) a forecast uses")
+
+
+@dataclass
+class _SindyTrack(_Track):
+    history: list = field(default_factory=list)   # [(t [s], z (2,) [m], R (2, 2) [m²])]
+    motion: fc.LinearMotion = field(default_factory=lambda: CV)
+    fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
+    identified: MotionModel | None = None
+
+
+def invariant(xi, v, max_growth: float) -> np.ndarray:
+    """Ξ' = αI + ωJ (…, 2, 2) [1/s] of Ξ (…, 2, 2) read at velocity v (2,) [m/s] (module docstring, 4)."""
+    xv = np.asarray(xi) @ v
+    alpha = np.clip(xv @ v / (v @ v), -XI_MAX, max_growth)
+    omega = np.clip(xv @ (J @ v) / (v @ v), -XI_MAX, XI_MAX)
+    return alpha[..., None, None] * np.eye(2) + omega[..., None, None] * J
+
+
+def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotion:
+    """The forecast model of an identification at the track's velocity v (2,) [m/s] (module docstring,
+    3–5): CV unless supported."""
+    terms = model.terms()
+    v = np.asarray(v, dtype=np.float64)
+    if not terms or model.evidence < p.min_evidence or np.linalg.norm(v) < max(p.min_speed, 1e-9):
+        return CV
+    rng = np.random.default_rng(seed)
+    members = np.zeros((len(model.fits), 2, 2))
+    for m, (mask, theta, cov) in enumerate(model.fits):
+        if mask.any():
+            lam, vec = np.linalg.eigh(cov[4:, 4:])  # a pseudo-inverse covariance: PSD, maybe singular
+            members[m][mask] = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
+    return fc.LinearMotion(invariant(model.coefficients, v, p.max_growth), invariant(members, v, p.max_growth),
+                           " ".join(terms))
+
+
+class SindyTracker(KalmanTracker):
+    """Kalman association/birth/death with per-track motion models identified by ensemble SINDy."""
+
+    Params = SindyParams
+
+    def _frame_time(self, points, timestamp) -> float:
+        t = super()._frame_time(points, timestamp)
+        if self._t_last is not None and t == self._t_last:
+            raise InputError(f"SindyTracker.update: timestamp {t} s repeats the previous frame's; timestamps "
+                             "must increase strictly (Δt > 0) for the motion identification")
+        return t
+
+    def _new_track(self, track_id, x, P, t) -> _SindyTrack:
+        return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy())])
+
+    def _correct(self, tr: _SindyTrack, meas: Measurements, k: int) -> None:
+        super()._correct(tr, meas, k)
+        tr.history.append((tr.t, meas.z[k].copy(), meas.R[k].copy()))
+
+    def _motion(self, tr: _SindyTrack) -> fc.LinearMotion:
+        return tr.motion
+
+    def _after_update(self, t: float) -> None:
+        p = self.params
+        due = []
+        for tr in self._tracks:
+            while tr.history and tr.history[0][0] < t - p.window:
+                tr.history.pop(0)
+            stale = self._frame - tr.fitted_frame
+            if tr.confirmed and len(tr.history) >= p.min_samples and (tr.fitted_frame < 0 or stale >= p.refit_every):
+                due.append((-stale if tr.fitted_frame >= 0 else -np.inf, tr.id, tr))
+        for _, _, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]:
+            self._identify(tr)
+
+    def _identify(self, tr: _SindyTrack) -> None:
+        p = self.params
+        ts = np.array([h[0] for h in tr.history])
+        zs = np.array([h[1] for h in tr.history])
+        tr.fitted_frame = self._frame
+        try:
+            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id)
+        except InsufficientDataError:  # e.g. an axis-aligned noiseless path: nothing to identify
+            tr.identified, tr.motion = None, CV
+            return
+        tr.identified = model
+        tr.motion = motion_from(model, tr.x[2:], [p.seed, tr.id, self._frame], p)

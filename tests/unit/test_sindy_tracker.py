@@ -1,0 +1,129 @@
+"""Tracker ``sindy`` and the Doppler update shared with ``kalman``: closed-form update, faster velocity
+convergence with Doppler, one identity through a hidden approach, bad input, forecast quality (slow)."""
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from estimators.trackers.kalman import KalmanTracker
+from estimators.trackers.sindy import SindyTracker
+from xnlos_core import ConfigError, HiddenPoints, InputError
+from xnlos_core.motion import ConstantTurn
+from xnlos_core.testing import check_component
+
+
+def hidden(points, sigma=0.1, velocity=None, vvar=None):
+    pts = np.asarray(points, float).reshape(-1, 2)
+    k = len(pts)
+    extra = {}
+    if velocity is not None:
+        w = np.asarray(velocity, float).reshape(-1, 2)
+        g = w / np.linalg.norm(w, axis=1, keepdims=True)
+        extra = {"velocity": w, "velocity_cov": vvar * g[:, :, None] * g[:, None, :]}
+    return HiddenPoints(pts, np.tile(sigma ** 2 * np.eye(2), (k, 1, 1)), np.arange(k), np.zeros(k), **extra)
+
+
+def test_conformance_kit():
+    check_component("tracker", "sindy")
+
+
+def test_doppler_update_closed_form_on_birth():
+    # A new track's prior v = 0, P_v = σ_v² I, updated by y = ĝᵀv with variance s = var + floor²:
+    # v = ĝ y σ_v²/(σ_v² + s), and the position is untouched (no p–v correlation in the prior).
+    g, y, var, floor, sv = np.array([0.6, 0.8]), 5.0, 0.3, 0.1, 4.0
+    for name in ("kalman", "sindy"):
+        cls = KalmanTracker if name == "kalman" else SindyTracker
+        tr = cls({"confirm_hits": 1, "initial_speed_sigma": sv, "doppler_floor": floor})
+        out = tr.update(hidden([[10.0, 2.0]], velocity=[y * g], vvar=var), 0.0)
+        assert np.allclose(out.velocity[0], g * y * sv ** 2 / (sv ** 2 + var + floor ** 2), atol=1e-12)
+        assert np.allclose(out.position[0], [10.0, 2.0])
+        off = cls({"confirm_hits": 1, "use_doppler": False}).update(hidden([[10.0, 2.0]], velocity=[y * g], vvar=var), 0.0)
+        assert np.allclose(off.velocity[0], 0.0)
+
+
+def test_doppler_speeds_up_velocity_convergence():
+    # A car at 10 m/s seen along ĝ = its direction of travel: after 5 frames the velocity error
+    # with the radial velocity is well below the one from positions alone (same seeded noise).
+    v = np.array([6.0, 8.0])
+    err = {}
+    for use in (True, False):
+        rng = np.random.default_rng(4)
+        tr = KalmanTracker({"use_doppler": use})
+        for k in range(5):
+            t = 0.1 * k
+            z = np.array([20.0, -5.0]) + v * t + 0.4 * rng.standard_normal(2)
+            w = (v @ (v / 10) + 0.3 * rng.standard_normal()) * v / 10
+            out = tr.update(hidden([z], 0.4, velocity=[w], vvar=0.09), t)
+        err[use] = np.linalg.norm(out.velocity[0] - v)
+    assert err[True] < 0.5 * err[False]
+
+
+def test_nan_velocity_is_a_typed_error():
+    with pytest.raises(InputError, match="HiddenPoints.velocity"):
+        HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], velocity=[[np.nan, 0.0]], velocity_cov=[np.eye(2)])
+    pts = hidden([[1.0, 2.0]], velocity=[[1.0, 0.0]], vvar=0.1)
+    object.__setattr__(pts, "velocity", np.array([[np.nan, 0.0]]))  # bypassing the type's own check
+    for cls in (KalmanTracker, SindyTracker):
+        with pytest.raises(InputError, match="velocity"):
+            cls().update(pts, 0.0)
+
+
+def test_bad_timestamps_and_empty_frames():
+    tr = SindyTracker({"confirm_hits": 1})
+    tr.update(hidden([[0.0, 0.0]]), 1.0)
+    with pytest.raises(InputError, match="increase strictly"):
+        tr.update(hidden([[0.0, 0.0]]), 1.0)                 # Δt = 0: documented typed error
+    with pytest.raises(InputError, match="must not decrease"):
+        tr.update(hidden([[0.0, 0.0]]), 0.5)
+    out = tr.update(HiddenPoints.empty(), 1.1)                # no detections: the track coasts
+    assert out.track_id.tolist() == [0] and out.forecast.shape == (1, 6, 2) and out.model == ("cv",)
+    tr.reset()
+    out = tr.update(HiddenPoints.empty(), 0.0)               # nothing yet: the documented empty result
+    assert len(out) == 0 and out.forecast.shape == (0, 6, 2) and out.model == ()
+    with pytest.raises(ConfigError, match="min_samples"):
+        SindyTracker({"min_samples": 3})
+
+
+def test_short_tracks_stay_constant_velocity():
+    tr = SindyTracker({"confirm_hits": 1})
+    out = tr.update(hidden([[5.0, 5.0]]), 0.0)                # a one-point track: no model, CV forecast
+    assert out.model == ("cv",) and np.allclose(out.forecast[0], [5.0, 5.0])
+
+
+def test_one_identity_through_a_hidden_approach():
+    # Acceptance: a car at 10 m/s comes through the hidden street for 5 s (10 Hz), hidden points with
+    # 0.4 m noise (plus ±0.5 m spread over the body; the points' covariance says 0.5 m), two or three
+    # points a frame, a few frames missed; one track id from confirmation on, for kalman and sindy.
+    rng = np.random.default_rng(7)
+    t = np.arange(50) * 0.1
+    truth = ConstantTurn(speed=10.0, yaw_rate=0.1).state(t, (25.0, -45.0), np.pi / 2).position
+    frames = []
+    for k in range(50):
+        n = 0 if k in (12, 13, 27, 40) else rng.integers(2, 4)
+        frames.append(truth[k] + rng.uniform(-0.5, 0.5, (n, 2)) + 0.4 * rng.standard_normal((n, 2)))
+    for tr in (KalmanTracker(), SindyTracker()):
+        ids = set()
+        for k in range(50):
+            out = tr.update(hidden(frames[k], 0.5), t[k])
+            ids.update(out.track_id.tolist())
+        assert ids == {0}
+        assert np.linalg.norm(out.position[0] - truth[-1]) < 1.0
+
+
+def _quality():
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "forecast_quality.py"
+    spec = importlib.util.spec_from_file_location("forecast_quality", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.slow
+def test_forecast_beats_cv_on_turns_and_braking_not_worse_on_straight():
+    # Issue 28 targets at 0.5 m noise, 2 s ahead: ≥ 30 % below CV (kalman) on turning and braking
+    # cars, ≤ 5 % above it on straight ones (8 seeded cars per kind, xnlos_core.motion truth).
+    res = _quality().compare({"kalman": KalmanTracker(), "sindy": SindyTracker()}, tracks=8, noise=0.5)
+    ratio = {k: np.nanmean(r["sindy"][0]) / np.nanmean(r["kalman"][0]) for k, r in res.items()}
+    assert ratio["cv"] <= 1.05
+    assert ratio["turn"] <= 0.7 and ratio["brake"] <= 0.7
