@@ -98,13 +98,18 @@ def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
 
 
 def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9),
-               wall_samples: int = 30) -> Path:
-    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction.
+               wall_samples: int = 30, history=None, region=None) -> Path:
+    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction, with
+    the tracks (history, velocity, prediction cones: :func:`xnlos_core.track_figure.draw_tracks`)
+    when the result has them.
 
     credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
     HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
-    draws of each sampled wall (WallPosterior.samples) are drawn as thin lines.
+    draws of each sampled wall (WallPosterior.samples) are drawn as thin lines; history: track id
+    → (n, 2) [m] past positions; region: (P, 2) [m] the tracker's arrival region polygon or None.
     """
+    from .track_figure import draw_tracks, track_legend_handles
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -155,10 +160,16 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
             for p in levels:
                 ax_bev.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color="tab:purple",
                             lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75)
+    tracks = result.tracks
+    if (tracks is not None and len(tracks)) or region is not None:
+        draw_tracks(ax_bev, tracks, history, region)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
     frame_bev(ax_bev, gt, [det.position, h.mean])
-    ax_bev.set_title("bird's-eye view: walls and hidden points")
-    ax_bev.legend(loc="upper right", fontsize=7, framealpha=0.85)
+    ax_bev.set_title("bird's-eye view: walls and hidden points" + (f", {len(tracks)} tracks" if tracks else ""))
+    handles, _ = ax_bev.get_legend_handles_labels()
+    if tracks is not None and len(tracks):
+        handles += track_legend_handles(tracks)
+    ax_bev.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.85)
     ax_bev.grid(alpha=0.3)
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
