@@ -126,7 +126,8 @@ class PipelineConfig(BaseModel):
         """sha256 of the canonical JSON of this config (provenance). ``run.animation`` is left out: it
         changes no result, only whether the GIF is drawn (so turning it on resumes a finished run, and
         runs made before it existed keep their hash)."""
-        blob = json.dumps(self.model_dump(exclude={"base_dir": True, "run": {"animation"}}), sort_keys=True, default=str)
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation"}})
+        blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 
 

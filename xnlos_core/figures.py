@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .bev import bev, save_png  # noqa: F401  (re-exported: figure modules import them from here)
 from .io import atomic_write_bytes
 from .types import LOS, MNLOS, UNCLASSIFIED
 
@@ -22,13 +23,6 @@ CLASS_STYLE = {LOS: ("LOS", "tab:cyan", "o"), MNLOS: ("mNLOS", "tab:red", "x"),
 def credible_radius(p: float) -> float:
     """√χ²₂(p): radius in σ units of the p-credible ellipse of a 2-D Gaussian."""
     return float(np.sqrt(-2.0 * np.log1p(-p)))
-
-
-def bev(points) -> tuple[np.ndarray, np.ndarray]:
-    """Plot coordinates (−y, x) [m] of points (…, 2) [m] in the bird's-eye view: x forward is up,
-    y left is to the left, as seen from above."""
-    p = np.asarray(points, float).reshape(-1, 2)
-    return -p[:, 1], p[:, 0]
 
 
 def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", samples: int = 0) -> None:
@@ -174,18 +168,6 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
     return save_png(fig, path, dpi=110)
-
-
-def save_png(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Lay out ``fig``, write it to ``path`` as PNG atomically and close it; returns the path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
-    return Path(path)
 
 
 def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .figures import bev, draw_walls, save_png
+from .bev import bev, save_png, set_bev_limits
 from .types import Tracks
 
 #: Smallest disc radius drawn [m]: keeps the hull of a zero-radius start non-degenerate.
@@ -131,17 +131,18 @@ def track_legend_handles(tracks: Tracks | None):
 
 
 def plot_tracks(tracks: Tracks, path: str | Path, history: Mapping[int, np.ndarray] | None = None, region=None,
-                walls=None, true_walls=None, title: str = "") -> Path:
-    """Write a bird's-eye PNG of ``tracks`` alone (with estimated ``walls`` / ``true_walls`` when
-    given, see :func:`xnlos_core.figures.draw_walls`); returns the path. Limits: the radar, the
-    tracks, their history and forecasts, the region, 3 m margin."""
+                walls=None, title: str = "") -> Path:
+    """Write a bird's-eye PNG of ``tracks`` alone, over ``walls`` (a list of (n, 2) [m] polylines,
+    e.g. GroundTruth wall ends, drawn grey) when given; returns the path. Limits: the radar, the
+    tracks, their history and 90 % forecast discs, the region, 3 m margin."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 7))
-    draw_walls(ax, walls or [], true_walls)
+    for i, w in enumerate(walls or []):
+        ax.plot(*bev(w), color="0.75", lw=5, solid_capstyle="butt", label="walls" if i == 0 else None)
     draw_tracks(ax, tracks, history, region)
     ax.scatter([0], [0], marker="^", s=80, c="k", label="radar", zorder=5)
     pts = [np.zeros((1, 2)), tracks.position.reshape(-1, 2)]
@@ -157,17 +158,3 @@ def plot_tracks(tracks: Tracks, path: str | Path, history: Mapping[int, np.ndarr
     ax.grid(alpha=0.3)
     ax.set_title(title or f"tracks at t = {tracks.timestamp:.2f} s")
     return save_png(fig, path, dpi=100)
-
-
-def set_bev_limits(ax, points, margin: float = 5.0) -> None:
-    """Equal-aspect bird's-eye limits around ``points`` (N, 2) [m] (finite ones) with ``margin`` [m]."""
-    p = np.asarray(points, float).reshape(-1, 2)
-    p = p[np.isfinite(p).all(1)]
-    if not len(p):
-        p = np.zeros((1, 2))
-    lo, hi = p.min(0) - margin, p.max(0) + margin
-    ax.set_xlim(-hi[1], -lo[1])
-    ax.set_ylim(lo[0], hi[0])
-    ax.set_aspect("equal")
-    ax.set_xlabel("−y [m] (right →)")
-    ax.set_ylabel("x [m] (forward)")

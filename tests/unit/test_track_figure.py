@@ -85,6 +85,6 @@ def test_tracks_without_forecast_draw_no_cones():
 
 def test_plot_tracks_writes_a_png(tmp_path):
     out = plot_tracks(_tracks(), tmp_path / "tracks.png", history={1: np.array([[20.0, -12.0]])},
-                      region=[[10, 2], [30, 2], [30, -2]], title="hand-made tracks")
+                      region=[[10, 2], [30, 2], [30, -2]], walls=[[[5, -4], [18, -4]]], title="hand-made tracks")
     with Image.open(out) as im:
         assert im.format == "PNG" and im.size[0] > 300
