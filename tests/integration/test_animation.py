@@ -126,3 +126,14 @@ def test_turning_the_animation_on_resumes_a_finished_run(tmp_path):
     assert summary["animation"] == "sequence.gif" and _gif_frames(out / "sequence.gif") == N
     assert (out / "results.jsonl").read_bytes() == before  # nothing recorded again
     assert json.loads((out / "provenance.json").read_text())["resumed"] == 1
+
+
+def test_the_animation_option_is_not_part_of_the_config_hash():
+    import hashlib
+
+    plain = _cfg()
+    dump = plain.model_dump(exclude={"base_dir"})
+    del dump["run"]["animation"]  # hashed as before the option existed
+    want = hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
+    assert plain.digest() == want == _cfg(animation=True).digest() == _cfg(animation=False).digest()
+    assert _cfg(figure=True).digest() != want

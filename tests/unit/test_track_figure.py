@@ -88,3 +88,20 @@ def test_plot_tracks_writes_a_png(tmp_path):
                       region=[[10, 2], [30, 2], [30, -2]], walls=[[[5, -4], [18, -4]]], title="hand-made tracks")
     with Image.open(out) as im:
         assert im.format == "PNG" and im.size[0] > 300
+
+
+def test_the_frame_figures_draw_the_tracks_of_a_result(tmp_path, monkeypatch):
+    import xnlos_core.track_figure as tf
+    from xnlos_core.figures import plot_frame
+    from xnlos_core.frame_figure import plot_frame_panels
+    from xnlos_core.pipeline import FrameResult
+    from xnlos_core.testing import synthetic_frame
+    from xnlos_core.types import Detections, HiddenPoints
+
+    drawn = []
+    real = tf.draw_tracks
+    monkeypatch.setattr(tf, "draw_tracks", lambda ax, *a, **k: drawn.append(real(ax, *a, **k)) or drawn[-1])
+    res = FrameResult(synthetic_frame(), Detections.empty(), [], HiddenPoints.empty(), _tracks())
+    assert plot_frame(res, tmp_path / "f.png", "t", history={1: np.array([[20.0, -12.0]])}).exists()
+    assert plot_frame_panels(res, tmp_path / "p.png").exists()
+    assert [len(a["cone50"]) for a in drawn] == [2, 2]
