@@ -34,7 +34,8 @@ def _report(summary: dict, out: Path) -> None:
         print(f"hidden {name}: reconstruction error " + ("n/a (not reconstructed)" if v is None else f"{v:.2f} m"))
     proc = sum(v for k, v in summary["time_ms"].items() if k != "source")
     print(f"{summary['frames']} frame(s), {proc:.1f} ms/frame processing; wrote {out / 'summary.md'}"
-          + (f" and {out / summary['figure']}" if summary.get("figure") else ""))
+          + (f" and {out / summary['figure']}" if summary.get("figure") else "")
+          + (f" and {out / summary['animation']}" if summary.get("animation") else ""))
 
 
 def _cmd_demo(args) -> int:

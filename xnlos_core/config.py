@@ -63,6 +63,14 @@ class RunConfig(BaseModel):
     frame_interval: float = Field(0.1, gt=0, le=3600, description="time between simulated frames [s]")
     match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m]")
     figure: bool = Field(True, description="write the per-run PNG")
+    animation: bool | None = Field(None, description="write sequence.gif (RA map with Doppler-coloured detections "
+                                                     "beside the bird's-eye view with tracks) when the run has more "
+                                                     "than one frame; unset: only when a tracker is configured")
+
+    def wants_animation(self, tracker: bool) -> bool:
+        """Whether ``xnlos run`` writes sequence.gif: more than one frame and ``animation``, which
+        when unset follows whether a tracker is configured (``tracker``)."""
+        return self.frames > 1 and (tracker if self.animation is None else self.animation)
 
 
 class PluginsConfig(BaseModel):
@@ -115,8 +123,11 @@ class PipelineConfig(BaseModel):
         return {k: getattr(self, k) for k in STAGE_KINDS if getattr(self, k) is not None}
 
     def digest(self) -> str:
-        """sha256 of the canonical JSON of this config (provenance)."""
-        blob = json.dumps(self.model_dump(exclude={"base_dir"}), sort_keys=True, default=str)
+        """sha256 of the canonical JSON of this config (provenance). ``run.animation`` is left out: it
+        changes no result, only whether the GIF is drawn (so turning it on resumes a finished run, and
+        runs made before it existed keep their hash)."""
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation"}})
+        blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 
 

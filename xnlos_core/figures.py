@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .bev import bev, save_png  # noqa: F401  (re-exported: figure modules import them from here)
 from .io import atomic_write_bytes
 from .types import LOS, MNLOS, UNCLASSIFIED
 
@@ -22,13 +23,6 @@ CLASS_STYLE = {LOS: ("LOS", "tab:cyan", "o"), MNLOS: ("mNLOS", "tab:red", "x"),
 def credible_radius(p: float) -> float:
     """√χ²₂(p): radius in σ units of the p-credible ellipse of a 2-D Gaussian."""
     return float(np.sqrt(-2.0 * np.log1p(-p)))
-
-
-def bev(points) -> tuple[np.ndarray, np.ndarray]:
-    """Plot coordinates (−y, x) [m] of points (…, 2) [m] in the bird's-eye view: x forward is up,
-    y left is to the left, as seen from above."""
-    p = np.asarray(points, float).reshape(-1, 2)
-    return -p[:, 1], p[:, 0]
 
 
 def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", samples: int = 0) -> None:
@@ -98,13 +92,18 @@ def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
 
 
 def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9),
-               wall_samples: int = 30) -> Path:
-    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction.
+               wall_samples: int = 30, history=None, region=None) -> Path:
+    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction, with
+    the tracks (history, velocity, prediction cones: :func:`xnlos_core.track_figure.draw_tracks`)
+    when the result has them.
 
     credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
     HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
-    draws of each sampled wall (WallPosterior.samples) are drawn as thin lines.
+    draws of each sampled wall (WallPosterior.samples) are drawn as thin lines; history: track id
+    → (n, 2) [m] past positions; region: (P, 2) [m] the tracker's arrival region polygon or None.
     """
+    from .track_figure import draw_tracks, track_legend_handles
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -155,26 +154,20 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
             for p in levels:
                 ax_bev.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color="tab:purple",
                             lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75)
+    tracks = result.tracks
+    if (tracks is not None and len(tracks)) or region is not None:
+        draw_tracks(ax_bev, tracks, history, region)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
     frame_bev(ax_bev, gt, [det.position, h.mean])
-    ax_bev.set_title("bird's-eye view: walls and hidden points")
-    ax_bev.legend(loc="upper right", fontsize=7, framealpha=0.85)
+    ax_bev.set_title("bird's-eye view: walls and hidden points" + (f", {len(tracks)} tracks" if tracks else ""))
+    handles, _ = ax_bev.get_legend_handles_labels()
+    if tracks is not None and len(tracks):
+        handles += track_legend_handles(tracks)
+    ax_bev.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.85)
     ax_bev.grid(alpha=0.3)
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
     return save_png(fig, path, dpi=110)
-
-
-def save_png(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Lay out ``fig``, write it to ``path`` as PNG atomically and close it; returns the path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
-    return Path(path)
 
 
 def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:

@@ -6,8 +6,9 @@ Panels (2 × 3): (a) RA map, power above the map's median [dB] over azimuth [deg
 classical detectors have none and the panel says so); (d) detections on the RA map (LOS ○,
 mNLOS ×) with the thinned ground truth as small dots; (e) bird's-eye view of the LOS detections,
 the fitted relay walls and the true walls; (f) bird's-eye reconstruction: LOS detections, fitted
-walls, reconstructed hidden points with their 90 % credible ellipses (HiddenPoints.cov) and the
-true hidden points. Bird's-eye axes as in :mod:`xnlos_core.figures`: x forward (up), y left.
+walls, reconstructed hidden points with their 90 % credible ellipses (HiddenPoints.cov), the
+true hidden points and, when the result has tracks, the tracks and their prediction cones.
+Bird's-eye axes as in :mod:`xnlos_core.figures`: x forward (up), y left.
 """
 from __future__ import annotations
 
@@ -128,6 +129,10 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
                    label=f"reconstructed ({100 * credible:g} % credible)")
         for mu, c in zip(h.mean, h.cov):
             ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color="tab:purple", lw=0.8, alpha=0.7)
+    if result.tracks is not None and len(result.tracks):
+        from .track_figure import draw_tracks
+
+        draw_tracks(ax, result.tracks)
     ax.set_title(f"(f) reconstruction ({len(h)} hidden points)")
     _frame_bev(ax, result, gt)
 

@@ -19,6 +19,7 @@ from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
+from .track_record import tracks_record
 from .types import MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
 
@@ -42,7 +43,8 @@ class FrameResult:
         ``detection_doppler`` (per detection: range [m], azimuth [rad], label, radial velocity [m/s]
         and its variance [m²/s²]) and ``hidden_velocity`` (per hidden point, in the order of
         ``hidden_points``: velocity (2,) [m/s], velocity_cov (2, 2) [m²/s²] and source_index, the
-        row of ``detection_doppler`` it was mirrored from)."""
+        row of ``detection_doppler`` it was mirrored from). ``tracks`` gains the forecast and
+        time-to-appearance fields when the tracker gives them (:mod:`xnlos_core.track_record`)."""
         return _no_nan({**self._base_record(), **self._doppler_record()})
 
     def _doppler_record(self) -> dict[str, Any]:
@@ -66,9 +68,7 @@ class FrameResult:
             "walls": [{"model": w.model, "mean": w.mean.tolist(), "cov": w.cov.tolist(),
                        "n_points": w.n_points} for w in self.walls],
             "hidden_points": self.hidden.mean.tolist(),
-            "tracks": None if self.tracks is None else {
-                "id": self.tracks.track_id.tolist(), "position": self.tracks.position.tolist(),
-                "velocity": self.tracks.velocity.tolist()},
+            "tracks": None if self.tracks is None else tracks_record(self.tracks),
             "metrics": self.metrics,
             "timings_s": self.timings,
             "notes": self.notes,

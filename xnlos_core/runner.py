@@ -1,7 +1,11 @@
 """``xnlos run``: a pipeline over its frames into an output directory, resumable after a crash.
 
 Writes ``provenance.json`` (once), ``results.jsonl`` (one fsync'd line per frame, so a killed
-run resumes after the last complete frame), ``summary.md`` and ``frame_NNNN.png`` figures.
+run resumes after the last complete frame), ``summary.md`` and ``frame_NNNN.png`` figures, and
+with ``run.animation`` (:meth:`xnlos_core.config.RunConfig.wants_animation`) ``sequence.gif``
+(:mod:`xnlos_core.animation`): each frame's snapshot ``animation/frame_NNNN.npz`` is written
+before its line of results.jsonl, and the GIF at the end from both, atomically; a recorded frame
+without a snapshot (the run was made with the animation off) is recomputed for it.
 
 A resume keys on the frame index, not on the number of lines: it computes exactly the frames
 whose index is not recorded (a lost line in the middle included; frame k's random draws come
@@ -19,10 +23,15 @@ from typing import Any
 
 import numpy as np
 
+from .animation import SNAPSHOT_DIR, snapshot_path, write_sequence_gif
 from .config import PipelineConfig
+from .frame_snapshot import FrameSnapshot
 from .io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, write_jsonl
 from .pipeline import Pipeline
 from .rundir import claim, write_record
+from .track_record import track_history
+
+GIF = "sequence.gif"
 
 
 def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<config>", progress: bool = True,
@@ -34,8 +43,9 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     res_path = out / "results.jsonl"
     n = config.run.frames
     done: dict[int, dict] = {}
+    animate = config.run.wants_animation("tracker" in pipe.stages)
     old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
-                what="results", clear=[res_path.name], state=prov["state_sha256"])
+                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz"], state=prov["state_sha256"])
     if old is not None:
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
@@ -49,6 +59,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     last = None
     # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
     for res in pipe.run(skip=done):
+        if animate:  # before the record: a recorded frame always has its snapshot
+            FrameSnapshot.from_result(res).save(snapshot_path(out, res.frame.index))
         rec = json.loads(json.dumps(res.record(), default=json_default))
         append_jsonl(res_path, rec)
         records[rec["frame"]] = rec
@@ -67,13 +79,38 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         from .figures import plot_frame
 
         fig_path = out / f"frame_{last.frame.index:04d}.png"
-        plot_frame(last, fig_path, title=config.name)
+        plot_frame(last, fig_path, title=config.name, history=track_history(records, last.frame.index),
+                   region=tracker_region(config))
+    gif = _write_animation(pipe, out, records, progress) if animate else None
     summary = summarise(records)
     summary["figure"] = fig_path.name if fig_path else None
+    if gif is not None:
+        summary["animation"] = gif.name
     summary["state_sha256"] = prov.get("state_sha256", {})
     atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
     return summary
+
+
+def tracker_region(config: PipelineConfig):
+    """The configured tracker's arrival region (its ``region`` parameter, a polygon [[x, y], …] [m])
+    or None."""
+    region = config.tracker.params.get("region") if config.tracker is not None else None
+    return None if region is None else np.asarray(region, float).reshape(-1, 2)
+
+
+def _write_animation(pipe: Pipeline, out: Path, records: list[dict], progress: bool) -> Path:
+    """sequence.gif from ``records`` and their snapshots; first the snapshots a recorded frame
+    lacks (run before with the animation off) are made by recomputing those frames."""
+    missing = {r["frame"] for r in records if not snapshot_path(out, r["frame"]).exists()}
+    if missing:
+        bar = _progress(total=len(missing), initial=0, enabled=progress, desc="animation snapshots")
+        for res in pipe.run(skip={r["frame"] for r in records} - missing):
+            FrameSnapshot.from_result(res).save(snapshot_path(out, res.frame.index))
+            bar.update(1)
+        bar.close()
+    return write_sequence_gif(out / GIF, records, out / SNAPSHOT_DIR, region=tracker_region(pipe.config),
+                              title=pipe.config.name, progress=progress)
 
 
 def read_results(path: str | Path, n: int | None = None) -> dict[int, dict]:
@@ -155,4 +192,6 @@ def render_summary(summary: dict, prov: dict, config: PipelineConfig) -> str:
         lines += ["## Notes", ""] + [f"- {n}" for n in summary["notes"]] + [""]
     if summary.get("figure"):
         lines += [f"![last frame]({summary['figure']})", ""]
+    if summary.get("animation"):
+        lines += [f"![sequence]({summary['animation']})", ""]
     return "\n".join(lines)
