@@ -57,7 +57,7 @@ def trainer_for(table: dict[str, Any], source: str) -> Trainer:
     model = table.get("model")
     name = model.get("name") if isinstance(model, dict) else None
     name = name if name is not None else (_DEFAULT[0] if _DEFAULT else None)
-    if name not in _TRAINERS:
+    if not isinstance(name, str) or name not in _TRAINERS:
         raise ConfigError(f"{source}: [model] name {name!r}: no trainer for this model; expected one of "
                           f"{', '.join(sorted(_TRAINERS)) or 'none (no learned component is loaded)'}")
     module, attr = _TRAINERS[name].split(":")

@@ -130,6 +130,16 @@ def test_heads_zero_is_a_config_error(proj):
         check_file(write(proj, text))
 
 
+@pytest.mark.parametrize("name", ["[nan, 1.0]", "{ a = 1 }", "3"])
+def test_model_name_that_is_no_string_is_a_config_error(proj, name):
+    # found by `make fuzz` (16 of 10,000 cases: TypeError unhashable type from the trainer lookup)
+    text = (ROOT / "configs" / "training" / "tiny.toml").read_text()
+    text = text.replace('name = "swin_unet"', f"name = {name}", 1)
+    assert f"name = {name}" in text
+    with pytest.raises(ConfigError, match=r"\[model\] name"):
+        check_file(write(proj, text))
+
+
 @pytest.mark.parametrize("x", ["1e308", "2147483648.0", "nan", "inf", "-1e5"])
 def test_check_refuses_wall_coordinates_run_cannot_handle(proj, x):
     with pytest.raises(ConfigError, match=r"walls\.0\.start\.0"):
