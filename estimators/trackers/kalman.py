@@ -3,7 +3,7 @@
 Per frame at time t [s]:
 1. The hidden points are grouped by single linkage (cut at ``cluster_distance`` [m]); each cluster
    gives one measurement z (2,) [m], its centroid, with covariance R (2, 2) [m²] = Σ cov_i / n² from
-   the points' ``HiddenPoints.cov`` (independent points) plus ``sigma_floor``² I; and, when the points
+   the points' ``HiddenPoints.cov`` (independent points) plus (``sigma_floor``² + ``extent_sigma``²) I; and, when the points
    carry velocities and ``use_doppler``, the radial velocity y = ĝᵀv along the mirrored line of sight ĝ
    with variance s (:mod:`estimators.trackers.measurements`).
 2. Every track (state x = (p_x, p_y, v_x, v_y) [m, m/s], covariance P) predicts to t with the
@@ -63,10 +63,15 @@ class KalmanParams(BaseModel):
                                                               "track must collect M hits, else it is deleted")
     max_misses: int = Field(3, ge=1, le=10_000, description="K: a confirmed track is deleted after this many "
                                                            "consecutive frames without a match")
-    cluster_distance: float = Field(3.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one frame's "
-                                                                   "hidden points into objects (a car seen in part spans ≈ 4 m)")
+    cluster_distance: float = Field(5.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one frame's "
+                                                                   "hidden points into objects (the scatterers seen on a "
+                                                                   "4.5 m car lie up to ≈ 4.8 m apart)")
     sigma_floor: float = Field(0.05, gt=0, le=100, description="standard deviation [m] added per axis to each "
                                                               "measurement's covariance (keeps S invertible for exact points)")
+    extent_sigma: float = Field(1.0, ge=0, le=100, description="standard deviation [m] per axis of an object's "
+                                                              "cluster centroid about its centre: which scatterers of an "
+                                                              "extended object are seen changes from frame to frame "
+                                                              "(≈ L/√12 = 1.3 m along a car of length L = 4.5 m)")
     initial_speed_sigma: float = Field(10.0, gt=0, le=1e3, description="prior standard deviation [m/s] per axis of "
                                                                        "a new track's velocity (it starts at 0)")
 
@@ -153,7 +158,8 @@ class KalmanTracker(Tracker):
             self.reset()
         t = self._frame_time(points, timestamp)
         p = self.params
-        meas = cluster(points, p.cluster_distance, p.sigma_floor, p.doppler_floor, p.use_doppler, type(self).__name__)
+        meas = cluster(points, p.cluster_distance, float(np.hypot(p.sigma_floor, p.extent_sigma)), p.doppler_floor,
+                       p.use_doppler, type(self).__name__)
         z, R = meas.z, meas.R
         for tr in self._tracks:
             dt = t - tr.t

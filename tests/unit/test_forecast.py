@@ -35,7 +35,7 @@ def test_kalman_forecast_is_cv_mean_with_propagated_covariance():
     # R + h²σ_v² I + q h³/3 I, plus the last R again (isotropic: closed-form radii).
     q, sv, s = 2.0, 3.0, 0.2
     tr = KalmanTracker({"confirm_hits": 1, "accel_psd": q, "initial_speed_sigma": sv, "sigma_floor": 1e-3,
-                        "horizons": [0.5, 2.0]})
+                        "extent_sigma": 0.0, "horizons": [0.5, 2.0]})
     out = tr.update(hidden([[10.0, 5.0]], s), 0.0)
     assert out.model == ("cv",) and np.allclose(out.forecast[0], [[10.0, 5.0], [10.0, 5.0]])
     lam = 2 * (s ** 2 + 1e-6) + out.horizons ** 2 * sv ** 2 + q * out.horizons ** 3 / 3
@@ -68,7 +68,7 @@ def test_region_entry_time_of_a_straight_path_is_exact():
 def test_kalman_time_to_appearance_of_a_cv_target():
     # A target converged on v = (8, 0) m/s at x = 0 enters the lane x ∈ [20, 40] at t + 2.5 s.
     lane = [[20.0, -2.0], [40.0, -2.0], [40.0, 2.0], [20.0, 2.0]]
-    tr = KalmanTracker({"region": lane, "accel_psd": 0.05, "seed": 3})
+    tr = KalmanTracker({"region": lane, "accel_psd": 0.05, "seed": 3, "extent_sigma": 0.0})
     rng = np.random.default_rng(0)
     for k in range(41):
         t = 0.1 * k

@@ -65,7 +65,7 @@ def test_m_of_n_birth_and_k_miss_death():
 def test_mahalanobis_gate_uses_measurement_covariance():
     # The same 2 m jump is inside the gate for a 1 m measurement σ and outside it for 0.05 m.
     for sigma, same in ((1.0, True), (0.05, False)):
-        tracker = KalmanTracker({"confirm_hits": 1, "initial_speed_sigma": 0.1})
+        tracker = KalmanTracker({"confirm_hits": 1, "initial_speed_sigma": 0.1, "extent_sigma": 0.0})
         tracker.update(hidden([[0.0, 0.0]], sigma), 0.0)
         ids = tracker.update(hidden([[2.0, 0.0]], sigma), 0.1).track_id.tolist()
         assert (ids == [0]) is same

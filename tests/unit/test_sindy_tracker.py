@@ -49,7 +49,7 @@ def test_doppler_speeds_up_velocity_convergence():
     err = {}
     for use in (True, False):
         rng = np.random.default_rng(4)
-        tr = KalmanTracker({"use_doppler": use})
+        tr = KalmanTracker({"use_doppler": use, "extent_sigma": 0.0})
         for k in range(5):
             t = 0.1 * k
             z = np.array([20.0, -5.0]) + v * t + 0.4 * rng.standard_normal(2)
