@@ -10,7 +10,9 @@ truth of sequence datasets (``frame.meta["object_truth"]``, :mod:`sims.dataset.t
   against the road users' centres. A road user without a mirror path in a frame cannot be seen: it is
   left out of that frame's truth, and tracks within the threshold of it are ignored (neither matches
   nor false positives, the "don't care" rule of MOTChallenge), so a track coasting through a
-  blind spot is not punished.
+  blind spot is not punished. Tracks within the threshold of a ground-truth hidden point of a static
+  surface (a wall strip or parked object seen in a mirror: a true reflection, not a road user) are
+  ignored likewise; ``counts.ignored`` counts the ignored track-frames.
 * velocity RMSE [m/s] of the matched tracks' velocity against the road user's.
 * prediction errors: every track matched at frame k (CLEAR-MOT matches) with forecast horizons h
   (``Tracks.horizons``; else :data:`DEFAULT_HORIZONS`) is scored against the road user's truth at
@@ -79,12 +81,23 @@ def _truth_of(step: Step) -> dict[int, dict[str, Any]]:
             for i, p, v, m, k, n in zip(tr["id"], tr["position"], tr["velocity"], tr["mirror"], tr["motion"], tr["name"])}
 
 
+def _static_points(step: Step, names: set[str]) -> np.ndarray:
+    """Ground-truth hidden points (P, 2) [m] of the map that belong to no road user (static surfaces)."""
+    gt = step.ground_truth
+    if gt is None or not len(gt.hidden_points):
+        return np.empty((0, 2))
+    static = np.array([gt.object_names[i] not in names for i in gt.mnlos_object], bool)
+    return gt.hidden_points[static]
+
+
 def _mot_frames(steps: list[Step], truth: list[dict], threshold: float):
-    """(truth frames, hypothesis frames) for motmetrics with the don't-care rule of the module doc."""
-    tf, hf = [], []
+    """(truth frames, hypothesis frames, ignored track-frames) for motmetrics with the don't-care
+    rule of the module doc."""
+    tf, hf, ignored = [], [], 0
     for s, objs in zip(steps, truth):
         seen = {i: o["p"] for i, o in objs.items() if o["mirror"]}
-        blind = np.array([o["p"] for o in objs.values() if not o["mirror"]]).reshape(-1, 2)
+        blind = np.concatenate([np.array([o["p"] for o in objs.values() if not o["mirror"]]).reshape(-1, 2),
+                                _static_points(s, {o["name"] for o in objs.values()})])
         pos, ids = s.tracks.position, s.tracks.track_id
         keep = np.ones(len(ids), bool)
         if len(blind) and len(ids):
@@ -94,7 +107,8 @@ def _mot_frames(steps: list[Step], truth: list[dict], threshold: float):
             keep = ~((d_blind <= threshold) & (d_seen > threshold))
         tf.append((list(seen), np.array(list(seen.values())).reshape(-1, 2)))
         hf.append((ids[keep].tolist(), pos[keep]))
-    return tf, hf
+        ignored += int((~keep).sum())
+    return tf, hf, ignored
 
 
 def _future(steps: list[Step], truth: list[dict], k: int, oid: int, horizons, half: float) -> list:
@@ -155,8 +169,9 @@ def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str
     truth = [_truth_of(s) for s in steps]
     times = np.array([s.t for s in steps])
     half = 0.5 * float(np.min(np.diff(times))) if len(times) > 1 else 0.05
-    tf, hf = _mot_frames(steps, truth, threshold)
+    tf, hf, ignored = _mot_frames(steps, truth, threshold)
     mot, matches = mot_matches(tf, hf, threshold)
+    mot["ignored"] = ignored
     rec: dict[str, Any] = {"frames": len(steps), "mot": {k: _num(v) for k, v in mot.items()},
                            "velocity": [0.0, 0], "forecasts": [], "arrivals": [], "radial": {}}
     kinds = sorted({o["motion"] for objs in truth for o in objs.values()})
@@ -244,7 +259,7 @@ def prediction_summary(rows: list[dict]) -> dict[str, Any]:
 
 def pool(seqs: list[dict]) -> dict[str, Any]:
     """Tracking metrics pooled over sequence records (sums over sequences, then ratios)."""
-    tot = {k: sum(s["mot"][k] or 0.0 for s in seqs) for k in (*POOLED, "motp_sum")}
+    tot = {k: sum(s["mot"].get(k) or 0.0 for s in seqs) for k in (*POOLED, "ignored", "motp_sum")}
     vel = [sum(s["velocity"][i] for s in seqs) for i in (0, 1)]
     arrivals = [a for s in seqs for a in s["arrivals"]]
     finite = [a for a in arrivals if a["pred"] is not None]
