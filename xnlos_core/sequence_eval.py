@@ -216,10 +216,11 @@ def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str
 
 
 def _num(v):
+    """float, with NaN and ±inf → None (JSON; an undefined ratio or an unbounded interval end)."""
     if v is None:
         return None
     v = float(v)
-    return None if math.isnan(v) else v
+    return v if math.isfinite(v) else None
 
 
 # --- pooling --------------------------------------------------------------------------------------
@@ -323,7 +324,7 @@ def evaluate_sequences(pipe, frames: Iterable[Frame], out: Path, done: list[dict
     """Score the maps of ``frames`` sequence by sequence into ``out`` (frames.jsonl, sequences.jsonl).
 
     done: the map records frames.jsonl already holds; only those of finished sequences (a line in
-    sequences.jsonl) are kept, the rest redone. record(result, position) → a map record;
+    sequences.jsonl with as many frames as the sequence has now) are kept, the rest redone. record(result, position) → a map record;
     figure(result, position) draws a map. Returns (map records, sequence records), in order."""
     from .pipeline import timed_frames
 
@@ -339,7 +340,13 @@ def evaluate_sequences(pipe, frames: Iterable[Frame], out: Path, done: list[dict
     seqs = list(finished.values())
     for key, group in sequences(frames):
         if key in finished:
-            continue
+            if finished[key]["frames"] == len(group):
+                continue
+            # Scored under a smaller `limit` that cut it: redo it whole, its old lines removed.
+            maps = [r for r in maps if r.get("sequence") != key]
+            seqs = [q for q in seqs if q["sequence"] != key]
+            write_jsonl(log, maps)
+            write_jsonl(slog, seqs)
         tracker.reset()
         steps, recs = [], []
         for (pos, frame), (_, src) in zip(group, timed_frames(f for _, f in group)):

@@ -155,3 +155,13 @@ def test_a_killed_sequence_eval_resumes_per_whole_sequence(seq_dataset, tmp_path
     recs = read_jsonl(d / "frames.jsonl")
     assert [r["position"] for r in sorted(recs, key=lambda r: r["position"])] == list(range(10))
     assert len(read_jsonl(d / "sequences.jsonl")) == 2
+
+
+def test_a_larger_limit_redoes_a_sequence_the_smaller_one_cut(seq_dataset, tmp_path):
+    cfg = _config(tmp_path, seq_dataset)
+    full = run_eval(cfg, tmp_path / "a", figures=0, progress=False)["runs"][0]["tracking"]
+    cut = run_eval(cfg, tmp_path / "b", figures=0, progress=False, limit=7)["runs"][0]
+    assert cut["tracking"]["overall"]["frames"] == 7  # 5 + the first 2 maps of the second sequence
+    grown = run_eval(cfg, tmp_path / "b", figures=0, progress=False)["runs"][0]
+    assert json.dumps(grown["tracking"], sort_keys=True) == json.dumps(full, sort_keys=True)
+    assert sorted(r["position"] for r in read_jsonl(tmp_path / "b" / "run-000" / "frames.jsonl")) == list(range(10))
