@@ -20,6 +20,10 @@ changed config or changed learned weights — a model retrained into the same fi
 rather than mixed with the old records),
 ``run-NNN/run.json`` (config and provenance), ``run-NNN/map_MMMMM.png`` (Fig. 6-style panels of
 the first ``figures`` maps), ``eval.json`` (atomic) and ``eval.md``.
+
+Sequences (issue 28): a pipeline with a tracker is scored sequence by sequence, the tracker reset at
+each sequence start, with tracking and prediction metrics per run, family and motion kind beside the
+map metrics (:mod:`xnlos_core.sequence_eval`; ``run-NNN/sequences.jsonl``, resumed per whole sequence).
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ from .config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
 from .errors import InputError
 from .io import append_jsonl, atomic_write_text, read_keyed_jsonl, write_jsonl
 from .rundir import claim, write_record
+from .sequence_eval import render_tracking
 
 DEFAULT_DATASET = "out/data/default"
 DEFAULT_SPLIT = "test"
@@ -213,7 +218,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     Resumes from ``out/frames.jsonl`` when ``out/run.json`` holds the same configuration (up to the
     backend's limit) and the same learned weights (:meth:`Pipeline.state_sha256`); anything else is
     a ConfigError unless ``overwrite``."""
-    from .pipeline import Pipeline, timed_frames
+    from .pipeline import Pipeline
 
     cfg: PipelineConfig = run["config"]
     out = Path(out)
@@ -222,7 +227,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     log = out / "frames.jsonl"
     done: list[dict] = []
     if claim(out, "run.json", {"resume_sha256": digest}, overwrite=overwrite, what="an evaluation",
-             clear=[log.name, "map_*.png"], state=state, label="evaluation record") is not None:
+             clear=[log.name, "map_*.png", "sequences.jsonl"], state=state, label="evaluation record") is not None:
         # Keyed on the map's position: repeated lines are dropped, bad ones refused naming the line.
         done = list(read_keyed_jsonl(log, "position").values())
         write_jsonl(log, done)  # the repairs (a torn last line, repeats) made durable before appending
@@ -231,35 +236,30 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
                                    "provenance": pipe.provenance()})
     backend = pipe.stages["backend"]
     total = backend.n_frames
-    have = {r["position"] for r in done}
-    records = list(done)
-    bar = _progress(total, len(have), progress, f"eval {cfg.name}")
+    tracking = "tracker" in pipe.stages
+    bar = _progress(total, 0 if tracking else len(done), progress, f"eval {cfg.name}")
+    seqs = None
     backend.open(pipe.radar)
     try:
-        position = 0
-        for frame, src in timed_frames(backend.frames()):
-            if position not in have:
-                if frame.ground_truth is None:
-                    raise InputError(f"{run['source']}: map {frame.index} has no ground truth; eval needs a "
-                                     "simulated dataset")
-                res = pipe.process(frame)
-                res.timings = {"source": src, **res.timings}
-                if position < figures:
-                    _figure(pipe, res, out / f"map_{frame.index:05d}.png", cfg.name)
-                rec = frame_record(res, position)
-                append_jsonl(log, rec)
-                records.append(json.loads(json.dumps(rec)))
-                bar.update(1)
-            position += 1
+        if tracking:
+            from .sequence_eval import evaluate_sequences
+
+            records, seqs = evaluate_sequences(
+                pipe, backend.frames(), out, done, record=frame_record, bar=bar, figures=figures, source=run["source"],
+                figure=lambda res, pos: _figure(pipe, res, out / f"map_{res.frame.index:05d}.png", cfg.name))
+            n = total
+        else:
+            records, n = _score_maps(pipe, backend, log, done, bar, figures, out, run["source"])
     finally:
         backend.close()
         bar.close()
-    n = position
     records = sorted((r for r in records if r["position"] < n), key=lambda r: r["position"])
     figs = [f"map_{r['map']:05d}.png" for r in records[:figures]]
     if any(not (out / f).exists() for f in figs):
         # e.g. an earlier --no-figures pass scored these maps: draw them now.
         backend.open(pipe.radar)
+        if tracking:  # a tracked figure map is drawn with the tracks of its sequence's first map
+            pipe.stages["tracker"].reset()
         try:
             for frame in backend.frames(figures):
                 path = out / f"map_{frame.index:05d}.png"
@@ -273,7 +273,38 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
             "detector": cfg.detector.name, "wall_estimator": cfg.wall_estimator.name,
             "reconstructor": cfg.reconstructor.name, "dataset": dict(cfg.backend.params),
             "match_radius_m": cfg.run.match_radius, "overall": aggregate(records),
-            "families": by_family(records), "figures": figs, "notes": note_summary(records, run["note"])}
+            "families": by_family(records), "figures": figs, "notes": note_summary(records, run["note"]),
+            **({"tracker": cfg.tracker.name, "tracking": _tracking(seqs)} if tracking else {})}
+
+
+def _tracking(seqs: list[dict]) -> dict[str, Any] | None:
+    from .sequence_eval import summarize
+
+    return summarize(seqs) if seqs else None
+
+
+def _score_maps(pipe, backend, log: Path, done: list[dict], bar, figures: int, out: Path,
+                source: str) -> tuple[list[dict], int]:
+    """Score the maps not in ``done`` one by one (no tracker); returns (records, maps read)."""
+    from .pipeline import timed_frames
+
+    have = {r["position"] for r in done}
+    records = list(done)
+    position = 0
+    for frame, src in timed_frames(backend.frames()):
+        if position not in have:
+            if frame.ground_truth is None:
+                raise InputError(f"{source}: map {frame.index} has no ground truth; eval needs a simulated dataset")
+            res = pipe.process(frame)
+            res.timings = {"source": src, **res.timings}
+            if position < figures:
+                _figure(pipe, res, out / f"map_{frame.index:05d}.png", pipe.config.name)
+            rec = frame_record(res, position)
+            append_jsonl(log, rec)
+            records.append(json.loads(json.dumps(rec)))
+            bar.update(1)
+        position += 1
+    return records, position
 
 
 def run_eval(config: str | Path, out: str | Path, *, dataset: str | None = None, split: str | None = None,
@@ -347,6 +378,7 @@ def render_markdown(result: dict[str, Any]) -> str:
     if figs:
         lines += ["", "## Figures (Fig. 6 style)", ""]
         lines += [f"- run {r['run']} ({r['name']}): [{f}]({r['dir']}/{f})" for r, f in figs]
+    lines += render_tracking(runs)
     notes = [(r, n) for r in runs for n in r["notes"]]
     if notes:
         lines += ["", "## Notes", ""] + [f"- run {r['run']} ({r['name']}): {n}" for r, n in notes]

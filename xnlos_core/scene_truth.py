@@ -90,3 +90,32 @@ def scene_truth(scene: Scene, t: float, walls: Sequence[WallSegment] | None = No
         np.empty((k, 0, 2))
     m_vel = np.stack([mirror_velocity(vel, w.normal) for w in walls], axis=1) if walls else np.empty((k, 0, 2))
     return SceneTruth(float(t), tuple(o.name for o in scene.objects), pos, vel, heading, walls, m_pos, m_vel)
+
+
+# Thresholds of :func:`motion_kind`: a heading change of 0.1 rad (≈ 6°) or a speed loss of 1 m/s over
+# the sequence is beyond what measurement noise makes of a straight, steady road user.
+TURN_MIN_RAD = 0.1
+BRAKE_MIN_SPEED = 1.0
+MOTION_KINDS = ("static", "straight", "turning", "braking")
+
+
+def is_moving(obj) -> bool:
+    """Whether scene object ``obj`` (an ObjectSpec) moves: it has a trajectory or a non-zero velocity."""
+    return obj.trajectory is not None or any(v != 0 for v in obj.velocity)
+
+
+def motion_kind(obj, duration: float) -> str:
+    """The kind of motion of ``obj`` (an ObjectSpec) over [0, ``duration``] [s], from its trajectory model:
+    "static" (no speed), "braking" (speed falls by ≥ BRAKE_MIN_SPEED m/s), "turning" (heading turns by
+    ≥ TURN_MIN_RAD rad) or "straight" (anything else: constant velocity, mild steering)."""
+    if not (np.isfinite(duration) and duration >= 0):
+        raise InputError(f"motion_kind: duration must be a finite time ≥ 0 [s], got {duration}")
+    s = obj.motion(np.array([0.0, float(duration)]))
+    speed = np.linalg.norm(s.velocity, axis=1)
+    if speed.max() == 0:
+        return "static"
+    if speed[0] - speed[1] >= BRAKE_MIN_SPEED:
+        return "braking"
+    if abs(s.heading[1] - s.heading[0]) >= TURN_MIN_RAD:
+        return "turning"
+    return "straight"

@@ -38,6 +38,24 @@ def mot_metrics(truth: Sequence[Frame], hypotheses: Sequence[Frame], threshold: 
     hypothesis objects) with the best global one-to-one id mapping, and the counts num_switches,
     num_misses, num_false_positives, num_matches. Pairs farther apart than ``threshold`` [m] never match.
     """
+    names = ["mota", "motp", "idf1", "num_switches", "num_misses", "num_false_positives", "num_matches"]
+    out, _ = mot_matches(truth, hypotheses, threshold)
+    return {n: out[n] for n in names}
+
+
+POOLED = ("num_objects", "num_predictions", "num_matches", "num_switches", "num_misses", "num_false_positives",
+          "idtp", "idfp", "idfn")
+
+
+def mot_matches(truth: Sequence[Frame], hypotheses: Sequence[Frame],
+                threshold: float) -> tuple[dict[str, float], list[list[tuple[int, int]]]]:
+    """:func:`mot_metrics` plus what pooling over sequences needs, and the CLEAR-MOT matches.
+
+    Returns (metrics, matches): metrics has mota, motp, idf1 and the counts of :data:`POOLED`
+    (num_objects: truth objects over all frames; idtp / idfp / idfn of the IDF1 mapping) and
+    ``motp_sum`` [m], the summed distance of the matches; matches[k] lists the (truth id, hypothesis
+    id) pairs matched in frame k (a MATCH or SWITCH event of motmetrics).
+    """
     if not (np.isfinite(threshold) and threshold > 0):
         raise InputError(f"mot_metrics: threshold must be a positive distance [m], got {threshold}")
     if len(truth) != len(hypotheses):
@@ -49,9 +67,15 @@ def mot_metrics(truth: Sequence[Frame], hypotheses: Sequence[Frame], threshold: 
         hid, hpos = _frame(f"mot_metrics: hypothesis frame {k}", hf)
         d = np.linalg.norm(opos[:, None, :] - hpos[None, :, :], axis=-1)
         acc.update(oid.tolist(), hid.tolist(), np.where(d <= threshold, d, np.nan))
-    names = ["mota", "motp", "idf1", "num_switches", "num_misses", "num_false_positives", "num_matches"]
+    names = ["mota", "motp", "idf1", *POOLED]
     row = mm.metrics.create().compute(acc, metrics=names, return_dataframe=False)
-    return {n: float(row[n]) for n in names}
+    out = {n: float(row[n]) for n in names}
+    out["motp_sum"] = 0.0 if out["num_matches"] == 0 else out["motp"] * out["num_matches"]
+    matches: list[list[tuple[int, int]]] = [[] for _ in truth]
+    ev = acc.mot_events
+    for (frame, _), e in ev[ev.Type.isin(["MATCH", "SWITCH"])].iterrows():
+        matches[int(frame)].append((int(e.OId), int(e.HId)))
+    return out, matches
 
 
 def prediction_errors(predicted, truth, horizons, at=(1.0, 2.0, 3.0)) -> dict[str, float]:

@@ -34,7 +34,14 @@ frame_meta_json         str ()           JSON list of the N frames' ``meta``
 scenes_json             str ()           JSON list, per scene: scene_index, scene_seed, family,
                                          scene (the full Scene, whose ``meta`` holds the drawn
                                          generator parameters)
+ra_velocity             float32 (N,H,W)  only with Doppler maps: RAMap.velocity [m/s]
+ra_velocity_std         float32 (N,H,W)  only with Doppler maps: RAMap.velocity_std [m/s]
+truth_* , hidden_velocity, mnlos_velocity   only when frames_per_scene > 1: per-frame object truth
+                                         (:mod:`sims.dataset.truth`)
 ======================  ===============  =====================================================
+
+The optional members are added only when they apply, so a still dataset without Doppler is the same
+bytes as before they existed.
 
 Zip members carry a fixed timestamp, so the same shard is the same bytes on any machine run.
 """
@@ -58,6 +65,7 @@ from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
 
 from .config import DatasetConfig, scene_generators
 from .plan import noise_seed
+from .truth import meta_from_arrays, object_rows, truth_arrays
 
 SCHEMA_VERSION = 2
 READABLE_VERSIONS = (1, 2)  # version 1: no per-point SNR (read as NaN)
@@ -126,6 +134,7 @@ def build_shard(config: DatasetConfig, name: str, split: str, scenes: list[tuple
     rows: dict[str, list] = {k: [] for k in ("map_index", "scene_index", "frame", "scene_seed", "noise_seed",
                                              "family", "timestamp")}
     scene_docs = []
+    truth: list[list[tuple]] = []
     for k, seed, fam in scenes:
         where = f"shard {name}, scene {k} (family {fam!r}, seed {seed})"
         try:
@@ -139,6 +148,8 @@ def build_shard(config: DatasetConfig, name: str, split: str, scenes: list[tuple
                 t = f * config.frame_interval
                 frame = fm.simulate(scene, radar, np.random.default_rng(ns), timestamp=t, index=k * fps + f)
                 frames.append(frame)
+                if fps > 1:
+                    truth.append(object_rows(scene, frame, (fps - 1) * config.frame_interval))
                 for key, v in zip(rows, (k * fps + f, k, f, seed, ns, fam, t)):
                     rows[key].append(v)
         except XnlosError as exc:
@@ -146,6 +157,8 @@ def build_shard(config: DatasetConfig, name: str, split: str, scenes: list[tuple
         except Exception as exc:
             raise DatasetError(f"{where}: {type(exc).__name__}: {exc}") from exc
     arrays = _arrays(frames, rows, radar)
+    if fps > 1:
+        arrays.update(truth_arrays(truth, frames))
     arrays = {"schema_version": np.array(SCHEMA_VERSION, dtype=np.int64), "shard": np.array(name),
               "split": np.array(split), "config_sha256": np.array(digest),
               "radar_json": np.array(radar.model_dump_json()), **arrays,
@@ -211,6 +224,9 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
         "wall_offsets": _offsets([len(g.walls) for g in gts]),
         "frame_meta_json": np.array(json.dumps([fr.meta for fr in frames], sort_keys=True, default=json_default)),
     }
+    if frames and all(fr.ra_map.velocity is not None for fr in frames):  # Doppler maps (issue 28)
+        out["ra_velocity"] = np.stack([fr.ra_map.velocity for fr in frames]).astype(np.float32)
+        out["ra_velocity_std"] = np.stack([fr.ra_map.velocity_std for fr in frames]).astype(np.float32)
     return out
 
 
@@ -228,10 +244,16 @@ def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Fra
                          z["hidden_points"][sl["mnlos"]], z["mnlos_object"][sl["mnlos"]],
                          tuple(str(n) for n in z["object_names"][sl["object"]]), walls,
                          z["los_snr_db"][sl["los"]] if "los_snr_db" in z else None,  # shards before SNR was kept
-                         z["mnlos_snr_db"][sl["mnlos"]] if "mnlos_snr_db" in z else None)
-        ra = RAMap(z["ra"][i], z["range_axis"], z["azimuth_axis"], radar)
+                         z["mnlos_snr_db"][sl["mnlos"]] if "mnlos_snr_db" in z else None,
+                         *((z["hidden_velocity"][sl["mnlos"]], z["mnlos_velocity"][sl["mnlos"]])
+                           if "hidden_velocity" in z else ()))
+        doppler = (z["ra_velocity"][i], z["ra_velocity_std"][i]) if "ra_velocity" in z else ()
+        ra = RAMap(z["ra"][i], z["range_axis"], z["azimuth_axis"], radar, *doppler)
         meta = {**metas[i], "shard": name, "split": split, "scene_index": int(z["scene_index"][i]),
                 "frame_in_scene": int(z["frame"][i]), "scene_seed": int(z["scene_seed"][i]),
                 "noise_seed": int(z["noise_seed"][i]), "family": str(z["family"][i])}
+        objects = meta_from_arrays(z, i)
+        if objects is not None:
+            meta["object_truth"] = objects
         out.append(Frame(ra, float(z["timestamp"][i]), gt, int(z["map_index"][i]), meta))
     return out

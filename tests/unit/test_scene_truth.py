@@ -62,3 +62,23 @@ def test_image_model_ground_truth_carries_the_hidden_and_mirrored_velocities():
     np.testing.assert_allclose(gt.mnlos_velocity, gt.hidden_velocity * [-1.0, 1.0], atol=1e-12)
     kept = gt.above_snr(-1e9)
     np.testing.assert_array_equal(kept.mnlos_velocity, gt.mnlos_velocity)
+
+
+def test_motion_kind_follows_the_trajectory_model():
+    from xnlos_core.motion import Bicycle, ConstantAcceleration, ConstantTurn
+    from xnlos_core.scene_truth import is_moving, motion_kind
+
+    parked = ObjectSpec(name="p", center=(5.0, 5.0))
+    assert not is_moving(parked) and motion_kind(parked, 6.0) == "static"
+    assert motion_kind(ObjectSpec(name="a", center=(5.0, 5.0), velocity=(0.0, 8.0)), 6.0) == "straight"
+    # Braking 10 m/s at 3 m/s² stops at 3.3 s: a 10 m/s speed loss over 6 s.
+    brake = ObjectSpec(name="b", center=(5.0, 5.0), trajectory=ConstantAcceleration(speed=10.0, acceleration=-3.0))
+    assert is_moving(brake) and motion_kind(brake, 6.0) == "braking"
+    # ω = 0.05 rad/s turns 0.3 rad over 6 s (turning) but only 0.05 rad over 1 s (below TURN_MIN_RAD).
+    turn = ObjectSpec(name="c", center=(5.0, 5.0), trajectory=ConstantTurn(speed=5.0, yaw_rate=0.05))
+    assert motion_kind(turn, 6.0) == "turning" and motion_kind(turn, 1.0) == "straight"
+    # Bicycle: heading change v·t·tan δ / L = 5·6·tan(0.01)/1.1 ≈ 0.27 rad.
+    bike = ObjectSpec(name="d", center=(5.0, 5.0), trajectory=Bicycle(wheelbase=1.1, steering=0.01, speed=5.0))
+    assert motion_kind(bike, 6.0) == "turning"
+    with pytest.raises(InputError, match="duration"):
+        motion_kind(bike, float("nan"))

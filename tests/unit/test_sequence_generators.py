@@ -127,7 +127,8 @@ def test_the_sequences_dataset_config_stays_within_the_horizon():
     path = Path(__file__).resolve().parents[2] / "configs/datasets/sequences.toml"
     cfg = load_dataset_config(path)
     resolve(cfg, str(path))  # registered families, valid parameters
-    assert set(cfg.weights()) == set(SEQUENCE_FAMILIES) and cfg.frames_per_scene == 30
+    assert set(cfg.weights()) == set(SEQUENCE_FAMILIES) and cfg.frames_per_scene == 60
     assert cfg.shard_size % cfg.frames_per_scene == 0
     last = (cfg.frames_per_scene - 1) * cfg.frame_interval
-    assert all(last <= family_params(f)().horizon for f in SEQUENCE_FAMILIES)
+    assert last >= 3.0 + 2.0  # 3 s-ahead predictions scored after a track is established
+    assert all(last <= family_params(f)(**cfg.generator_kwargs(f)).horizon for f in SEQUENCE_FAMILIES)
