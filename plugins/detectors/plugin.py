@@ -1,4 +1,5 @@
-"""Entry point ``xnlos-detectors``: registers the classical detectors (cfar, nlos_cfar) and the
+"""Entry point ``xnlos-detectors``: registers the classical detectors (cfar, nlos_cfar), the
+ground-truth ``oracle`` (analysis of the later stages) and the
 learned ones (swin_unet, unet, further_than_cfar, rtn) with their trainer (``xnlos train`` itself
 belongs to the training core, entry point ``xnlos-training``)."""
 from plugins.training.trainers import register
@@ -14,6 +15,7 @@ def xnlos_register_components(registry):
     from .cfar import CFARDetector
     from .learned import FurtherThanCFARDetector, RTNDetector, SwinUNetDetector, UNetDetector
     from .nlos_cfar import NLOSCFARDetector
+    from .oracle import OracleDetector
 
     registry.add("detector", "cfar", CFARDetector)
     registry.add("detector", "nlos_cfar", NLOSCFARDetector)
@@ -21,4 +23,5 @@ def xnlos_register_components(registry):
     registry.add("detector", "unet", UNetDetector)
     registry.add("detector", "further_than_cfar", FurtherThanCFARDetector)
     registry.add("detector", "rtn", RTNDetector)
+    registry.add("detector", "oracle", OracleDetector)
 

@@ -195,7 +195,7 @@ def test_detect_requires_frame():
 
 
 @pytest.mark.parametrize("module, kind, names", [
-    ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "rtn", "swin_unet", "unet"]),
+    ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "oracle", "rtn", "swin_unet", "unet"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
     ("plugins.residual_mirror.plugin", "reconstructor", ["residual_mirror"]),
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
