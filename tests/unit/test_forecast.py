@@ -31,14 +31,15 @@ def test_disc_radius_closed_forms_and_a_seeded_draw():
 
 
 def test_kalman_forecast_is_cv_mean_with_propagated_covariance():
-    # One frame, confirm_hits = 1: x = (z, 0), P = diag(R, σ_v² I) → position covariance at h is
-    # R + h²σ_v² I + q h³/3 I, plus the last R again (isotropic: closed-form radii).
+    # One frame, confirm_hits = 1: x = (z, 0), P = diag(R, σ_v² I) → covariance of the true position
+    # at h is R + h²σ_v² I + q h³/3 I — no second R: the disc is for the object, not a future
+    # measurement of it (isotropic: closed-form radii).
     q, sv, s = 2.0, 3.0, 0.2
     tr = KalmanTracker({"confirm_hits": 1, "accel_psd": q, "initial_speed_sigma": sv, "sigma_floor": 1e-3,
                         "extent_sigma": 0.0, "horizons": [0.5, 2.0]})
     out = tr.update(hidden([[10.0, 5.0]], s), 0.0)
     assert out.model == ("cv",) and np.allclose(out.forecast[0], [[10.0, 5.0], [10.0, 5.0]])
-    lam = 2 * (s ** 2 + 1e-6) + out.horizons ** 2 * sv ** 2 + q * out.horizons ** 3 / 3
+    lam = (s ** 2 + 1e-6) + out.horizons ** 2 * sv ** 2 + q * out.horizons ** 3 / 3
     assert np.allclose(out.radius50[0], np.sqrt(2 * lam * np.log(2)), rtol=1e-6)
     assert np.allclose(out.radius90[0], np.sqrt(2 * lam * np.log(10)), rtol=1e-6)
 
