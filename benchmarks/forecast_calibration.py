@@ -188,9 +188,12 @@ def report(chosen: dict, tracks: int) -> list[str]:
         f"{int(p * 100)} % cover {x:g} s" for p in LEVELS for x in HORIZONS) + " | " +
         " | ".join(f"mean error {x:g} s [m]" for x in HORIZONS) + " |", "|---" * (4 + 3 * len(HORIZONS)) + "|"]
     err2 = {}
-    for name, recs in res.items():
+    for name, only in (("kalman", False), ("sindy", False), ("sindy, forecasts with a model", True)):
+        recs = res[name.split(",")[0]]
         for kind in KINDS:
-            hits, errs = covered(recs[kind])
+            hits, errs = covered(recs[kind], models_only=only)
+            if len(hits) == 0:
+                continue
             lost = sum(r is None for r in recs[kind])
             models = sum(r is not None and not r[2].is_cv for r in recs[kind])
             cov = hits.mean(axis=0)

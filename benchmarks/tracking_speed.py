@@ -75,7 +75,7 @@ def main():
         ident = f"{np.median(calls):.1f} ({len(calls)} in {len(ms)} frames)" if len(calls) else "–"
         lines.append(f"| {name} | {np.median(ms):.2f} | {ms.max():.2f} | {np.median(plain):.2f} | {plain.max():.2f} | "
                      f"{ident} |")
-    lines += ["", "| identify_motion (30 samples, n_models = 10) | median [ms] | max [ms] |", "|---|---|---|"]
+    lines += ["", "| identify_motion (30 samples, n_models = 5, the default) | median [ms] | max [ms] |", "|---|---|---|"]
     rng = np.random.default_rng(1)
     ts = np.arange(30) * DT
     for name, traj in (("straight", ConstantTurn(speed=10.0, yaw_rate=0.0)), ("turn", ConstantTurn(speed=10.0, yaw_rate=0.3)),
@@ -84,7 +84,7 @@ def main():
         for r in range(10):
             z = traj.state(ts, (0.0, 0.0), 0.5 + r).position + 0.5 * rng.standard_normal((30, 2))
             t0 = time.perf_counter()
-            identify_motion(ts, z, None, n_models=10, seed=r)
+            identify_motion(ts, z, None, n_models=SindyTracker.Params().n_models, seed=r)
             runs.append((time.perf_counter() - t0) * 1e3)
         lines.append(f"| {name} | {np.median(runs):.1f} | {np.max(runs):.1f} |")
     lines += ["", "`OMP_NUM_THREADS=1 python benchmarks/tracking_speed.py` on this machine (2 CPU cores, shared with "

@@ -53,7 +53,7 @@ from .region import Region, arrival
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 CV = fc.LinearMotion()
 ARRIVAL_HORIZON = 3.0  # [s]
-ACCEL_PSD = 4.0  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
+ACCEL_PSD = 0.75  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
 
 
 class KalmanParams(BaseModel):
