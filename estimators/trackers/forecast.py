@@ -11,10 +11,13 @@ Model uncertainty is a set of M equally weighted members Ξ_m (CV: M = 1). From 
 covariance P, the predictive position at h is the member mixture of N(Φ_m x̂, Φ_m P Φ_mᵀ + Q(h)) (position
 block), moment-matched to one Gaussian:
 
-    μ(h) = mean_m μ_m,   Σ(h) = mean_m (Σ_m + μ_m μ_mᵀ) − μ μᵀ + R                          (1)
+    μ(h) = mean_m μ_m,   Σ(h) = mean_m Σ_m + s² cov_m(μ_m),   cov_m(μ_m) = mean_m μ_m μ_mᵀ − μ μᵀ     (1)
 
-with R [m²] the measurement noise (the disc then holds a future *measurement* of the object); the 50 %
-and 90 % radii are exact for that Gaussian (:func:`estimators.trackers.disc.disc_radius`).
+with s = ``spread`` (1: the plain moment match). Σ(h) is the uncertainty of the object's *true* position
+(its centre): no measurement noise R is added — the discs are to hold where the object will be, not
+where its next cluster centroid will be measured. The 50 % and 90 % radii are exact for that Gaussian
+(:func:`estimators.trackers.disc.disc_radius`). q and s are calibrated on synthetic tracks by
+``benchmarks/forecast_calibration.py``.
 
 Draws (for the time-to-appearance): D paths on the grid h_k = kδ, k = 0…G−1: x₀ ~ N(x̂, P), member m_d =
 d mod M, x_{k+1} = Φ_{m_d}(δ) x_k + w_k with w_k ~ N(0, Q(δ)) — the object's own path, no measurement noise.
@@ -85,20 +88,24 @@ class LinearMotion:
         return expm(A * np.broadcast_to(h, shape)[..., None, None])
 
 
-def forecast(motion: LinearMotion, x, P, horizons, q: float, R) -> tuple[np.ndarray, np.ndarray]:
-    """Predictive mean (K, 2) [m] and covariance (K, 2, 2) [m²] of Eq. (1) at ``horizons`` (K,) [s]."""
+def forecast(motion: LinearMotion, x, P, horizons, q: float, spread: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Predictive mean (K, 2) [m] and covariance (K, 2, 2) [m²] of the true position, Eq. (1), at
+    ``horizons`` (K,) [s] from the state x (4,), P (4, 4); q [m²/s³] the process noise PSD, ``spread``
+    the scale s of the members' spread."""
     phi = motion.member_transitions(horizons)[:, :, :2, :]            # (M, K, 2, 4)
     mu = phi @ np.asarray(x, np.float64)                              # (M, K, 2)
     S = phi @ P @ np.swapaxes(phi, -1, -2) + cv_process_noise(horizons, q)[:, :2, :2]
     mean = mu.mean(axis=0)
     d = mu - mean
-    cov = S.mean(axis=0) + np.einsum("mki,mkj->kij", d, d) / len(mu) + R
+    cov = S.mean(axis=0) + spread ** 2 * np.einsum("mki,mkj->kij", d, d) / len(mu)
     return mean, cov
 
 
 def radii(cov) -> tuple[np.ndarray, np.ndarray]:
-    """The 50 % and 90 % disc radii (…) [m] of covariances (…, 2, 2) [m²]."""
-    return disc_radius(cov, 0.5), disc_radius(cov, 0.9)
+    """The 50 % and 90 % disc radii (…) [m] of covariances (…, 2, 2) [m²] (one vectorised solve)."""
+    cov = np.asarray(cov, dtype=np.float64)
+    r = disc_radius(cov[None], np.array([0.5, 0.9]).reshape((2,) + (1,) * (cov.ndim - 2)))
+    return r[0], r[1]
 
 
 def mean_path(motion: LinearMotion, x, step: float, n: int) -> np.ndarray:

@@ -25,14 +25,17 @@ interval (0 on the first frame). Timestamps must not decrease (a repeated timest
 measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
 
 Forecast (every report, :mod:`estimators.trackers.forecast`): at each of ``horizons`` h [s] the mean
-p + v h and the covariance F(h) P F(h)ᵀ + Q(h) (position block) plus the track's last R, with the exact
-50 %/90 % disc radii of that Gaussian; model "cv". With a ``region`` polygon, the time-to-appearance
+p + v h and the covariance F(h) P F(h)ᵀ + Q(h) (position block) of the object's true position (no
+measurement noise: the discs are to hold the object's centre), with the exact 50 %/90 % disc radii of
+that Gaussian; model "cv". ``accel_psd`` is calibrated for that (``benchmarks/forecast_calibration.py``):
+its 90 % discs hold 85–95 % of straight-driving cars; a turning or braking car breaks the CV model and
+is under-covered (the CV baseline). With a ``region`` polygon, the time-to-appearance
 (:mod:`estimators.trackers.region`) from the mean path and ``arrival_draws`` seeded path draws.
 Subclasses change the motion model per track through :meth:`KalmanTracker._motion`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -50,12 +53,16 @@ from .region import Region, arrival
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 CV = fc.LinearMotion()
 ARRIVAL_HORIZON = 3.0  # [s]
+ACCEL_PSD = 0.75  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
 
 
 class KalmanParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    accel_psd: float = Field(4.0, gt=0, le=1e4, description="power spectral density q [m²/s³] of the white "
-                                                            "acceleration noise of the constant-velocity model")
+    accel_psd: float = Field(ACCEL_PSD, gt=0, le=1e4, description="power spectral density q [m²/s³] of the white "
+                                                                  "acceleration noise of the constant-velocity model "
+                                                                  "(filter and forecast); the default is calibrated by "
+                                                                  "benchmarks/forecast_calibration.py (90 % discs hold "
+                                                                  "≈ 90 % of straight-driving cars)")
     gate_probability: float = Field(0.999, gt=0, lt=1, description="a measurement is gated in when its squared "
                                                                    "Mahalanobis distance is below this χ²₂ quantile")
     confirm_hits: int = Field(2, ge=1, le=1000, description="M: hits needed to confirm a tentative track")
@@ -121,7 +128,6 @@ class _Track:
     hits: int = 1
     misses: int = 0
     confirmed: bool = False
-    R: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))  # last measurement covariance [m²]
 
 
 def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
@@ -180,7 +186,6 @@ class KalmanTracker(Tracker):
             tr = self._new_track(self._next_id, np.r_[z[k], 0.0, 0.0], P0, t)
             if meas.doppler[k]:
                 self._filter(tr, meas, k, position=False)
-            tr.R = R[k]
             tr.confirmed = p.confirm_hits == 1
             self._tracks.append(tr)
             self._next_id += 1
@@ -201,6 +206,14 @@ class KalmanTracker(Tracker):
     def _motion(self, tr: _Track) -> fc.LinearMotion:
         """The motion model that track ``tr`` predicts and forecasts with (CV here)."""
         return CV
+
+    def _forecast_psd(self, tr: _Track) -> float:
+        """Process-noise PSD q [m²/s³] of track ``tr``'s forecast and arrival draws (``accel_psd`` here)."""
+        return self.params.accel_psd
+
+    def _spread(self, tr: _Track) -> float:
+        """Scale of the members' spread in the forecast, Eq. (1) of :mod:`estimators.trackers.forecast`."""
+        return 1.0
 
     def _after_update(self, t: float) -> None:
         """Called once per frame after association, updates, births and deaths."""
@@ -226,7 +239,6 @@ class KalmanTracker(Tracker):
 
     def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
         self._filter(tr, meas, k, position=True)
-        tr.R = meas.R[k]
         tr.hits, tr.misses = tr.hits + 1, 0
 
     @staticmethod
@@ -260,8 +272,7 @@ class KalmanTracker(Tracker):
                           np.empty((0, len(h))), np.empty((0, len(h))), (), **extra)
         x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
-        q = self.params.accel_psd
-        fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, q, tr.R) for tr in trs]
+        fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr)) for tr in trs]
         mean = np.array([m for m, _ in fcs])
         r50, r90 = fc.radii(np.array([c for _, c in fcs]))
         labels = tuple(self._motion(tr).label for tr in trs)
@@ -278,6 +289,6 @@ class KalmanTracker(Tracker):
         for i, tr in enumerate(trs):
             motion = self._motion(tr)
             mean = fc.mean_path(motion, tr.x, p.arrival_step, n)
-            draws = fc.draw_paths(motion, tr.x, tr.P, p.arrival_step, n, p.accel_psd, p.arrival_draws, rng)
+            draws = fc.draw_paths(motion, tr.x, tr.P, p.arrival_step, n, self._forecast_psd(tr), p.arrival_draws, rng)
             out[i], interval[i] = arrival(self._region, mean, draws, p.arrival_step, t)
         return {"arrival": out, "arrival_interval": interval}

@@ -30,6 +30,13 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    coefficients of the m-th bagging model's support (model uncertainty: which terms) plus one seeded
    draw from their refit covariance (coefficient uncertainty). Reported ``model``: the terms, e.g.
    "vx'=vy vy'=vx" (a turn), "vx'=vx vy'=vy" (braking or speeding up along the path), or "cv".
+6. Forecast covariance of the true centre (:mod:`estimators.trackers.forecast`, Eq. 1): a track with a
+   model forecasts with the process noise ``model_accel_psd`` (a model that explains the manoeuvre
+   leaves less unexplained acceleration than CV's ``accel_psd``) and the members' spread scaled by
+   ``member_spread``; the filter itself keeps ``accel_psd`` (so that association survives a model that
+   stops fitting until the next identification). A CV track forecasts exactly as ``kalman``. The
+   defaults are calibrated on synthetic straight, turning and braking cars by
+   ``benchmarks/forecast_calibration.py``.
 
 Timestamps must increase strictly: a repeated timestamp (Δt = 0) is an InputError here — the
 identification needs distinct sample times — where ``kalman`` takes it as a second measurement.
@@ -49,6 +56,8 @@ from .measurements import Measurements
 from .sindy_model import MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
+MODEL_ACCEL_PSD = 6.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
+MEMBER_SPREAD = 1.5
 
 
 class SindyParams(KalmanParams):
@@ -58,13 +67,23 @@ class SindyParams(KalmanParams):
     refit_every: int = Field(5, ge=1, le=10_000, description="frames between two identifications of a track")
     max_fits_per_frame: int = Field(1, ge=1, le=1000, description="identifications at most per frame "
                                                                   "(the longest-unfitted due tracks first)")
-    n_models: int = Field(10, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture)")
+    n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
+                                                        "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
+                                                        "and cheaper to identify")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
     min_speed: float = Field(0.5, ge=0, le=100, description="speed [m/s] below which a track stays constant "
                                                             "velocity (its turn and acceleration are unobservable)")
     max_growth: float = Field(0.5, ge=0, le=XI_MAX, description="largest tangential growth rate α [1/s] "
                                                                "(speeding up) a forecast uses")
+    model_accel_psd: float = Field(MODEL_ACCEL_PSD, gt=0, le=1e4,
+                                   description="process-noise PSD q [m²/s³] of the forecast (and arrival draws) of a "
+                                               "track that follows an identified model; the default is calibrated "
+                                               "by benchmarks/forecast_calibration.py")
+    member_spread: float = Field(MEMBER_SPREAD, ge=0, le=100,
+                                 description="scale s of the ensemble members' spread in the forecast covariance "
+                                             "(forecast.py Eq. 1; 1: the plain mixture moment match); calibrated "
+                                             "by benchmarks/forecast_calibration.py")
 
 
 @dataclass
@@ -121,6 +140,12 @@ class SindyTracker(KalmanTracker):
 
     def _motion(self, tr: _SindyTrack) -> fc.LinearMotion:
         return tr.motion
+
+    def _forecast_psd(self, tr: _SindyTrack) -> float:
+        return self.params.accel_psd if tr.motion.is_cv else self.params.model_accel_psd
+
+    def _spread(self, tr: _SindyTrack) -> float:
+        return self.params.member_spread
 
     def _after_update(self, t: float) -> None:
         p = self.params

@@ -31,14 +31,15 @@ def test_disc_radius_closed_forms_and_a_seeded_draw():
 
 
 def test_kalman_forecast_is_cv_mean_with_propagated_covariance():
-    # One frame, confirm_hits = 1: x = (z, 0), P = diag(R, σ_v² I) → position covariance at h is
-    # R + h²σ_v² I + q h³/3 I, plus the last R again (isotropic: closed-form radii).
+    # One frame, confirm_hits = 1: x = (z, 0), P = diag(R, σ_v² I) → covariance of the true position
+    # at h is R + h²σ_v² I + q h³/3 I — no second R: the disc is for the object, not a future
+    # measurement of it (isotropic: closed-form radii).
     q, sv, s = 2.0, 3.0, 0.2
     tr = KalmanTracker({"confirm_hits": 1, "accel_psd": q, "initial_speed_sigma": sv, "sigma_floor": 1e-3,
                         "extent_sigma": 0.0, "horizons": [0.5, 2.0]})
     out = tr.update(hidden([[10.0, 5.0]], s), 0.0)
     assert out.model == ("cv",) and np.allclose(out.forecast[0], [[10.0, 5.0], [10.0, 5.0]])
-    lam = 2 * (s ** 2 + 1e-6) + out.horizons ** 2 * sv ** 2 + q * out.horizons ** 3 / 3
+    lam = (s ** 2 + 1e-6) + out.horizons ** 2 * sv ** 2 + q * out.horizons ** 3 / 3
     assert np.allclose(out.radius50[0], np.sqrt(2 * lam * np.log(2)), rtol=1e-6)
     assert np.allclose(out.radius90[0], np.sqrt(2 * lam * np.log(10)), rtol=1e-6)
 
@@ -79,3 +80,23 @@ def test_kalman_time_to_appearance_of_a_cv_target():
     slow = KalmanTracker({"region": lane, "confirm_hits": 1})
     out = slow.update(hidden([[-100.0, 0.0]]), 0.0)           # at rest, 120 m away: never within 3 s
     assert np.isnan(out.arrival[0]) and np.all(np.isinf(out.arrival_interval[0]))
+
+
+def test_mixture_forecast_moment_match_and_spread_scale():
+    # Two members, P = 0, q = 0: the mean is the members' mean path and the covariance s² times the
+    # members' spread, Eq. (1) of forecast.py; member paths by scipy's expm (independent of the cache).
+    from scipy.linalg import expm
+
+    from estimators.trackers import forecast as fc
+
+    members = np.array([[[0.0, -0.3], [0.3, 0.0]], [[-0.2, 0.0], [0.0, -0.2]]])
+    motion = fc.LinearMotion(members.mean(axis=0), members, "test")
+    x, h = np.array([1.0, 2.0, 10.0, -3.0]), np.array([1.0, 2.5])
+    mu = np.array([[(expm(fc.system_matrix(m) * hk) @ x)[:2] for hk in h] for m in members])
+    d = mu - mu.mean(axis=0)
+    for s in (1.0, 0.5):
+        mean, cov = fc.forecast(motion, x, np.zeros((4, 4)), h, 0.0, s)
+        assert np.allclose(mean, mu.mean(axis=0), atol=1e-10)
+        assert np.allclose(cov, s ** 2 * np.einsum("mki,mkj->kij", d, d) / 2, atol=1e-10)
+    r50, r90 = fc.radii(cov)
+    assert np.allclose(r50, disc_radius(cov, 0.5)) and np.allclose(r90, disc_radius(cov, 0.9))
