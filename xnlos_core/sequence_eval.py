@@ -162,7 +162,8 @@ def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str
     motp_sum, mota, motp, idf1}, velocity [sse, n], forecasts [rows], arrivals [rows], radial {bin: [sse, n]}}.
 
     A forecast row: {k, object, track, motion, h (K,), err (K,) model error [m] or None, err_cv (K,),
-    in50 / in90 (K,) bool or None}, entries None where the sequence ends before t_k + h. An arrival row:
+    in50 / in90 (K,) bool or None, and with a forecast model (the track's motion model) and r50 / r90
+    (K,) its disc radii [m]}, entries None where the sequence ends before t_k + h. An arrival row:
     {k, object, track, pred [s] or None, truth [s], lo, hi}."""
     if not steps:
         raise InputError("score_sequence: steps is empty; a sequence needs ≥ 1 processed map")
@@ -194,6 +195,8 @@ def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str
                    "err": None, "in50": None, "in90": None}
             if tr.forecast is not None:
                 row["err"] = err(tr.forecast[j])
+                row["model"] = tr.model[j]
+                row["r50"], row["r90"] = ([_num(x) for x in r] for r in (tr.radius50[j], tr.radius90[j]))
                 for key, r in (("in50", tr.radius50[j]), ("in90", tr.radius90[j])):
                     row[key] = [None if e is None or not np.isfinite(rad) else bool(e <= rad)
                                 for e, rad in zip(row["err"], r)]

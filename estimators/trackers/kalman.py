@@ -36,6 +36,7 @@ Subclasses change the motion model per track through :meth:`KalmanTracker._motio
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -53,6 +54,7 @@ from .region import Region, arrival
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 CV = fc.LinearMotion()
 ARRIVAL_HORIZON = 3.0  # [s]
+Scale = Annotated[float, Field(gt=0, le=100)]  # a factor on a disc radius
 ACCEL_PSD = 0.75  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
 
 
@@ -86,6 +88,9 @@ class KalmanParams(BaseModel):
                                                 "(ignored when the points carry none)")
     doppler_floor: float = Field(0.1, gt=0, le=100, description="standard deviation [m/s] added to each "
                                                                "point's radial-velocity error")
+    interval_scale: tuple[Scale, Scale] = Field((1.0, 1.0), description="factors on the 50 % and 90 % disc radii "
+                                                "of the forecast (a conformal calibration on held-out sequences: "
+                                                "benchmarks/interval_calibration.py; 1: the Gaussian's own radii)")
     horizons: tuple[float, ...] = Field((0.5, 1.0, 1.5, 2.0, 2.5, 3.0), min_length=1, max_length=64,
                                         description="forecast horizons [s] ahead of each frame, each in [0, 3]")
     region: list[tuple[float, float]] | None = Field(None, description="polygon [[x, y], …] [m] in the ego "
@@ -211,6 +216,10 @@ class KalmanTracker(Tracker):
         """Process-noise PSD q [m²/s³] of track ``tr``'s forecast and arrival draws (``accel_psd`` here)."""
         return self.params.accel_psd
 
+    def _interval_scale(self, tr: _Track) -> tuple[float, float]:
+        """Factors on track ``tr``'s 50 % and 90 % disc radii (``interval_scale`` here)."""
+        return self.params.interval_scale
+
     def _spread(self, tr: _Track) -> float:
         """Scale of the members' spread in the forecast, Eq. (1) of :mod:`estimators.trackers.forecast`."""
         return 1.0
@@ -275,6 +284,8 @@ class KalmanTracker(Tracker):
         fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr)) for tr in trs]
         mean = np.array([m for m, _ in fcs])
         r50, r90 = fc.radii(np.array([c for _, c in fcs]))
+        scale = np.array([self._interval_scale(tr) for tr in trs])  # (T, 2)
+        r50, r90 = r50 * scale[:, :1], r90 * scale[:, 1:]
         labels = tuple(self._motion(tr).label for tr in trs)
         pred = np.array([self._motion(tr).transition(self._dt_frame)[:2] @ tr.x for tr in trs])
         extra = self._arrivals(trs, t) if self._region else {}

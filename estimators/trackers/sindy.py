@@ -51,7 +51,7 @@ from pydantic import Field
 from xnlos_core.errors import InputError, InsufficientDataError
 
 from . import forecast as fc
-from .kalman import CV, KalmanParams, KalmanTracker, _Track
+from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
 from .sindy_model import MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
@@ -80,6 +80,9 @@ class SindyParams(KalmanParams):
                                    description="process-noise PSD q [m²/s³] of the forecast (and arrival draws) of a "
                                                "track that follows an identified model; the default is calibrated "
                                                "by benchmarks/forecast_calibration.py")
+    model_interval_scale: tuple[Scale, Scale] = Field((1.0, 1.0), description="interval_scale of a track that "
+                                                      "follows an identified model (calibrated apart from the CV "
+                                                      "tracks' by benchmarks/interval_calibration.py)")
     member_spread: float = Field(MEMBER_SPREAD, ge=0, le=100,
                                  description="scale s of the ensemble members' spread in the forecast covariance "
                                              "(forecast.py Eq. 1; 1: the plain mixture moment match); calibrated "
@@ -143,6 +146,9 @@ class SindyTracker(KalmanTracker):
 
     def _forecast_psd(self, tr: _SindyTrack) -> float:
         return self.params.accel_psd if tr.motion.is_cv else self.params.model_accel_psd
+
+    def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
+        return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
 
     def _spread(self, tr: _SindyTrack) -> float:
         return self.params.member_spread

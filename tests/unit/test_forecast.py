@@ -100,3 +100,13 @@ def test_mixture_forecast_moment_match_and_spread_scale():
         assert np.allclose(cov, s ** 2 * np.einsum("mki,mkj->kij", d, d) / 2, atol=1e-10)
     r50, r90 = fc.radii(cov)
     assert np.allclose(r50, disc_radius(cov, 0.5)) and np.allclose(r90, disc_radius(cov, 0.9))
+
+
+def test_interval_scale_multiplies_the_disc_radii():
+    # the conformal factors (benchmarks/interval_calibration.py) scale each level's radius, nothing else
+    kw = {"confirm_hits": 1, "horizons": [1.0, 2.0]}
+    base = KalmanTracker(kw).update(hidden([[10.0, 5.0]], 0.2), 0.0)
+    scaled = KalmanTracker({**kw, "interval_scale": [0.5, 2.0]}).update(hidden([[10.0, 5.0]], 0.2), 0.0)
+    np.testing.assert_allclose(scaled.radius50, 0.5 * base.radius50)
+    np.testing.assert_allclose(scaled.radius90, 2.0 * base.radius90)
+    np.testing.assert_array_equal(scaled.forecast, base.forecast)

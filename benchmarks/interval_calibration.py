@@ -1,0 +1,78 @@
+"""Conformal calibration of the trackers' forecast discs on held-out sequences (not a test).
+
+    xnlos eval configs/ablations/tracking.toml --split val --out out/eval/tracking-val --no-figures
+    .venv/bin/python benchmarks/interval_calibration.py out/eval/tracking-val [--out benchmarks/interval_calibration.md]
+
+Reads every run of an ``xnlos eval`` of sequences (``run-NNN/sequences.jsonl``: per forecast the error
+e [m] of the forecast mean against the truth at t + h and the tracker's disc radii r50, r90 [m],
+xnlos_core/sequence_eval.py), splits the (forecast, horizon) pairs by the track's model ("cv" or an
+identified one) and gives, per run, class and level q ∈ {0.5, 0.9}, the split-conformal factor
+
+    s_q = the ⌈(n + 1)·q⌉-th smallest of the ratios e / r_q  (n pairs),
+
+so that discs of radius s_q·r_q hold the truth in a share ≥ q of new pairs drawn like these
+(exchangeability; consecutive forecasts of one track are correlated, so the guarantee is
+approximate and the effective n smaller). The factors go into the tracker's ``interval_scale``
+(CV tracks) and, for ``sindy``, ``model_interval_scale`` (tracks with an identified model); the
+coverage is then reported on the test split, never on the split the factors came from.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+LEVELS = (0.5, 0.9)
+
+
+def pairs(run_dir: Path) -> dict[str, dict[float, np.ndarray]]:
+    """{class: {q: ratios e / r_q (n,)}} of one run's scored forecast pairs (finite radii only)."""
+    out: dict[str, dict[float, list]] = {}
+    for line in (run_dir / "sequences.jsonl").read_text().splitlines():
+        for row in json.loads(line).get("forecasts", []):
+            if row.get("err") is None or row.get("r50") is None:
+                continue
+            cls = "cv" if row.get("model", "cv") == "cv" else "model"
+            for q, key in zip(LEVELS, ("r50", "r90")):
+                for e, r in zip(row["err"], row[key]):
+                    if e is not None and r is not None and r > 0:
+                        out.setdefault(cls, {}).setdefault(q, []).append(e / r)
+    return {c: {q: np.asarray(v) for q, v in d.items()} for c, d in out.items()}
+
+
+def conformal_factor(ratios: np.ndarray, q: float) -> float:
+    """The ⌈(n + 1)q⌉-th smallest ratio (+inf when n is too small for level q)."""
+    n = len(ratios)
+    k = math.ceil((n + 1) * q)
+    return float(np.sort(ratios)[k - 1]) if 0 < k <= n else math.inf
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("eval_dir")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args()
+    root = Path(args.eval_dir)
+    lines = [f"# Conformal disc factors from `{root}`", "",
+             "| run | tracker | class | pairs | cover50 now | cover90 now | s50 | s90 |", "|---|---|---|---|---|---|---|---|"]
+    for run in sorted(root.glob("run-*")):
+        info = json.loads((run / "run.json").read_text())
+        tracker = info["config"].get("tracker") or {}
+        for cls, by_q in sorted(pairs(run).items()):
+            r50, r90 = by_q[0.5], by_q[0.9]
+            lines.append(f"| {info['name']} | {tracker.get('name', '-')} | {cls} | {len(r90)} | "
+                         f"{np.mean(r50 <= 1):.2f} | {np.mean(r90 <= 1):.2f} | {conformal_factor(r50, 0.5):.3f} | "
+                         f"{conformal_factor(r90, 0.9):.3f} |")
+    lines += ["", "Set `interval_scale = [s50, s90]` of the cv class (and, for sindy, `model_interval_scale` of the "
+              "model class) in the tracker's params; report coverage on the test split."]
+    text = "\n".join(lines) + "\n"
+    if args.out:
+        Path(args.out).write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
