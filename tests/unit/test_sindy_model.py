@@ -41,15 +41,15 @@ def test_constant_turn_gives_turn_terms_and_predicts_2s():
 
 def test_interval_coverage_near_nominal():
     rng = np.random.default_rng(5)
-    n, c50, c90 = 30, 0, 0
+    n, c50, c90 = 20, 0, 0
     for i in range(n):
         omega = rng.uniform(-0.4, 0.4) if i % 2 else 0.0
         speed, heading = rng.uniform(5, 15), rng.uniform(0, 2 * np.pi)
         z = turn(T, omega, speed, heading) + 0.1 * rng.standard_normal((len(T), 2))
-        pred = identify_motion(T, z, 0.1, n_models=10, seed=i).predict([2.0])
+        pred = identify_motion(T, z, 0.1, n_models=5, seed=i).predict([2.0])
         err = np.linalg.norm(pred.mean[0] - turn(T[-1:] + 2.0, omega, speed, heading)[0])
         c50, c90 = c50 + (err <= pred.radius50[0]), c90 + (err <= pred.radius90[0])
-    assert c90 / n >= 0.8
+    assert c90 / n >= 0.8, (c50 / n, c90 / n)
     assert 0.3 <= c50 / n <= 0.9
 
 
