@@ -1,10 +1,20 @@
-"""Input checks shared by the trackers: one frame's hidden points and its timestamp."""
+"""Input checks shared by the trackers: one frame's hidden points and its timestamp, and the
+forecast horizons parameter."""
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
+from pydantic import Field
 
 from xnlos_core.errors import InputError
 from xnlos_core.types import HiddenPoints, Tracks
+
+
+# The ``horizons`` parameter of every tracker: 1–64 forecast horizons [s], each within [0, 3] s
+Horizons = Annotated[tuple[Annotated[float, Field(ge=0.0, le=3.0)], ...], Field(min_length=1, max_length=64)]
+HORIZONS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+HORIZONS_DOC = "forecast horizons [s] ahead of each frame, each within [0, 3] s"
 
 
 def frame_time(owner: str, points, timestamp, t_last: float | None) -> float:

@@ -47,7 +47,7 @@ from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
 from . import forecast as fc
-from .frames import frame_time, no_tracks
+from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time, no_tracks
 from .measurements import Measurements, cluster
 from .region import Region, arrival
 
@@ -91,8 +91,7 @@ class KalmanParams(BaseModel):
     interval_scale: tuple[Scale, Scale] = Field((1.0, 1.0), description="factors on the 50 % and 90 % disc radii "
                                                 "of the forecast (a conformal calibration on held-out sequences: "
                                                 "benchmarks/interval_calibration.py; 1: the Gaussian's own radii)")
-    horizons: tuple[float, ...] = Field((0.5, 1.0, 1.5, 2.0, 2.5, 3.0), min_length=1, max_length=64,
-                                        description="forecast horizons [s] ahead of each frame, each in [0, 3]")
+    horizons: Horizons = Field(HORIZONS, description=HORIZONS_DOC)
     region: list[tuple[float, float]] | None = Field(None, description="polygon [[x, y], …] [m] in the ego "
                                                                        "frame (e.g. the ego lane) whose "
                                                                        "time-to-appearance is reported; None: none")
@@ -101,13 +100,6 @@ class KalmanParams(BaseModel):
     arrival_draws: int = Field(100, ge=20, le=100_000, description="predictive path draws for the "
                                                                    "arrival interval")
     seed: int = Field(0, ge=0, description="seed of the arrival draws (with the frame index)")
-
-    @field_validator("horizons")
-    @classmethod
-    def _horizons_in_range(cls, h):
-        if any(not (0.0 <= x <= 3.0) for x in h):
-            raise ValueError(f"each horizon must be within [0, 3] s, got {list(h)}")
-        return h
 
     @field_validator("region")
     @classmethod

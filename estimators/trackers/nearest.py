@@ -20,14 +20,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field
 from scipy.optimize import linear_sum_assignment
 
 from xnlos_core.interfaces import Tracker
 from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
-from .frames import frame_time
+from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time
 
 
 class NearestParams(BaseModel):
@@ -40,15 +40,7 @@ class NearestParams(BaseModel):
     alpha: float = Field(0.5, gt=0, le=1, description="α–β filter position gain")
     beta: float = Field(0.17, ge=0, le=2, description="α–β filter velocity gain (Kalata's optimal pair "
                                                       "for α = 0.5: β = 2(2 − α) − 4√(1 − α) ≈ 0.17)")
-    horizons: tuple[float, ...] = Field((0.5, 1.0, 1.5, 2.0, 2.5, 3.0), min_length=1, max_length=64,
-                                        description="forecast horizons [s] ahead of each frame, each in [0, 3]")
-
-    @field_validator("horizons")
-    @classmethod
-    def _horizons_in_range(cls, h):
-        if any(not (0.0 <= x <= 3.0) for x in h):
-            raise ValueError(f"each horizon must be within [0, 3] s, got {list(h)}")
-        return h
+    horizons: Horizons = Field(HORIZONS, description=HORIZONS_DOC)
 
 
 @dataclass
