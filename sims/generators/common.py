@@ -10,7 +10,8 @@ Sequence families (a ``motion`` and ``visible_share`` / ``hidden_share`` paramet
 keep that mirror path at ≥ ``visible_share`` of the times 0, STEP, …, ``horizon``
 (:meth:`Visibility.share`) and stay out of line of sight at ≥ ``hidden_share`` of them; the
 radar of that check is the params' ``radar`` (:meth:`BaseParams.radar_config`), so a dataset on
-another radar sets ``[generator_params.radar]`` to its radar's fields. All randomness comes from ``numpy.random.default_rng(seed)`` in a fixed order.
+another radar sets ``[generator_params.radar]`` to its radar's fields. All randomness comes from
+``numpy.random.default_rng(seed)`` in a fixed order.
 """
 from __future__ import annotations
 
@@ -269,7 +270,6 @@ class Visibility:
         best = int(np.argmax(values))
         owner = np.concatenate([np.full(len(q[1]), q[0]) for q in parts])
         return float(values[best]), planar[int(owner[best])].name
-
 
     def share(self, obj: ObjectSpec, planar: list[WallSpec], ts: np.ndarray, min_snr_db: float | None,
               need: float = 0.0) -> float:
