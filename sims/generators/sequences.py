@@ -15,7 +15,7 @@ not only at t = 0.
 NLOS, but few crossroads draws pass it: the corner's shadow edge runs diagonally across the arm, so a
 road user approaching the junction shows a corner of its box to the radar within about a second
 unless it starts ≥ 20 m back and slowly, and there its mirror path is mostly below ``min_snr_db`` on a
-light radar (≈ 1 in 10² draws passes with ``hidden_share`` = 0.5 on the radar of
+light radar (≈ 1 in 10²–10³ straight-car draws passed with ``hidden_share`` = 0.5 on the radar of
 ``configs/datasets/sequences.toml``; turning cars almost never).
 
 The radar of that check is ``radar`` (RadarConfig fields; {}: the default radar), not the
