@@ -6,13 +6,19 @@ object(s) in the layout's *arms* at ``hidden_distance`` behind the occluding cor
 objects in its *lanes*, and re-draws (up to ``max_attempts``) until every hidden object is out of
 line of sight yet reachable by one specular bounce on a relay wall with its mirror image inside
 the field of view, within range and above ``min_snr_db`` (the image method, :mod:`sims.image`).
-All randomness comes from ``numpy.random.default_rng(seed)`` in a fixed order.
+Sequence families (a ``motion`` and ``visible_share`` / ``hidden_share`` parameters) must moreover
+keep that mirror path at ≥ ``visible_share`` of the times 0, STEP, …, ``horizon``
+(:meth:`Visibility.share`) and stay out of line of sight at ≥ ``hidden_share`` of them; the
+radar of that check is the params' ``radar`` (:meth:`BaseParams.radar_config`), so a dataset on
+another radar sets ``[generator_params.radar]`` to its radar's fields. All randomness comes from
+``numpy.random.default_rng(seed)`` in a fixed order.
 """
 from __future__ import annotations
 
 import math
 from collections import Counter
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Callable
 
 import numpy as np
@@ -24,8 +30,9 @@ from xnlos_core.scene import ObjectSpec, Scene, WallSpec
 from . import geometry as g
 from .params import KINDS, BaseParams, Range, integer, uniform
 
-__all__ = ["KINDS", "BaseParams", "Generator", "Layout", "Range", "Region", "Reject", "Surface", "block",
-           "draw_body", "draw_object", "draw_surface", "facade", "generate", "integer", "make_object", "uniform"]
+__all__ = ["KINDS", "STEP", "BaseParams", "Generator", "Layout", "Range", "Region", "Reject", "Surface", "Visibility",
+           "block", "draw_body", "draw_object", "draw_surface", "facade", "generate", "integer", "make_object", "times",
+           "uniform"]
 
 CLEARANCE = 0.3  # m, free space kept between an object and a wall footprint or another object
 RADAR_CLEARANCE = 1.0  # m, free space kept around the radar
@@ -264,6 +271,30 @@ class Visibility:
         owner = np.concatenate([np.full(len(q[1]), q[0]) for q in parts])
         return float(values[best]), planar[int(owner[best])].name
 
+    def share(self, obj: ObjectSpec, planar: list[WallSpec], ts: np.ndarray, min_snr_db: float | None,
+              need: float = 0.0) -> float:
+        """Share of the times ``ts`` (T,) [s] at which ``obj`` has a mirror path that counts (in the field
+        of view and range, SNR ≥ ``min_snr_db``; None: geometry only), as :meth:`best` at each time.
+        Stops early once ``need`` can no longer be met, returning the largest share still possible then
+        (below ``need``)."""
+        misses_allowed = len(ts) - math.ceil(need * len(ts) - 1e-9)
+        misses = 0
+        for t in ts:
+            snr, relay = self.best(obj.scatterers(float(t)), planar, snr=min_snr_db is not None)
+            if relay is None or (min_snr_db is not None and snr < min_snr_db):
+                misses += 1
+                if misses > misses_allowed:
+                    break
+        return (len(ts) - misses) / len(ts)
+
+
+STEP = 0.1  # s, time step at which a moving object's path is checked (one dataset frame_interval)
+
+
+def times(horizon: float) -> np.ndarray:
+    """Check times 0, STEP, …, horizon [s] (T,) (the horizon itself included)."""
+    return np.arange(int(math.floor(horizon / STEP + 1e-9)) + 1) * STEP if horizon > 0 else np.zeros(1)
+
 
 # ---- the draw loop --------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -272,13 +303,18 @@ class Generator:
     ``layout(params, rng) -> Layout`` (for a hidden arm on the right; raises Reject). ``motion``
     (optional, sequence families): ``motion(params, obj, arm, rng, walls) -> ObjectSpec`` sets a
     freshly drawn hidden object moving (raises Reject when its path leaves the street); None
-    draws nothing, so families without it keep their scenes."""
+    draws nothing, so families without it keep their scenes. ``per_scene`` (optional):
+    ``per_scene(params, rng) -> dict`` draws once per scene, before the re-draw loop, what must
+    not depend on which draws are rejected (e.g. the motion kind: re-drawing it would favour the
+    kinds that pass the checks most easily); ``motion`` then gets it as ``choice=``, and the
+    scene's ``meta["drawn"]["per_scene"]`` records it."""
 
     name: str
     Params: type[BaseParams]
     description: str
     layout: Callable[[BaseParams, np.random.Generator], Layout]
     motion: Callable[..., ObjectSpec] | None = None
+    per_scene: Callable[[BaseParams, np.random.Generator], dict] | None = None
 
 
 PLACEMENTS = 3  # hidden-object placements tried per drawn layout
@@ -287,7 +323,9 @@ PLACEMENTS = 3  # hidden-object placements tried per drawn layout
 def _hidden_object(p: BaseParams, i: int, arm: Region, rng, vis: Visibility, walls, planar,
                    polys, motion=None) -> tuple[ObjectSpec, dict]:
     """Hidden object i in ``arm`` (set moving by ``motion``, see Generator): out of line of sight,
-    with a mirror path at t = 0 (else Reject)."""
+    with a mirror path at t = 0 and, for a moving one with ``p.visible_share`` / ``p.hidden_share``,
+    with a mirror path / out of line of sight at those shares of the times over ``p.horizon``
+    (recorded as ``visible_share``, ``hidden_share``); else Reject."""
     d = uniform(rng, p.hidden_distance)
     if d > arm.length:
         raise Reject(f"hidden_distance beyond the {arm.name} arm")
@@ -306,9 +344,20 @@ def _hidden_object(p: BaseParams, i: int, arm: Region, rng, vis: Visibility, wal
     snr, relay = vis.best(sc, planar, snr=p.min_snr_db is not None)
     if relay is None or (p.min_snr_db is not None and snr < p.min_snr_db):
         raise Reject("no mirror path to the hidden object" if relay is None else "mirror path below min_snr_db")
-    return o, {"name": o.name, "kind": o.kind, "hidden": True, "region": arm.name, "hidden_distance": d,
-               "corner": list(arm.shadow or arm.origin), "arm_direction": list(arm.direction), "relay_wall": relay,
-               "mirror_snr_db": round(snr, 3) if math.isfinite(snr) else None}
+    rec = {"name": o.name, "kind": o.kind, "hidden": True, "region": arm.name, "hidden_distance": d,
+           "corner": list(arm.shadow or arm.origin), "arm_direction": list(arm.direction), "relay_wall": relay,
+           "mirror_snr_db": round(snr, 3) if math.isfinite(snr) else None}
+    share, hidden = getattr(p, "visible_share", None), getattr(p, "hidden_share", None)
+    if motion is not None and (share or hidden):
+        ts = times(p.horizon)
+        seen_hidden = float(np.mean([g.is_hidden(o.scatterers(float(t))[0], walls[0], walls[1]) for t in ts]))
+        if hidden and seen_hidden < hidden:
+            raise Reject(f"out of line of sight at fewer than hidden_share = {hidden:g} of the times over the horizon")
+        seen = vis.share(o, planar, ts, p.min_snr_db, share or 0.0)
+        if share and seen < share:
+            raise Reject(f"mirror path at fewer than visible_share = {share:g} of the times over the horizon")
+        rec["visible_share"], rec["hidden_share"] = seen, seen_hidden
+    return o, rec
 
 
 def _place(p: BaseParams, lay: Layout, rng, vis: Visibility, motion=None) -> tuple[list[ObjectSpec], list[dict]]:
@@ -360,17 +409,23 @@ def generate(gen: Generator, seed: int, p: BaseParams) -> Scene:
     rng = np.random.default_rng(seed)
     vis = Visibility(p.radar_config())
     reasons: Counter = Counter()
+    motion, fixed = gen.motion, None
+    if gen.per_scene is not None:
+        fixed = gen.per_scene(p, rng)
+        motion = partial(gen.motion, choice=fixed)
     for attempt in range(1, p.max_attempts + 1):
         side = p.hidden_side if p.hidden_side != "any" else ("right", "left")[int(rng.integers(2))]
         try:
             lay = gen.layout(p, rng)
             if side == "left":
                 lay = lay.flipped()
-            objects, info = _place(p, lay, rng, vis, gen.motion)
+            objects, info = _place(p, lay, rng, vis, motion)
         except Reject as why:
             reasons[str(why)] += 1
             continue
         drawn = {**lay.drawn, "hidden_side": side, "mirrored_y": side == "left", "objects": info}
+        if fixed is not None:
+            drawn["per_scene"] = fixed
         meta = {"family": gen.name, "seed": int(seed), "attempts": attempt,
                 "params": p.model_dump(mode="json", exclude_none=True), "drawn": _plain(drawn)}
         return Scene(name=f"{gen.name}-{seed}", walls=lay.walls, objects=objects, meta=meta)
