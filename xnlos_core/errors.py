@@ -19,3 +19,12 @@ class PluginError(XnlosError, LookupError):
 
 class InsufficientDataError(XnlosError, ValueError):
     """A stage was given too little data to produce a result (e.g. a wall from < 2 LOS points)."""
+
+
+class XnlosWarning(UserWarning):
+    """Base class of every warning xnlos issues on purpose."""
+
+
+class GridMismatchWarning(XnlosWarning):
+    """A model is used on maps of another radar or RA grid than it was trained on (carrier, range or
+    azimuth bins, spacing, field of view): its outputs are not what its validation figures describe."""

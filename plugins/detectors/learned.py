@@ -18,17 +18,26 @@ stores parameters). ``checkpoint = "default"`` loads the model shipped in
 ``plugins/detectors/models/<name>.pt``; ``"none"`` builds an untrained network with default
 hyper-parameters from ``seed`` (deterministic, but it detects nothing meaningful: for tests of the
 plumbing only).
+
+Self-describing models: a checkpoint records the radar and RA grid it was trained on (metadata
+``trained_on``, or for older checkpoints the sidecar ``NAME.trained_on.json``, see
+:mod:`plugins.training.trained_on`). A frame of another carrier or grid (range or azimuth bins,
+spacing, field of view) gives a :class:`~xnlos_core.errors.GridMismatchWarning` naming both, once
+per detector instance; with ``strict = true`` it is an InputError instead. A checkpoint without a
+record (and ``checkpoint = "none"``) is not checked.
 """
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
+import warnings
+
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from xnlos_core.detection_doppler import nearest_cells, with_cell_velocity
-from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.types import Detections, Frame, RAMap
 
@@ -59,6 +68,9 @@ class LearnedParams(BaseModel):
     tta: Literal["none", "flip"] = Field("none", description="test-time augmentation: 'flip' averages the logits "
                                          "of the map and of its azimuth mirror (twice the network time; "
                                          "dense heads only)")
+    strict: bool = Field(False, description="refuse (InputError) a frame of another carrier or RA grid than "
+                                            "the checkpoint was trained on; false: warn once "
+                                            "(GridMismatchWarning)")
 
     @field_validator("threshold")
     @classmethod
@@ -188,7 +200,14 @@ class LearnedDetector(Detector):
                                  "params.checkpoint to its path")
             sd, meta, _ = load_checkpoint(path, self.architecture)
             net = build_model(meta, sd, source=f"checkpoint {str(path)!r}")
+            if "trained_on" not in meta:
+                from plugins.training.trained_on import read_sidecar
+
+                rec = read_sidecar(path, meta.get("weights_sha256"))
+                if rec is not None:
+                    meta = {**meta, "trained_on": rec}
         self._meta = meta
+        self._grid_warned = False
         self._head = make_head(meta["head"])
         self._device = device
         self._net = net.to(device).eval()
@@ -212,6 +231,27 @@ class LearnedDetector(Detector):
         cells = self.params.cells if self.params.cells is not None else bool(dec.get("cells", False))
         return thr, tuple(win), dec.get("calibration", {}), cells
 
+    def check_grid(self, ra_map: RAMap, where: str = "frame") -> list[str]:
+        """What differs between ``ra_map`` and the radar / grid the checkpoint was trained on (module
+        doc); warns (GridMismatchWarning, once per instance) or, with ``strict``, raises InputError.
+        [] when they agree or the checkpoint has no record."""
+        from plugins.training.trained_on import grid_mismatches, mismatch_message
+
+        self._load()
+        rec = self._meta.get("trained_on")
+        if rec is None:
+            return []
+        problems = grid_mismatches(rec, ra_map)
+        if problems:
+            what = f"{type(self).__name__} (checkpoint {self.params.checkpoint!r}) on {where}"
+            msg = mismatch_message(what, rec, ra_map, problems)
+            if self.params.strict:
+                raise InputError(f"{msg}; strict = true refuses it (set strict = false to only warn)")
+            if not self._grid_warned:
+                self._grid_warned = True
+                warnings.warn(msg, GridMismatchWarning, stacklevel=3)
+        return problems
+
     def output(self, frame: Frame) -> np.ndarray:
         """Raw network output of ``frame`` (float32): dense logits (2, H', W') of the zero-padded map
         (H' ≥ H, W' ≥ W; rows and columns beyond the map are padding), or a grid head's (6, H'/s_r, W'/s_a);
@@ -220,6 +260,7 @@ class LearnedDetector(Detector):
 
         self.check_frame(frame)
         self._load()
+        self.check_grid(frame.ra_map, f"frame {frame.index}")
         feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
                             name=f"frame {frame.index}: RAMap.data")
         out = run_network(self._net, feats, self._device, self.params.threads)

@@ -122,6 +122,21 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     return {**record, "init": grandparent} if grandparent else record
 
 
+def _trained_on(train_set, val_set, data_rec: dict[str, Any]) -> dict[str, Any]:
+    """The checkpoint's ``trained_on`` record (:mod:`plugins.training.trained_on`) from the first
+    validation map; ConfigError when the training maps are on another grid or radar."""
+    from plugins.training.trained_on import grid_mismatches, grid_record
+
+    source = (f"dataset {data_rec.get('path')!r} (config_sha256 {data_rec.get('config_sha256')})"
+              if data_rec.get("source") == "dataset" else "generated maps (data.generate)")
+    rec = grid_record(val_set.maps[0], source)
+    shapes = {tuple(train_set.features.shape[-2:])} | {m.shape for m in val_set.maps}
+    if len(shapes) > 1 or any(grid_mismatches(rec, m) for m in val_set.maps):
+        raise ConfigError(f"data: the training and validation maps are not all on one RA grid (map shapes "
+                          f"{sorted(shapes)}); one model is trained on one radar's maps")
+    return rec
+
+
 def _validate(net, head, val, device, batch_size: int, cfg: TrainConfig):
     """Validation loss and the decoding sweep; returns (loss, outputs, sweep)."""
     import torch
@@ -184,7 +199,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     init = _initial_weights(cfg, net, hp, base_dir) if cfg.init else None
     run.restore(net, opt, sched, cfg.model.name, map_location=device)  # also restores torch's RNG
     base_meta = {"architecture": cfg.model.name, "hparams": hp.model_dump(mode="json"), "head": head.describe(),
-                 "features": FEATURES}
+                 "features": FEATURES, "trained_on": _trained_on(train_set, val_set, data_rec)}
 
     def train_epoch(epoch: int) -> dict[str, Any]:
         """Eq. 8 (the head's loss) over ``steps`` seeded batches."""

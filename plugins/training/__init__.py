@@ -5,6 +5,8 @@
 - :mod:`.resume`: ``last.pt`` as the single commit point of an epoch, and resuming from it
 - :mod:`.optim`: the ``[optim]`` table, AdamW and the cosine schedule
 - :mod:`.run`: the run directory (claim, resume, extend), the epoch loop, the final model and export
+- :mod:`.trained_on`: the radar and RA grid a model was trained on (checkpoint record, sidecar
+  for older checkpoints) and what differs on the maps it is used on
 - :mod:`.trainers`: the trainer chosen by a config's ``[model] name``
 - :mod:`.commands`: ``xnlos train`` and ``xnlos check`` of a training config
 
