@@ -86,6 +86,11 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
     assert meta["training"]["dataset"]["source"] == "generate" and meta["decode"]["calibration"]
     assert meta["training"]["config"]["model"]["name"] == "swin_unet"
     assert json.loads((tmp_path / "a" / "model.json").read_text())["weights_sha256"] == meta["weights_sha256"]
+    # self-describing (issue 29): the radar and RA grid of the training maps (tiny.toml's radar)
+    rec = meta["trained_on"]
+    assert rec["radar"]["n_samples"] == 256 and rec["radar"]["carrier_frequency"] == 10e9
+    assert rec["azimuth_axis"]["n"] == 31 and rec["range_axis"]["first"] == 0.0 and rec["source"].startswith("generated")
+    assert load_checkpoint(tmp_path / "a" / "best.pt", "swin_unet")[1]["trained_on"] == rec
 
     real_epoch = tr.Batcher.epoch
 
