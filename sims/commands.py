@@ -23,8 +23,9 @@ def xnlos_add_commands(subparsers) -> None:
     sim.add_argument("--verify", action="store_true",
                      help="re-hash every shard and list corrupt or missing ones (exit status 1 if any)")
     sim.add_argument("--repair", action="store_true", help="rebuild corrupt or missing shards")
-    sim.add_argument("--max-maps", type=int, help="override the config's n_maps (a smaller dataset with its own "
-                     "split, not a prefix of the full one)")
+    sim.add_argument("--max-maps", type=int, help="override the config's n_maps: fewer give the full dataset's "
+                     "first maps, with its scenes and splits (no training or validation scene of the full dataset "
+                     "lands in test; split sizes are the prefix's); more give a larger dataset with its own split")
     sim.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     sim.set_defaults(func=cmd_simulate)
 
@@ -50,6 +51,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                          progress=not args.quiet)
     print(f"{s['n_maps']} map(s) in {s['n_shards']} shard(s): {s['generated']} generated, {s['skipped']} already "
           f"done, {len(s['repaired'])} repaired, in {s['seconds']:.1f} s; wrote {out / 'manifest.json'}")
+    if cfg.full_n_maps is not None:
+        sizes = ", ".join(f"{k} {v}" for k, v in s["splits"].items())
+        print(f"the first {cfg.n_maps} of the full dataset's {cfg.full_n_maps} maps, split as there ({sizes})")
     return 0
 
 

@@ -5,6 +5,7 @@
     name = "xnlos-default"
     seed = 2024                      # root of every random draw (scenes, families, splits, noise)
     n_maps = 2160                    # RA maps in the dataset (= scenes × frames_per_scene)
+    # full_n_maps = 21600            # set by --max-maps: this dataset is that one's first n_maps
     frames_per_scene = 1             # frames of one scene at t = k·frame_interval [s]
     frame_interval = 0.1
     shard_size = 24                  # maps per shard file (a multiple of frames_per_scene)
@@ -42,7 +43,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_serializer
 
 from xnlos_core.config import StageConfig, load_toml, validate_model
 from xnlos_core.errors import ConfigError, PluginError
@@ -80,6 +81,11 @@ class DatasetConfig(BaseModel):
     frames_per_scene: int = Field(1, ge=1, le=10_000, description="frames rendered per scene")
     frame_interval: float = Field(0.1, gt=0, le=3600, description="time between a scene's frames [s]")
     n_maps: int = Field(2160, ge=1, le=10_000_000, description="RA maps in the dataset")
+    full_n_maps: int | None = Field(
+        None, ge=1, le=10_000_000, description="set by --max-maps: n_maps of the full dataset whose first "
+                                               "n_maps this one holds, with the full plan's scene seeds, families "
+                                               "and splits (a scene never changes split); None: the dataset is "
+                                               "its own full plan")
     shard_size: int = Field(24, ge=1, le=100_000, description="maps per shard file")
     compression: Literal["deflate", "none"] = Field("deflate", description="zip compression of shard members")
     compression_level: int = Field(1, ge=0, le=9, description="deflate level (1 fast … 9 small)")
@@ -113,6 +119,27 @@ class DatasetConfig(BaseModel):
             raise ValueError(f"must be a multiple of frames_per_scene = {fps} (whole scenes), got {v}")
         return v
 
+    @field_validator("full_n_maps")
+    @classmethod
+    def _full_covers(cls, v, info: ValidationInfo):
+        if v is None:
+            return v
+        n, fps = info.data.get("n_maps"), info.data.get("frames_per_scene", 1)
+        if v % fps:
+            raise ValueError(f"must be a multiple of frames_per_scene = {fps} (whole scenes), got {v}")
+        if n is not None and v < n:
+            raise ValueError(f"the full dataset ({v} maps) cannot be smaller than this one (n_maps = {n})")
+        return v
+
+    @model_serializer(mode="wrap")
+    def _omit_full_when_unset(self, handler):
+        # full_n_maps arrived after datasets and their digests existed: left out while unset, so
+        # the canonical JSON (hence config_sha256) of every other dataset stays as it was
+        data = handler(self)
+        if isinstance(data, dict) and data.get("full_n_maps", 0) is None:
+            del data["full_n_maps"]
+        return data
+
     @field_validator("families")
     @classmethod
     def _families(cls, v):
@@ -140,6 +167,11 @@ class DatasetConfig(BaseModel):
     def n_scenes(self) -> int:
         return self.n_maps // self.frames_per_scene
 
+    @property
+    def plan_scenes(self) -> int:
+        """Scenes of the plan this dataset takes its first ``n_scenes`` from (``full_n_maps``)."""
+        return (self.full_n_maps or self.n_maps) // self.frames_per_scene
+
     def weights(self) -> dict[str, float]:
         """family → weight (1 each for a plain list)."""
         return dict(self.families) if isinstance(self.families, dict) else {f: 1.0 for f in self.families}
@@ -160,12 +192,22 @@ class DatasetConfig(BaseModel):
 
 def parse_dataset_config(table: dict[str, Any], source: str, base_dir: str | Path = ".",
                          n_maps: int | None = None) -> DatasetConfig:
-    """Validate a dataset table (``n_maps`` overrides the file's); errors name ``source`` and the key."""
+    """Validate a dataset table; errors name ``source`` and the key.
+
+    n_maps (``--max-maps``) overrides the file's: fewer maps than the file's give the first
+    ``n_maps`` of the file's dataset (``full_n_maps`` = the file's ``n_maps``: the same scenes,
+    families and splits, so no scene of the full dataset's training or validation split lands in
+    this one's test split); more give a larger dataset with a plan of its own."""
     if "base_dir" in table:  # relative paths and the config roots follow from where the file is
         raise ConfigError(f"{source}: [base_dir] is set by the loader (the config file's folder); remove it")
     table = {**table, "base_dir": str(base_dir)}
     if n_maps is not None:
+        full = table.get("full_n_maps") or table.get("n_maps", DatasetConfig.model_fields["n_maps"].default)
         table["n_maps"] = n_maps
+        if isinstance(full, int) and n_maps < full:
+            table["full_n_maps"] = full
+        elif "full_n_maps" in table and isinstance(full, int) and n_maps >= full:
+            del table["full_n_maps"]
     return validate_model(DatasetConfig, table, source=source)
 
 

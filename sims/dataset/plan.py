@@ -108,26 +108,32 @@ def make_plan(config: DatasetConfig) -> Plan:
     each) and labelled with :func:`spread_labels`, so split sizes are exact and each split
     takes its share of every family. A split's scenes are then cut, in index order, into shards
     of ``shard_size // frames_per_scene`` scenes named ``{split}-{i:05d}.npz``.
+
+    A reduced dataset (``full_n_maps``, from ``--max-maps``) draws families and splits for the
+    full dataset's scenes and keeps its first ``n_scenes``: scene k has the full dataset's seed,
+    family, split and noise seeds, so its maps are the full dataset's and no scene changes split
+    (split sizes are then those of the prefix, not exact fractions).
     """
-    n = config.n_scenes
+    n, n_plan = config.n_scenes, config.plan_scenes
     root = config.seed
     seeds = np.array([scene_seed(root, k) for k in range(n)], dtype=np.int64)
     weights = config.weights()
     fams = sorted(weights)
-    pool = [f for f, c in zip(fams, apportion([weights[f] for f in fams], n)) for _ in range(c)]
+    pool = [f for f, c in zip(fams, apportion([weights[f] for f in fams], n_plan)) for _ in range(c)]
     fam_rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(2,)))
-    family = tuple(pool[i] for i in fam_rng.permutation(n))
+    family = tuple(pool[i] for i in fam_rng.permutation(n_plan))
 
     split_rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(3,)))
     order = []
     for f in fams:
-        members = np.array([k for k in range(n) if family[k] == f], dtype=np.int64)
+        members = np.array([k for k in range(n_plan) if family[k] == f], dtype=np.int64)
         order.extend(int(k) for k in split_rng.permutation(members))
     fractions = [getattr(config.split, s) for s in SPLITS]
-    labels = spread_labels(apportion(fractions, n))
-    split = [""] * n
+    labels = spread_labels(apportion(fractions, n_plan))
+    split = [""] * n_plan
     for k, lab in zip(order, labels):
         split[k] = SPLITS[lab]
+    family, split = family[:n], split[:n]  # a reduced dataset: the full plan's first n scenes
 
     per_shard = config.shard_size // config.frames_per_scene
     shards = []

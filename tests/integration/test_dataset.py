@@ -60,6 +60,36 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
         assert s.n_maps == 3 * len(s.scenes) and all(multi.split[k] == s.split for k in s.scenes)
 
 
+def test_max_maps_keeps_the_full_datasets_scenes_and_splits(dataset_table):
+    """--max-maps (issue 29): a reduced dataset is the full one's first scenes with their seeds,
+    families and splits, so no training or validation scene of the full dataset (that of the shipped
+    models) lands in its test split; the canonical form of a full config (its digest) is unchanged."""
+    from sims.dataset import load_dataset_config
+
+    c = load_dataset_config(ROOT / "configs/datasets/default.toml")
+    assert "full_n_maps" not in c.model_dump() and c.plan_scenes == 2160
+    full = make_plan(c)
+    for m in (120, 7):
+        r = load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=m)
+        assert (r.n_maps, r.full_n_maps) == (m, 2160)
+        plan = make_plan(r)
+        assert plan.scene_seed.tolist() == full.scene_seed[:m].tolist()
+        assert plan.family == full.family[:m] and plan.split == full.split[:m]
+        assert sorted(k for s in plan.shards for k in s.scenes) == list(range(m))
+        assert all(plan.split[k] == s.split for s in plan.shards for k in s.scenes)
+    assert {x for x in make_plan(load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=120)).split} \
+        == {"train", "val", "test"}
+    # on the tiny config: the full plan's prefix, also through a second --max-maps; more maps: own plan
+    table = dataset_table()
+    small = make_plan(parse_dataset_config(table, "t", n_maps=6))
+    assert small.split == make_plan(parse_dataset_config(table, "t")).split[:6]
+    again = parse_dataset_config({**table, "n_maps": 6, "full_n_maps": 12}, "t", n_maps=4)
+    assert again.full_n_maps == 12 and make_plan(again).split == small.split[:4]
+    assert parse_dataset_config(table, "t", n_maps=24).full_n_maps is None
+    with pytest.raises(ConfigError, match="full_n_maps"):
+        parse_dataset_config({**table, "full_n_maps": 6}, "t")
+
+
 def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes,
                                                     simulate_tiny):
     out = tmp_path / "pool"
@@ -318,7 +348,12 @@ def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli, tiny_p
     capsys.readouterr()
     assert main(["simulate", str(path), "--out", str(tmp_path / "six"), "--max-maps", "6", "--workers", "1",
                  "-q"]) == 0
-    assert "6 map(s)" in capsys.readouterr().out and len(open_dataset(tmp_path / "six", None)) == 6
+    text = capsys.readouterr().out
+    assert "6 map(s)" in text and len(open_dataset(tmp_path / "six", None)) == 6
+    assert "the first 6 of the full dataset's 24 maps, split as there" in text
+    six, whole = read_manifest(tmp_path / "six")["scenes"], read_manifest(out)["scenes"]
+    assert all(six[k] == whole[k][:6] for k in ("scene_seed", "family", "split"))  # the full one's scenes
+    assert main(["simulate", "--verify", str(tmp_path / "six")]) == 0
 
 
 def test_cli_errors_are_clear_not_tracebacks(tmp_path, dataset_table):
