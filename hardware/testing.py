@@ -161,3 +161,20 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
     toml = folder / f"{name}.toml"
     toml.write_text(text, encoding="utf-8")
     return toml
+
+
+def make_adc_recording(folder: str | os.PathLike, radar: RadarConfig | None = None, frames: int = 2,
+                       seed: int = 0) -> Path:
+    """A small DCA1000 recording of static points (a wall's LOS returns and one farther echo) for
+    ``radar`` (default: :func:`small_radar` with 2 chirp loops): write it to ``folder`` and return its
+    TOML description, e.g. ``check_component("backend", "adc", {"recording": str(make_adc_recording(tmp))})``."""
+    from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube
+
+    radar = radar or small_radar(n_chirps=2)
+    xy = np.array([[17.0, 8.0], [20.0, 5.0], [23.0, 2.0], [26.0, -1.0], [30.0, 9.0]])
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    keep = r < radar.max_range - 1.0
+    clean = chirp_sequence_cube(radar, r[keep], np.arctan2(xy[keep, 1], xy[keep, 0]), np.full(keep.sum(), 1e-6),
+                                np.zeros(keep.sum()))
+    cubes = [add_chirp_noise(clean, radar, np.random.default_rng(seed + k)) for k in range(frames)]
+    return write_dca1000_recording(folder, cubes, radar, scale=1e-6 / 2000)
