@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from xnlos_core.antenna import steering_vector
+from xnlos_core.errors import ConfigError
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import RAMap
 
@@ -41,17 +42,22 @@ def check_bandwidth(slope: float, sample_rate: float, n_samples: int, ramp_time:
                     bandwidth_given: float | None, source: str) -> float:
     """Bandwidth of the sampled sweep, B = S·N/f_s [Hz] (slope [Hz/s], ADC rate [Hz]).
 
-    Warns when the ramp time gives another bandwidth (S·T_ramp: the range axis would be scaled by
-    N/(f_s·T_ramp)) or when an explicit ``bandwidth`` disagrees with S·N/f_s by more than 1 %.
+    A ramp is longer than its sampling window (ADC start time, settling), so S·T_ramp overstates B
+    and every range comes out short by N/(f_s·T_ramp). Warns when an explicit ``bandwidth``
+    disagrees with S·N/f_s by more than 1 % (naming S·T_ramp when that is what it equals); raises
+    ConfigError when the sampling window N/f_s is longer than the ramp (no chip samples past its ramp).
     """
     b = slope * n_samples / sample_rate
-    for name, other in (("S·ramp_time", None if ramp_time is None else slope * ramp_time),
-                        ("radar.bandwidth", bandwidth_given)):
-        if other is not None and abs(other - b) > 0.01 * b:
-            warnings.warn(f"{source}: the bandwidth of the sampling window S·N/f_s = {b / 1e6:.1f} MHz is used; "
-                          f"{name} = {other / 1e6:.1f} MHz differs, and ranges computed with it would be scaled "
-                          f"by {b / other:.3f} (a 5.00 m target would show at {5.0 * b / other:.2f} m)",
-                          RecordingWarning, stacklevel=3)
+    if ramp_time is not None and ramp_time < n_samples / sample_rate * (1 - 1e-9):
+        raise ConfigError(f"{source}: [chirp] ramp_time = {ramp_time * 1e6:.2f} µs is shorter than the sampling window "
+                          f"n_samples/sample_rate = {n_samples / sample_rate * 1e6:.2f} µs")
+    if bandwidth_given is not None and abs(bandwidth_given - b) > 0.01 * b:
+        ramp_b = None if ramp_time is None else slope * ramp_time
+        what = " = S·ramp_time, the ramp's sweep" if ramp_b and abs(ramp_b - bandwidth_given) <= 0.01 * ramp_b else ""
+        warnings.warn(f"{source}: the bandwidth of the sampling window S·N/f_s = {b / 1e6:.1f} MHz is used; "
+                      f"radar.bandwidth = {bandwidth_given / 1e6:.1f} MHz{what} differs, and ranges computed with it "
+                      f"would be scaled by {b / bandwidth_given:.3f} (a 5.00 m target would show at "
+                      f"{5.0 * b / bandwidth_given:.2f} m)", RecordingWarning, stacklevel=3)
     return b
 
 

@@ -130,6 +130,7 @@ def test_hdf5_without_h5py_is_a_clear_error(tmp_path):
 
 # --- warnings ---------------------------------------------------------------------------------------
 
+@pytest.mark.filterwarnings("ignore:.*leakage or DC")
 def test_unsigned_samples_warn_and_the_map_peaks_at_dc(tmp_path):
     cube = _cubes(frames=1)[0]
     counts = np.rint(cube / SCALE / 16)  # a 12-bit ADC …
@@ -147,6 +148,7 @@ def test_unsigned_samples_warn_and_the_map_peaks_at_dc(tmp_path):
     assert _peak(fixed)[0] == pytest.approx(5.221, abs=RADAR.range_resolution / 2)
 
 
+@pytest.mark.filterwarnings("ignore:.*leakage or DC")
 def test_int16_words_all_non_negative_warn(tmp_path):
     toml = write_dca1000_recording(tmp_path, _cubes(frames=1), RADAR, scale=SCALE)
     rec = Recording.from_toml(toml)
@@ -159,16 +161,16 @@ def test_int16_words_all_non_negative_warn(tmp_path):
 def test_bandwidth_from_the_ramp_time_warns_with_the_range_error(tmp_path):
     table = {"chirp": {"slope": 30e12, "sample_rate": 10e6, "n_samples": 128, "ramp_time": 15.8e-6, "idle_time": 5e-6},
              "radar": {"n_tx": 2, "n_rx": 4, "n_chirps": 4}}
-    with pytest.warns(RecordingWarning, match=r"S·N/f_s = 384.0 MHz.*474.0 MHz.*4.05 m"):
-        radar, _ = recording_radar(table, "t.toml", tmp_path)
+    radar, _ = _quiet(recording_radar, table, "t.toml", tmp_path)  # the ramp alone sets the chirp period
     assert radar.bandwidth == pytest.approx(384e6) and radar.chirp_duration == pytest.approx(12.8e-6)
     assert radar.chirp_interval == pytest.approx(20.8e-6)
-    table["chirp"]["ramp_time"] = 12.8e-6
-    table["radar"]["bandwidth"] = 474e6
-    with pytest.warns(RecordingWarning, match="radar.bandwidth = 474.0 MHz"):
+    table["radar"]["bandwidth"] = 30e12 * 15.8e-6  # the mistake: B from the ramp
+    with pytest.warns(RecordingWarning, match=r"S·N/f_s = 384.0 MHz.*474.0 MHz = S·ramp_time.*4.05 m"):
+        radar, _ = recording_radar(table, "t.toml", tmp_path)
+    assert radar.bandwidth == pytest.approx(384e6)
+    table["chirp"]["ramp_time"] = 10e-6
+    with pytest.raises(ConfigError, match="shorter than the sampling window"):
         recording_radar(table, "t.toml", tmp_path)
-    del table["radar"]["bandwidth"]
-    _quiet(recording_radar, table, "t.toml", tmp_path)
 
 
 def test_near_range_leakage_warns(tmp_path):
@@ -202,3 +204,29 @@ def test_truncated_capture_warns_and_drops_the_partial_frame(tmp_path):
     data.write_bytes(data.read_bytes()[:-100])
     with pytest.warns(RecordingWarning, match="partial frame is dropped"):
         assert Recording.from_toml(toml).n_frames == 1
+
+
+def test_readme_recipe_runs_as_written(tmp_path, monkeypatch):
+    """The README's raw-recording recipe: its TOML and Python, verbatim, on a synthetic capture."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    part = text[text.index("<!-- recipe: raw-recording"):]
+    toml_src = re.search(r"```toml\n(.*?)```", part, re.S).group(1)
+    py_src = re.search(r"```python\n(.*?)```", part, re.S).group(1)
+    (tmp_path / "capture.toml").write_text(toml_src, encoding="utf-8")
+    import tomllib
+
+    radar, _ = recording_radar(tomllib.loads(toml_src), "capture.toml", tmp_path)
+    cube = chirp_sequence_cube(radar, [5.221], [0.2], [1e-3], [0.0])
+    write_dca1000_recording(tmp_path / "sim", [add_chirp_noise(cube, radar, np.random.default_rng(0))], radar,
+                            scale=1e-7, name="capture")
+    (tmp_path / "sim" / "capture_Raw_0.bin").rename(tmp_path / "capture_Raw_0.bin")
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RecordingWarning)
+        exec(compile(py_src, "README recipe", "exec"), ns)
+    assert (tmp_path / "capture.png").stat().st_size > 1000
+    assert _peak(ns["ra"])[0] == pytest.approx(5.221, abs=radar.range_resolution / 2)
