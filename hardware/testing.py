@@ -112,3 +112,69 @@ def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: i
     finally:
         backend.close()
         em.stop()
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {v!r}")
+
+
+def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: RadarConfig, *, scale: float,
+                            name: str = "capture", sampling: str = "complex", lanes: int = 2,
+                            recording: dict | None = None, chirp: dict | None = None) -> Path:
+    """Write frames as a DCA1000-style ``{name}_Raw_0.bin`` plus its description ``{name}.toml`` in
+    ``folder``; return the TOML's path (for ``Recording.from_toml`` or the ``adc`` backend).
+
+    chirp_cubes: per frame (n_samples, n_chirps, n_channels) complex [√W], channels tx-major (the
+    layout of :func:`xnlos_core.doppler.chirp_sequence_cube`); stored as round(cube/scale) int16 in
+    transmission order (the real part only for ``sampling`` = "real"). The description gives the
+    waveform as a chip's profile ([chirp] slope = B/T, sample_rate = N/T) and every other field of
+    ``radar`` in [radar]; ``recording`` / ``chirp`` add or replace keys of those tables.
+    """
+    from .raw_formats import encode_dca1000
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    n_rx = radar.n_channels // radar.n_tdm
+    words = []
+    for c in chirp_cubes:
+        c = np.asarray(c) / scale
+        slots = c.reshape(radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx)  # (sample, loop·slot, rx)
+        words.append(encode_dca1000(slots.real if sampling == "real" else slots, sampling, lanes))
+    data = folder / f"{name}_Raw_0.bin"
+    np.concatenate(words).tofile(data)
+    rec = {"file": data.name, "format": "dca1000", "sampling": sampling, "lanes": lanes, "scale": scale,
+           **(recording or {})}
+    prof = {"slope": radar.chirp_slope, "sample_rate": radar.sample_rate, "n_samples": radar.n_samples,
+            **(chirp or {})}
+    skip = {"bandwidth", "chirp_duration", "n_samples"}
+    rad = {k: v for k, v in radar.model_dump().items() if k not in skip and v is not None}
+    text = "".join(f"[{t}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in tab.items()) + "\n"
+                   for t, tab in (("recording", rec), ("chirp", prof), ("radar", rad)))
+    toml = folder / f"{name}.toml"
+    toml.write_text(text, encoding="utf-8")
+    return toml
+
+
+def make_adc_recording(folder: str | os.PathLike, radar: RadarConfig | None = None, frames: int = 2,
+                       seed: int = 0) -> Path:
+    """A small DCA1000 recording of static points (a wall's LOS returns and one farther echo) for
+    ``radar`` (default: :func:`small_radar` with 2 chirp loops): write it to ``folder`` and return its
+    TOML description, e.g. ``check_component("backend", "adc", {"recording": str(make_adc_recording(tmp))})``."""
+    from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube
+
+    radar = radar or small_radar(n_chirps=2)
+    xy = np.array([[17.0, 8.0], [20.0, 5.0], [23.0, 2.0], [26.0, -1.0], [30.0, 9.0]])
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    keep = r < radar.max_range - 1.0
+    clean = chirp_sequence_cube(radar, r[keep], np.arctan2(xy[keep, 1], xy[keep, 0]), np.full(keep.sum(), 1e-6),
+                                np.zeros(keep.sum()))
+    cubes = [add_chirp_noise(clean, radar, np.random.default_rng(seed + k)) for k in range(frames)]
+    return write_dca1000_recording(folder, cubes, radar, scale=1e-6 / 2000)

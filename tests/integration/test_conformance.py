@@ -23,6 +23,10 @@ def test_builtin_conforms(kind, name, tmp_path, request):
         from hardware.testing import make_recording
 
         params = {"file": str(make_recording(tmp_path / "rec.blf"))}
+    if (kind, name) == ("backend", "adc"):
+        from hardware.testing import make_adc_recording
+
+        params = {"recording": str(make_adc_recording(tmp_path / "adc"))}
     if (kind, name) == ("backend", "dataset"):
         params = {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
     check_component(kind, name, params)

@@ -38,6 +38,12 @@ def _params_for(kind, name, tmp_path, request):
 
         return {"file": str(make_recording(tmp_path / "rec.blf", RadarConfig(**small_pipeline_table()["radar"]),
                                            frames=2, seed=5))}
+    if (kind, name) == ("backend", "adc"):  # a raw DCA1000 recording on the pipeline's radar
+        from hardware.testing import make_adc_recording
+        from xnlos_core.radar import RadarConfig
+
+        radar = RadarConfig(**small_pipeline_table()["radar"], n_chirps=2)
+        return {"recording": str(make_adc_recording(tmp_path / "adc", radar, frames=2, seed=5))}
     if (kind, name) == ("backend", "dataset"):  # a tiny simulated dataset (its default path needs `make dataset`)
         return {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
     if (kind, name) == ("wall_estimator", "emcee"):  # a short chain: that it runs is the point here
@@ -81,7 +87,7 @@ def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path, request):
         if kind == "backend":
             t.pop("forward_model")
         t[kind] = {"name": name, "params": _params_for(kind, name, tmp_path, request)}
-        if (kind, name) == ("backend", "replay"):  # recorded frames carry no ground truth: give the walls
+        if (kind, name) in (("backend", "replay"), ("backend", "adc")):  # recorded frames carry no ground truth: give the walls
             t["detector"] = {"name": "nlos_cfar", "params": {"wall_source": "config", "walls": [
                 [15.0, 10.0, 35.0, -10.0], [5.0, -4.0, 18.0, -4.0], [18.0, -4.0, 18.0, -30.0]]}}
         pipeline = Pipeline(parse_pipeline(t, f"swap {kind}={name}"))

@@ -1,0 +1,49 @@
+"""``adc`` backend: frames of a raw radar recording (DCA1000 ``.bin``, ``.npy``/``.npz``/HDF5 cubes).
+
+``params.recording`` names the TOML description (:mod:`hardware.recording`); one Frame per frame of
+the file, its RA map formed by the shared signal chain with the radar the description gives (the
+pipeline's radar passed to ``open`` is not used, as with the ``npz`` backend). The first frame
+yielded is checked for the known mistakes (:mod:`hardware.recording_checks`), each a
+``RecordingWarning``.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from xnlos_core.interfaces import Backend
+from xnlos_core.types import Frame
+
+from .recording import Recording
+
+
+class ADCParams(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    recording: str = Field(..., min_length=1, description="TOML description of the recording ([recording], [chirp], [radar])")
+    start: int = Field(0, ge=0, description="first frame of the file to yield")
+
+
+class ADCBackend(Backend):
+    """Yields the frames of a raw recording in file order (frame ``start`` first)."""
+
+    Params = ADCParams
+
+    def __init__(self, params=None):
+        super().__init__(params)
+        self._rec: Recording | None = None
+
+    @property
+    def recording(self) -> Recording:
+        """The opened recording (opened on first use; ConfigError/InputError name the file)."""
+        if self._rec is None:
+            self._rec = Recording.from_toml(self.params.recording)
+        return self._rec
+
+    @property
+    def n_frames(self) -> int:
+        return max(self.recording.n_frames - self.params.start, 0)
+
+    def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
+        self.check_max_frames(max_frames)
+        yield from self.recording.frames(self.params.start, max_frames)

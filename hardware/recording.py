@@ -1,0 +1,259 @@
+"""Raw radar recordings described by a TOML file → chirp cubes and RA maps through the shared chain.
+
+A recording description (``*.toml``) has three tables::
+
+    [recording]                 # RecordingSpec: the file and its layout
+    file = "capture_Raw_0.bin"  # relative to this TOML
+    format = "dca1000"          # dca1000 | npy | npz | hdf5
+    sampling = "complex"        # complex | real (real-only ADC; made analytic, half the range)
+    lanes = 2                   # DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx) or 4 (xWR12xx/14xx)
+    scale = 1e-6                # √W per ADC count
+    [chirp]                     # ChirpProfile: the chip's profile as its configuration states it
+    slope = 29.982e12           # S [Hz/s]
+    sample_rate = 10e6          # ADC rate f_s [Hz]
+    n_samples = 256             # ADC samples per chirp
+    ramp_time = 60e-6           # optional [s]; with idle_time gives the chirp period
+    idle_time = 100e-6          # optional [s]
+    tx_order = [0, 2, 1]        # optional: the transmitter (array position) of each TDM slot
+    [radar]                     # RadarConfig fields or preset (carrier, n_tx, n_rx, n_chirps, spacing …)
+
+The sweep seen by the ADC is the sampling window N/f_s, so the radar gets bandwidth B = S·N/f_s and
+chirp_duration N/f_s (not S·T_ramp: that moves every range, see
+:func:`hardware.recording_checks.check_bandwidth`). ``max_range`` defaults to the last unambiguous
+range bin. DCA1000 chirps are in transmission order (loop m, TDM slot i), so the channel of RX j in
+slot i is tx_order[i]·n_rx + j (tx-major, xnlos's order). Cubes (``.npy``/``.npz``/HDF5) are laid out
+by ``axes`` (a permutation of sample, chirp, channel, with an optional frame axis),
+``sample_format`` and ``channel_order`` as :class:`xnlos_core.adc.AdcLayout` describes.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from xnlos_core.adc import AdcLayout, chirp_cube
+from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.files import load_toml, resolve_config_path
+from xnlos_core.radar import RadarConfig, load_radar
+from xnlos_core.signal_chain import decouple, range_fft, ra_map_from_cube
+from xnlos_core.types import Frame, RAMap
+from xnlos_core.validation import validate_model
+
+from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube
+from .recording_checks import (RecordingWarning, check_bandwidth, check_channel_order, check_leakage,
+                               check_single_receiver, check_unsigned)
+
+_SUFFIXES = {"dca1000": (".bin", ".dat", ".raw"), "npy": (".npy",), "npz": (".npz",),
+             "hdf5": (".h5", ".hdf5")}
+
+
+class RecordingSpec(BaseModel):
+    """The ``[recording]`` table: which file, its format and how its samples are laid out."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    file: str = Field(..., min_length=1, description="the recording, relative to the TOML that names it")
+    format: Literal["dca1000", "npy", "npz", "hdf5"] = Field(..., description="file format")
+    sampling: Literal["complex", "real"] = Field("complex", description="complex (I/Q) or real-only ADC samples")
+    lanes: Literal[2, 4] = Field(2, description="DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx), 4 (xWR12xx/14xx)")
+    key: str = Field("adc", min_length=1, description="array name in a .npz, dataset in an HDF5 file")
+    axes: tuple[str, ...] = Field(("frame", "sample", "chirp", "channel"),
+                                  description="cube axes in order: sample, chirp, channel and optionally frame")
+    sample_format: Literal["complex", "iq"] = Field(
+        "complex", description="cubes: complex dtype, or a trailing axis of 2 holding I then Q")
+    channel_order: Literal["tx_major", "rx_major"] = Field(
+        "tx_major", description="tx_major: channel = slot·n_rx + rx (the DCA1000's order); rx_major: rx·n_tx + slot")
+    scale: float = Field(1.0, gt=0, description="amplitude per ADC count [√W]")
+    adc_offset: float = Field(0.0, description="subtracted from every raw count (32768 for offset-binary int16)")
+    remove_dc: bool = Field(False, description="subtract each channel's mean over a chirp's samples")
+    leakage_range: float = Field(1.0, ge=0, description="near range [m] checked for TX→RX leakage")
+    leakage_db: float = Field(30.0, gt=0, description="leakage warning threshold above the map's median [dB]")
+
+    @field_validator("axes")
+    @classmethod
+    def _axes(cls, v):
+        core = sorted(a for a in v if a != "frame")
+        if core not in (["channel", "chirp", "sample"], ["channel", "sample"]) or v.count("frame") > 1:
+            raise ValueError(f"axes must order sample, channel (and chirp, frame), each once; got {v}")
+        return v
+
+
+class ChirpProfile(BaseModel):
+    """The ``[chirp]`` table: the profile as the radar chip is configured (units SI)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    slope: float = Field(..., gt=0, description="frequency slope S [Hz/s]")
+    sample_rate: float = Field(..., gt=0, description="ADC sampling rate f_s [Hz] (complex or real samples)")
+    n_samples: int = Field(..., ge=16, le=16384, description="ADC samples per chirp N")
+    ramp_time: float | None = Field(None, gt=0, description="ramp end time [s]; only for the chirp period")
+    idle_time: float | None = Field(None, ge=0, description="idle time between chirps [s]")
+    tx_order: tuple[int, ...] | None = Field(
+        None, description="array position (0 … n_tx−1) of the transmitter firing in each TDM slot")
+
+
+def recording_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> tuple[RadarConfig, ChirpProfile | None]:
+    """RadarConfig of a recording description: its ``[radar]`` table (fields or preset) with the
+    waveform derived from ``[chirp]`` when present (B = S·N/f_s, T = N/f_s, T_c = idle + ramp,
+    max_range = last unambiguous bin unless given; real sampling halves the range)."""
+    radar_table = dict(table.get("radar", {}))
+    if "chirp" not in table:
+        return load_radar(radar_table, source, base_dir), None
+    chirp = validate_model(ChirpProfile, table["chirp"], source=source, prefix="chirp")
+    if radar_table.get("n_samples", chirp.n_samples) != chirp.n_samples:
+        raise ConfigError(f"{source}: [radar] n_samples={radar_table['n_samples']} contradicts [chirp] "
+                          f"n_samples={chirp.n_samples}; give it once, in [chirp]")
+    given_b = radar_table.pop("bandwidth", None)
+    radar_table.pop("chirp_duration", None)
+    b = check_bandwidth(chirp.slope, chirp.sample_rate, chirp.n_samples, chirp.ramp_time, given_b, source)
+    derived: dict[str, Any] = {"n_samples": chirp.n_samples, "bandwidth": b,
+                               "chirp_duration": chirp.n_samples / chirp.sample_rate}
+    if chirp.ramp_time is not None and chirp.idle_time is not None and "chirp_period" not in radar_table:
+        derived["chirp_period"] = chirp.ramp_time + chirp.idle_time
+    sampling = table.get("recording", {}).get("sampling", "complex")
+    n_bins = chirp.n_samples // 2 if sampling == "real" else chirp.n_samples
+    if "max_range" not in radar_table:
+        derived["max_range"] = (n_bins - 1) * 299_792_458.0 / (2 * b)
+    return load_radar({**radar_table, **derived}, source, base_dir), chirp
+
+
+@dataclass
+class Recording:
+    """A raw recording opened through its description: frames → chirp cubes → RA maps.
+
+    Use :meth:`from_toml`. ``path``: the data file; ``spec``, ``radar``, ``chirp`` as described.
+    """
+
+    spec: RecordingSpec
+    radar: RadarConfig
+    chirp: ChirpProfile | None
+    path: Path
+    source: str
+
+    def __post_init__(self):
+        radar, spec = self.radar, self.spec
+        if spec.sampling == "real" and radar.max_range > radar.max_unambiguous_range / 2:
+            raise ConfigError(f"{self.source}: real-only sampling resolves up to N/2 bins "
+                              f"({radar.max_unambiguous_range / 2:.2f} m); radar.max_range={radar.max_range} m")
+        order = self.chirp.tx_order if self.chirp is not None else None
+        if order is not None and radar.mimo and sorted(order) != list(range(radar.n_tx)):
+            raise ConfigError(f"{self.source}: [chirp] tx_order must be a permutation of 0 … {radar.n_tx - 1} "
+                              f"(n_tx={radar.n_tx}), got {list(order)}")
+        self._tx_order = None if order is None or not radar.mimo or list(order) == sorted(order) else np.array(order)
+        if spec.format == "dca1000":
+            words = self.path.stat().st_size // 2
+            self._frame_words = dca1000_frame_words(radar.n_samples, radar.n_chirps * radar.n_tdm,
+                                                    radar.n_channels // radar.n_tdm, spec.sampling, spec.lanes)
+            n, rest = divmod(words, self._frame_words)
+            if n == 0:
+                raise InputError(f"{self.path}: {words} int16 words, fewer than one frame ({self._frame_words}: "
+                                 f"n_samples × n_chirps·n_tdm × n_rx{' × 2 (I/Q)' if spec.sampling == 'complex' else ''})")
+            if rest or self.path.stat().st_size % 2:
+                import warnings
+
+                warnings.warn(f"{self.path}: {rest} int16 words after the last whole frame ({n} frames of "
+                              f"{self._frame_words}): a truncated capture, or n_samples/n_chirps/n_rx/lanes do not "
+                              "match the recording; the partial frame is dropped", RecordingWarning, stacklevel=2)
+            self._n_frames = n
+            self._cube = None
+        else:
+            cube = load_cube(self.path, spec.format, spec.key)
+            if "frame" not in spec.axes:
+                cube, axes = cube[None], ("frame",) + spec.axes
+            else:
+                axes = spec.axes
+                cube = np.moveaxis(cube, axes.index("frame"), 0)
+            self._axes = tuple(a for a in axes if a != "frame")
+            self._cube = cube
+            self._n_frames = int(cube.shape[0])
+        check_single_receiver(radar, self.source)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Recording":
+        """Open the recording a TOML description names (ConfigError on a bad description)."""
+        p = Path(path)
+        table = load_toml(p)
+        source = str(p)
+        unknown = set(table) - {"recording", "chirp", "radar"}
+        if unknown:
+            raise ConfigError(f"{source}: unknown table(s) {sorted(unknown)}; expected [recording], [chirp], [radar]")
+        return cls.from_table(table, source, p.parent)
+
+    @classmethod
+    def from_table(cls, table: dict[str, Any], source: str, base_dir: str | Path) -> "Recording":
+        """Open a recording from an already parsed description; files are relative to ``base_dir``."""
+        if "recording" not in table:
+            raise ConfigError(f"{source}: missing the [recording] table (file, format, …)")
+        spec = validate_model(RecordingSpec, table["recording"], source=source, prefix="recording")
+        data = resolve_config_path(spec.file, source=source, key="recording.file", base_dir=base_dir,
+                                   suffixes=_SUFFIXES[spec.format])
+        radar, chirp = recording_radar(table, source, base_dir)
+        return cls(spec, radar, chirp, data, source)
+
+    @property
+    def n_frames(self) -> int:
+        """Whole frames in the file."""
+        return self._n_frames
+
+    def raw_frame(self, i: int) -> np.ndarray:
+        """Frame ``i`` as stored: DCA1000 int16 words (1-D) or the cube's frame slice."""
+        if not 0 <= i < self._n_frames:
+            raise InputError(f"{self.path}: frame {i} out of range (the recording has {self._n_frames})")
+        if self._cube is not None:
+            return np.asarray(self._cube[i])
+        mm = np.memmap(self.path, dtype="<i2", mode="r", offset=2 * i * self._frame_words, shape=(self._frame_words,))
+        return np.array(mm)
+
+    def chirp_cube(self, i: int) -> np.ndarray:
+        """Frame ``i`` → (n_samples, n_chirps, n_channels) complex128 [√W], channels tx-major by array position."""
+        radar, spec = self.radar, self.spec
+        raw = self.raw_frame(i)
+        x = raw.astype(np.float64) - spec.adc_offset if spec.adc_offset else raw
+        if spec.format == "dca1000":
+            n_rx = radar.n_channels // radar.n_tdm
+            z = decode_dca1000(x, radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx, spec.sampling, spec.lanes)
+            if spec.sampling == "real":
+                z = analytic_signal(z, axis=0)
+            z = z.reshape(radar.n_samples, radar.n_chirps, radar.n_channels)  # slot-major channels
+            layout = AdcLayout(channel_order=spec.channel_order, scale=spec.scale, remove_dc=spec.remove_dc)
+        else:
+            fmt = spec.sample_format
+            if spec.sampling == "real":
+                z, fmt = analytic_signal(x, axis=self._axes.index("sample")), "complex"
+            else:
+                z = x
+            layout = AdcLayout(axes=self._axes, sample_format=fmt, channel_order=spec.channel_order,
+                               scale=spec.scale, remove_dc=spec.remove_dc)
+        cube = chirp_cube(z, layout, radar)
+        if self._tx_order is not None:
+            out = np.empty_like(cube)
+            for slot, tx in enumerate(self._tx_order):
+                out[:, :, tx * radar.n_rx:(tx + 1) * radar.n_rx] = cube[:, :, slot * radar.n_rx:(slot + 1) * radar.n_rx]
+            cube = out
+        return cube
+
+    def ra_map(self, i: int) -> RAMap:
+        """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain."""
+        return ra_map_from_cube(self.chirp_cube(i).mean(axis=1), self.radar)
+
+    def check(self, i: int = 0) -> RAMap:
+        """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
+        :class:`RecordingWarning`) and return its RA map."""
+        if self.spec.adc_offset == 0:
+            check_unsigned(self.raw_frame(i), f"{self.source} frame {i}")
+        cube = self.chirp_cube(i).mean(axis=1)
+        ra = ra_map_from_cube(cube, self.radar)
+        check_leakage(ra, f"{self.source} frame {i}", self.spec.leakage_range, self.spec.leakage_db)
+        check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar,
+                            f"{self.source} frame {i}", skip_range=self.spec.leakage_range)
+        return ra
+
+    def frames(self, start: int = 0, max_frames: int | None = None) -> Iterator[Frame]:
+        """Frames ``start`` … as :class:`Frame` (timestamp i·radar.frame_interval [s]); checks the first one."""
+        stop = self._n_frames if max_frames is None else min(self._n_frames, start + max_frames)
+        for i in range(start, stop):
+            ra = self.check(i) if i == start else self.ra_map(i)
+            yield Frame(ra, timestamp=i * self.radar.frame_interval, index=i,
+                        meta={"recording": str(self.path), "frame": i})
