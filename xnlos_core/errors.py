@@ -19,3 +19,12 @@ class PluginError(XnlosError, LookupError):
 
 class InsufficientDataError(XnlosError, ValueError):
     """A stage was given too little data to produce a result (e.g. a wall from < 2 LOS points)."""
+
+
+class XnlosWarning(UserWarning):
+    """Base class of every warning xnlos issues on purpose (the CLI prints them as ``xnlos: warning: …``)."""
+
+
+class PipelineWarning(XnlosWarning):
+    """A pipeline is valid and runs, but cannot deliver part of what it is configured for (e.g. a
+    detector that labels nothing mNLOS feeding a wall estimator and reconstructor: it never reconstructs)."""
