@@ -15,8 +15,9 @@ from . import __version__
 from .errors import PluginError, XnlosError, XnlosWarning
 
 DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
-QUIET_HELP = ("quiet: no progress bars, no report and no library warnings on stdout/stderr; only errors and "
-              "xnlos's own warnings (e.g. a pipeline that can never reconstruct); the files are written as usual")
+OWN_MODULES = r"(xnlos_core|sims|plugins|estimators|hardware)(\.|$)"  # warnings that -q keeps
+QUIET_HELP = ("quiet: no progress bars, no report and no other library's warnings on stdout/stderr; only errors "
+              "and xnlos's own warnings (e.g. a pipeline that can never reconstruct); the files are written as usual")
 
 
 def _cmd_run(args) -> int:
@@ -242,8 +243,9 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser(manager).parse_args(argv)
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
-            if getattr(args, "quiet", False):  # library chatter off; xnlos's own warnings stay
+            if getattr(args, "quiet", False):  # other libraries' warnings off; xnlos's own stay
                 warnings.simplefilter("ignore")
+                warnings.filterwarnings("default", module=OWN_MODULES)
                 warnings.simplefilter("default", XnlosWarning)
             return args.func(args)
     except XnlosError as exc:

@@ -189,3 +189,18 @@ def test_quiet_still_reports_errors(tmp_path, capfd):
     assert main(["run", str(p), "--out", str(tmp_path / "o"), "-q"]) == 2
     out, err = capfd.readouterr()
     assert out == "" and err.startswith("xnlos: error:") and "needs [wall_estimator]" in err
+
+
+def test_footprint_is_the_box_corners_and_a_point_itself():
+    from xnlos_core.scene import ObjectSpec
+
+    box = ObjectSpec(name="b", center=(10.0, 0.0), size=(4.0, 2.0), heading=0.0, velocity=(1.0, 0.0))
+    assert box.footprint(2.0).tolist() == [[14.0, 1.0], [10.0, 1.0], [10.0, -1.0], [14.0, -1.0]]
+    assert ObjectSpec(name="p", shape="point", center=(3.0, 4.0)).footprint().tolist() == [[3.0, 4.0]]
+
+
+def test_quiet_keeps_xnlos_warnings(tmp_path, capfd):
+    p = _write(tmp_path, detector={"name": "cfar"})
+    assert main(["run", p, "--out", str(tmp_path / "o"), "-q"]) == 0
+    out, err = capfd.readouterr()
+    assert out == "" and err.startswith("xnlos: warning:") and err.count("\n") == 1
