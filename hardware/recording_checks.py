@@ -13,12 +13,12 @@ import warnings
 import numpy as np
 
 from xnlos_core.antenna import steering_vector
-from xnlos_core.errors import ConfigError
+from xnlos_core.errors import ConfigError, XnlosWarning
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import RAMap
 
 
-class RecordingWarning(UserWarning):
+class RecordingWarning(XnlosWarning):
     """A raw recording or its description looks wrong in a way the numbers alone will not reveal."""
 
 

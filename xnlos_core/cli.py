@@ -8,12 +8,16 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 from . import __version__
-from .errors import PluginError, XnlosError
+from .errors import PluginError, XnlosError, XnlosWarning
 
 DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
+OWN_MODULES = r"(xnlos_core|sims|plugins|estimators|hardware)(\.|$)"  # warnings that -q keeps
+QUIET_HELP = ("quiet: no progress bars, no report and no other library's warnings on stdout/stderr; only errors "
+              "and xnlos's own warnings (e.g. a pipeline that can never reconstruct); the files are written as usual")
 
 
 def _cmd_run(args) -> int:
@@ -24,14 +28,16 @@ def _cmd_run(args) -> int:
     if args.frames is not None:
         cfg = cfg.model_copy(update={"run": cfg.run.model_copy(update={"frames": args.frames})})
     summary = run_to_dir(cfg, args.out, source=str(args.config), progress=not args.quiet, overwrite=args.overwrite)
-    _report(summary, Path(args.out))
+    if not args.quiet:
+        _report(summary, Path(args.out))
     return 0
 
 
 def _report(summary: dict, out: Path) -> None:
-    errs = {k.rsplit(".", 1)[-1]: v for k, v in summary["metrics"].items() if ".object_error_m." in k}
-    for name, v in errs.items():
-        print(f"hidden {name}: reconstruction error " + ("n/a (not reconstructed)" if v is None else f"{v:.2f} m"))
+    from .runner import object_verdict
+
+    for name, info in (summary.get("objects") or {}).items():
+        print(f"hidden {name}: reconstruction error {object_verdict(info)}")
     proc = sum(v for k, v in summary["time_ms"].items() if k != "source")
     print(f"{summary['frames']} frame(s), {proc:.1f} ms/frame processing; wrote {out / 'summary.md'}"
           + (f" and {out / summary['figure']}" if summary.get("figure") else "")
@@ -48,6 +54,8 @@ def _cmd_sweep(args) -> int:
 
     records = run_sweep(args.config, args.out, scheduler=args.scheduler, workers=args.workers, progress=not args.quiet,
                         overwrite=args.overwrite)
+    if args.quiet:
+        return 0
     print((Path(args.out) / "sweep.md").read_text())
     print(f"{len(records)} point(s); wrote {Path(args.out) / 'sweep.md'}")
     return 0
@@ -60,6 +68,8 @@ def _cmd_eval(args) -> int:
     res = run_eval(args.config, args.out, dataset=args.dataset, split=args.split, limit=args.limit,
                    start=args.start, figures=0 if args.no_figures else args.figures, progress=not args.quiet,
                    overwrite=args.overwrite)
+    if args.quiet:
+        return 0
     out = args.out
     print((out / "eval.md").read_text())
     print(f"{len(res['runs'])} run(s) on {sum(r['overall']['maps'] for r in res['runs'])} map(s); wrote "
@@ -73,6 +83,10 @@ def check_file(path: str | Path) -> str:
     Runs what ``run`` / ``simulate`` / ``train`` run before their first frame (for a pipeline: every
     sweep point's :class:`~xnlos_core.pipeline.Pipeline`, which reads the files it names and lets
     the forward model check the scene). Every refusal is an :class:`~xnlos_core.errors.XnlosError`.
+    A pipeline that is valid but cannot deliver what it is configured for (e.g. it can never
+    reconstruct: :meth:`~xnlos_core.pipeline.Pipeline.warn_unreachable`) is flagged, not refused:
+    its :class:`~xnlos_core.errors.XnlosWarning` is issued again naming the sweep point, and the
+    verdict says how many pipelines were flagged.
     """
     from .config import expand_sweep, load_toml, parse_pipeline
     from .pipeline import Pipeline
@@ -86,13 +100,28 @@ def check_file(path: str | Path) -> str:
         if verdict is not None:
             return verdict
     points = expand_sweep(table, str(path))
-    for assignment, t in points:
-        Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
-    return f"{path}: valid ({len(points)} pipeline(s))"
+    flagged = 0
+    for i, (assignment, t) in enumerate(points):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", XnlosWarning)
+            Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
+        ours = [w for w in caught if issubclass(w.category, XnlosWarning)]
+        flagged += bool(ours)
+        where = "" if len(points) == 1 else f" [sweep point {i}: " + ", ".join(
+            f"{k} = {v!r}" for k, v in assignment.items()) + "]"
+        for w in caught:
+            if w in ours:
+                warnings.warn(f"{w.message}{where}", w.category, stacklevel=2)
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    flags = f"; {flagged} flagged: see the warnings" if flagged else ""
+    return f"{path}: valid ({len(points)} pipeline(s){flags})"
 
 
 def _cmd_check(args) -> int:
-    print(check_file(args.config))
+    verdict = check_file(args.config)
+    if not args.quiet:
+        print(verdict)
     return 0
 
 
@@ -135,13 +164,13 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, type=Path)
     r.add_argument("--frames", type=int, help="override run.frames")
     r.add_argument("--overwrite", action="store_true", help="discard results of another config in --out")
-    r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     r.set_defaults(func=_cmd_run)
 
     d = sub.add_parser("demo", help="run the built-in corner scene (a wall and a hidden car)")
     d.add_argument("--out", default=Path("demo-out"), type=Path)
     d.add_argument("--overwrite", action="store_true")
-    d.add_argument("-q", "--quiet", action="store_true")
+    d.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     d.set_defaults(func=_cmd_demo)
 
     s = sub.add_parser("sweep", help="run every point of a config's [sweep] grid and tabulate the results")
@@ -150,7 +179,7 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     s.add_argument("--scheduler", help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); default: local")
     s.add_argument("--workers", type=int, default=None, help="local worker processes (1 = in process)")
     s.add_argument("--overwrite", action="store_true", help="run every point again, discarding the results in --out")
-    s.add_argument("-q", "--quiet", action="store_true")
+    s.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     s.set_defaults(func=_cmd_sweep)
 
     ev = sub.add_parser("eval", help="score a pipeline config (or each point of its sweep) on a dataset split: "
@@ -167,11 +196,13 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     ev.add_argument("--figures", type=int, default=2, help="Fig. 6-style PNGs of the first N maps per run (default 2)")
     ev.add_argument("--no-figures", action="store_true", help="write no figures")
     ev.add_argument("--overwrite", action="store_true", help="discard an evaluation of another config in --out")
-    ev.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    ev.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     ev.set_defaults(func=_cmd_eval)
 
     c = sub.add_parser("check", help="validate a config (and every sweep point) without running it")
     c.add_argument("config", type=Path)
+    c.add_argument("-q", "--quiet", action="store_true", help="no verdict line; only errors and warnings (exit "
+                   "status 0: valid)")
     c.set_defaults(func=_cmd_check)
 
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
@@ -192,6 +223,16 @@ def _plugin_modules(argv: list[str] | None) -> list[str]:
     return pre.parse_known_args(argv)[0].plugin
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """xnlos's own warnings as ``xnlos: warning: …`` (no source line: the message names the input);
+    any other as Python prints it."""
+    out = sys.stderr if file is None else file
+    if issubclass(category, XnlosWarning):
+        out.write(f"xnlos: warning: {message}\n")
+    else:
+        out.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         from .registry import get_manager
@@ -200,7 +241,13 @@ def main(argv: list[str] | None = None) -> int:
         for mod in _plugin_modules(argv):
             manager.load_module(mod)
         args = build_parser(manager).parse_args(argv)
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            if getattr(args, "quiet", False):  # other libraries' warnings off; xnlos's own stay
+                warnings.simplefilter("ignore")
+                warnings.filterwarnings("default", module=OWN_MODULES)
+                warnings.simplefilter("default", XnlosWarning)
+            return args.func(args)
     except XnlosError as exc:
         print(f"xnlos: error: {exc}", file=sys.stderr)
         return 2

@@ -10,11 +10,11 @@ A pipeline file names one plugin per kind::
     [detector]
     name = "nlos_cfar"
     params = { pfa = 1e-5 }
-    [wall_estimator]
+    [wall_estimator]            # optional: without it, a detection-only pipeline
     name = "lsq"
-    [reconstructor]
+    [reconstructor]             # optional (needs [wall_estimator])
     name = "mirror"
-    [tracker]                   # optional
+    [tracker]                   # optional (needs [reconstructor])
     name = "nearest"
     [run]
     frames = 1
@@ -97,9 +97,10 @@ class PipelineConfig(BaseModel):
     forward_model: StageConfig | None = None
     backend: StageConfig | None = None
     detector: StageConfig
-    wall_estimator: StageConfig
-    reconstructor: StageConfig
-    tracker: StageConfig | None = None
+    wall_estimator: StageConfig | None = Field(None, description="relay-wall stage; leave out for a "
+                                                                 "detection-only pipeline")
+    reconstructor: StageConfig | None = Field(None, description="mirror stage (needs wall_estimator)")
+    tracker: StageConfig | None = Field(None, description="tracking stage (needs reconstructor)")
     run: RunConfig = Field(default_factory=RunConfig)
     plugins: PluginsConfig = Field(default_factory=PluginsConfig)
     sweep: dict[str, list[Any]] | None = None
@@ -117,6 +118,12 @@ class PipelineConfig(BaseModel):
     def model_post_init(self, _ctx) -> None:
         if (self.forward_model is None) == (self.backend is None):
             raise ValueError("exactly one of [forward_model] or [backend] must be given as the frame source")
+        # Each stage feeds the next; one without its input could never run (a detection-only
+        # pipeline, [detector] alone, is fine).
+        for stage, needs in (("reconstructor", "wall_estimator"), ("tracker", "reconstructor")):
+            if getattr(self, stage) is not None and getattr(self, needs) is None:
+                raise ValueError(f"[{stage}] needs [{needs}] (it works on that stage's output); add "
+                                 f"[{needs}] or remove [{stage}]")
 
     def stages(self) -> dict[str, StageConfig]:
         """The configured stages by kind (absent optional stages omitted)."""

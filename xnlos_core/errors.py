@@ -22,9 +22,14 @@ class InsufficientDataError(XnlosError, ValueError):
 
 
 class XnlosWarning(UserWarning):
-    """Base class of every warning xnlos issues on purpose."""
+    """Base class of every warning xnlos issues on purpose (the CLI prints them as ``xnlos: warning: …``)."""
 
 
 class GridMismatchWarning(XnlosWarning):
     """A model is used on maps of another radar or RA grid than it was trained on (carrier, range or
     azimuth bins, spacing, field of view): its outputs are not what its validation figures describe."""
+
+
+class PipelineWarning(XnlosWarning):
+    """A pipeline is valid and runs, but cannot deliver part of what it is configured for (e.g. a
+    detector that labels nothing mNLOS feeding a wall estimator and reconstructor: it never reconstructs)."""

@@ -270,8 +270,9 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     if not records:
         raise InputError(f"{run['source']}: the dataset backend yielded no maps (params {cfg.backend.params})")
     return {"run": run["run"], "name": cfg.name, "assignment": run["assignment"], "dir": out.name,
-            "detector": cfg.detector.name, "wall_estimator": cfg.wall_estimator.name,
-            "reconstructor": cfg.reconstructor.name, "dataset": dict(cfg.backend.params),
+            "detector": cfg.detector.name,  # a detection-only pipeline has neither of the next two
+            "wall_estimator": cfg.wall_estimator.name if cfg.wall_estimator else None,
+            "reconstructor": cfg.reconstructor.name if cfg.reconstructor else None, "dataset": dict(cfg.backend.params),
             "match_radius_m": cfg.run.match_radius, "overall": aggregate(records),
             "families": by_family(records), "figures": figs, "notes": note_summary(records, run["note"]),
             **({"tracker": cfg.tracker.name, "tracking": _tracking(seqs)} if tracking else {})}

@@ -44,11 +44,28 @@ def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", sampl
             _plot_wall_draws(ax, w, samples, first=i == 0)
 
 
-def frame_bev(ax, gt, fallback) -> None:
+def draw_unobservable(ax, outlines: dict) -> None:
+    """Outlines of hidden objects without a mirror path (no relay wall shows them to the radar):
+    name → (K, 2) [m] bird's-eye outline (a box's corners, or one point), drawn dashed grey with a
+    "<name>: not observable" label, so that an object nothing could reconstruct stays visible."""
+    for i, (name, pts) in enumerate(outlines.items()):
+        pts = np.asarray(pts, float).reshape(-1, 2)
+        label = "hidden, no mirror path (not observable)" if i == 0 else None
+        if len(pts) > 1:
+            ax.fill(*bev(pts), facecolor="none", edgecolor="0.35", ls="--", lw=1.4, label=label, zorder=4)
+        else:
+            ax.scatter(*bev(pts), s=60, facecolors="none", edgecolors="0.35", linestyle="--", label=label, zorder=4)
+        x, y = bev(pts.mean(0, keepdims=True))
+        ax.annotate(f"{name}: not observable", (x[0], y[0]), textcoords="offset points", xytext=(0, 10),
+                    ha="center", fontsize=8, color="0.25")
+
+
+def frame_bev(ax, gt, fallback, extra=()) -> None:
     """Bird's-eye limits (5 m margin) around the radar and the ground truth ``gt`` (walls, hidden
     and virtual points) or, without ground truth, around the arrays (N, 2) [m] in ``fallback``; far
-    false alarms then fall outside rather than shrinking the scene to a corner of the plot."""
-    pts = [np.zeros((1, 2))]
+    false alarms then fall outside rather than shrinking the scene to a corner of the plot.
+    ``extra``: more arrays (N, 2) [m] always inside (e.g. unobservable objects' outlines)."""
+    pts = [np.zeros((1, 2))] + list(extra)
     if gt is not None and (len(gt.walls) or len(gt.hidden_points)):
         pts += [gt.hidden_points, gt.mnlos_points] + [np.stack([w.start, w.end]) for w in gt.walls]
     else:
@@ -92,7 +109,7 @@ def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
 
 
 def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9),
-               wall_samples: int = 30, history=None, region=None) -> Path:
+               wall_samples: int = 30, history=None, region=None, unobservable=None) -> Path:
     """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction, with
     the tracks (history, velocity, prediction cones: :func:`xnlos_core.track_figure.draw_tracks`)
     when the result has them.
@@ -100,7 +117,9 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
     credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
     HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
     draws of each sampled wall (WallPosterior.samples) are drawn as thin lines; history: track id
-    → (n, 2) [m] past positions; region: (P, 2) [m] the tracker's arrival region polygon or None.
+    → (n, 2) [m] past positions; region: (P, 2) [m] the tracker's arrival region polygon or None;
+    unobservable: name → (K, 2) [m] outline of each hidden object without a mirror path
+    (:func:`draw_unobservable`) or None.
     """
     from .track_figure import draw_tracks, track_legend_handles
 
@@ -157,8 +176,10 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
     tracks = result.tracks
     if (tracks is not None and len(tracks)) or region is not None:
         draw_tracks(ax_bev, tracks, history, region)
+    if unobservable:
+        draw_unobservable(ax_bev, unobservable)
     ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
-    frame_bev(ax_bev, gt, [det.position, h.mean])
+    frame_bev(ax_bev, gt, [det.position, h.mean], extra=list((unobservable or {}).values()))
     ax_bev.set_title("bird's-eye view: walls and hidden points" + (f", {len(tracks)} tracks" if tracks else ""))
     handles, _ = ax_bev.get_legend_handles_labels()
     if tracks is not None and len(tracks):

@@ -142,6 +142,11 @@ class Detector(Plugin, abc.ABC):
     """Frame → Detections (range, azimuth, LOS/mNLOS class, confidence)."""
 
     kind: ClassVar[str] = "detector"
+    #: Whether :meth:`detect` labels detections LOS / mNLOS. False for a detector whose every
+    #: detection is UNCLASSIFIED (plain CFAR): it can be scored class-agnostically, but a wall
+    #: estimator (needs LOS) and a reconstructor (needs mNLOS) behind it never get any input, so
+    #: :class:`xnlos_core.pipeline.Pipeline` warns (:class:`~xnlos_core.errors.PipelineWarning`).
+    classifies: ClassVar[bool] = True
 
     @abc.abstractmethod
     def detect(self, frame: Frame) -> Detections:

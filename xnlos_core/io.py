@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import tempfile
 import zipfile
 import zlib
@@ -19,13 +20,45 @@ from .types import Frame, GroundTruth, RAMap, WallSegment
 FRAME_SCHEMA = 1
 
 
+def _umask() -> int:
+    """The process umask, read from /proc where it can be (Linux ≥ 4.7) so that no thread ever sees
+    it changed; elsewhere set and restored at once."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _plain_open_mode(path: Path) -> int:
+    """The permission bits a plain ``open(path, "w")`` would leave: an existing regular file keeps
+    its own, a new file gets 0o666 & ~umask (0o644 under the usual umask 022)."""
+    try:
+        st = os.stat(path)
+        if stat.S_ISREG(st.st_mode):
+            return stat.S_IMODE(st.st_mode)
+    except OSError:
+        pass
+    return 0o666 & ~_umask()
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
-    """Write ``data`` so that ``path`` holds either the old or the complete new content."""
+    """Write ``data`` so that ``path`` holds either the old or the complete new content.
+
+    The file gets the permissions a plain ``open()`` would give (:func:`_plain_open_mode`), not the
+    0600 of the temporary file it is written through: summaries, figures, provenance records and
+    manifests are meant to be read by others."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    mode = _plain_open_mode(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), mode)
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())

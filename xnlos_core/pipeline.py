@@ -6,6 +6,7 @@ Every random draw derives from ``config.seed``: frame k is simulated with a gene
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Collection, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,7 +15,7 @@ import numpy as np
 
 from . import metrics
 from .config import PipelineConfig
-from .errors import ConfigError, InsufficientDataError
+from .errors import ConfigError, InsufficientDataError, PipelineWarning
 from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
@@ -136,6 +137,23 @@ class Pipeline:
             coupling_matrix(self.radar)
         if self.scene is not None:
             self.stages["forward_model"].check(self.scene, self.radar)
+        self.warn_unreachable()
+
+    def warn_unreachable(self) -> None:
+        """:class:`PipelineWarning` when the configured stages can never deliver what they are there
+        for: a detector that cannot classify (``Detector.classifies`` False: every detection
+        UNCLASSIFIED) gives a wall estimator no LOS and a reconstructor no mNLOS detection, so the
+        run never reconstructs anything. A warning, not an error: such a pipeline still scores its
+        detections class-agnostically (``dense.all``), which is what a CFAR ablation compares; a
+        pipeline meant to detect only leaves [wall_estimator] and [reconstructor] out."""
+        det = self.stages["detector"]
+        behind = [k for k in ("wall_estimator", "reconstructor") if k in self.stages]
+        if behind and not getattr(det, "classifies", True):
+            warnings.warn(
+                f"{self.source}: [detector] {self.config.detector.name!r} cannot classify (every detection is "
+                f"UNCLASSIFIED), so [{'] and ['.join(behind)}] never get LOS / mNLOS input: this pipeline can never "
+                "reconstruct a hidden object. Use a classifying detector (e.g. nlos_cfar) or, to detect only, "
+                "remove [wall_estimator] and [reconstructor].", PipelineWarning, stacklevel=2)
 
     def plugin_info(self) -> dict[str, dict]:
         """kind → {name, provider, params} for provenance."""
@@ -197,13 +215,16 @@ class Pipeline:
 
         det = timed("detector", self.stages["detector"].detect, frame)
         walls: list[WallPosterior] = []
-        try:
-            walls = timed("wall_estimator", self.stages["wall_estimator"].estimate, det)
-        except InsufficientDataError as exc:
-            notes.append(f"wall_estimator: {exc}")
+        if "wall_estimator" in self.stages:  # absent: a detection-only pipeline
+            try:
+                walls = timed("wall_estimator", self.stages["wall_estimator"].estimate, det)
+            except InsufficientDataError as exc:
+                notes.append(f"wall_estimator: {exc}")
         hidden = HiddenPoints.empty()
         n_mnlos = int((det.label == MNLOS).sum())
-        if walls and n_mnlos:
+        if "reconstructor" not in self.stages:
+            pass
+        elif walls and n_mnlos:
             hidden = timed("reconstructor", self.stages["reconstructor"].reconstruct, det, walls)
             missing = n_mnlos - len(np.unique(hidden.source_index))
             if missing:
@@ -215,14 +236,34 @@ class Pipeline:
             tracks = timed("tracker", self.stages["tracker"].update, hidden, frame.timestamp)
         res = FrameResult(frame, det, walls, hidden, tracks, timings, notes=notes)
         if frame.ground_truth is not None:
-            # F1/CD against what the radar can resolve; the object error against the full surface.
-            r = self.config.run.match_radius
-            resolved = metrics.thin_to_resolution(frame.ground_truth, frame.ra_map.radar)
-            recon = metrics.scene_metrics(det, hidden, resolved, r)
-            recon["object_error_m"] = metrics.reconstruction_metrics(hidden, frame.ground_truth, r)["object_error_m"]
-            res.metrics = {"dense": metrics.dense_metrics(det, resolved, r), "reconstruction": recon,
-                           "hidden": metrics.reconstruction_metrics(hidden, resolved, r)}
+            res.metrics = self.score(res)
         return res
+
+    def score(self, res: FrameResult) -> dict[str, Any]:
+        """Metrics of one frame against its ground truth (module :mod:`xnlos_core.metrics`).
+
+        ``dense``: detections (F1/CD against what the radar can resolve). With a reconstructor:
+        ``reconstruction`` (LOS + hidden points, scene F1/CD, and ``object_error_m`` [m] per object
+        against its full illuminated surface: the one object-error figure a run reports) and
+        ``hidden`` (hidden points alone; F1/precision/recall/CD are None, not the vacuous 1 of
+        0/0, when there was nothing to reconstruct and nothing was). ``mirror_paths``: object
+        name → number of its points with an open mirror path (mNLOS ground truth); 0 means the
+        object is not observable through a relay wall in this frame.
+        """
+        gt, det, hidden = res.frame.ground_truth, res.detections, res.hidden
+        r = self.config.run.match_radius
+        resolved = metrics.thin_to_resolution(gt, res.frame.ra_map.radar)
+        out: dict[str, Any] = {"dense": metrics.dense_metrics(det, resolved, r)}
+        if "reconstructor" in self.stages:
+            recon = metrics.scene_metrics(det, hidden, resolved, r)
+            recon["object_error_m"] = metrics.reconstruction_metrics(hidden, gt, r)["object_error_m"]
+            alone = metrics.reconstruction_metrics(hidden, resolved, r)
+            del alone["object_error_m"]  # against thinned truth: a second, different figure
+            if not len(resolved.hidden_points) and not len(hidden):
+                alone.update(precision=None, recall=None, f1=None, cd=None)
+            out.update(reconstruction=recon, hidden=alone)
+        out["mirror_paths"] = {name: int(np.sum(gt.mnlos_object == k)) for k, name in enumerate(gt.object_names)}
+        return out
 
     def run(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[FrameResult]:
         """Yield results of frames ``start`` … in order, except those whose index is in ``skip``

@@ -80,7 +80,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
 
         fig_path = out / f"frame_{last.frame.index:04d}.png"
         plot_frame(last, fig_path, title=config.name, history=track_history(records, last.frame.index),
-                   region=tracker_region(config))
+                   region=tracker_region(config), unobservable=unobservable_outlines(pipe, last))
     gif = _write_animation(pipe, out, records, progress) if animate else None
     summary = summarise(records)
     summary["figure"] = fig_path.name if fig_path else None
@@ -90,6 +90,16 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
     return summary
+
+
+def unobservable_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
+    """Object name → bird's-eye outline (K, 2) [m] at the frame's time of each scene object that
+    has no mirror path in ``result`` (``metrics.mirror_paths`` 0): what the figure draws so that an
+    object nothing could reconstruct does not vanish. Empty without a simulated scene."""
+    paths = result.metrics.get("mirror_paths") or {}
+    if pipe.scene is None:
+        return {}
+    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects if paths.get(o.name, 1) == 0}
 
 
 def tracker_region(config: PipelineConfig):
@@ -138,8 +148,13 @@ def _mean(values):
     return float(np.mean(vals)) if vals else None
 
 
+OBJECT_ERROR = "reconstruction.object_error_m."
+MIRROR_PATHS = "mirror_paths."
+
+
 def summarise(records: list[dict]) -> dict[str, Any]:
-    """Means over frames of every numeric metric and per-stage time."""
+    """Means over frames of every numeric metric and per-stage time, and ``objects``
+    (:func:`summarise_objects`); the per-object figures are there only, not in ``metrics``."""
     out: dict[str, Any] = {"frames": len(records)}
     stages = sorted({k for r in records for k in r.get("timings_s", {})})
     out["time_ms"] = {s: 1e3 * _mean([r["timings_s"].get(s) for r in records]) for s in stages}
@@ -147,9 +162,54 @@ def summarise(records: list[dict]) -> dict[str, Any]:
     for r in records:
         for key, v in _flatten(r.get("metrics") or {}).items():
             flat.setdefault(key, []).append(v)
-    out["metrics"] = {k: _mean(v) for k, v in sorted(flat.items())}
+    out["objects"] = summarise_objects(records)
+    out["metrics"] = {k: _mean(v) for k, v in sorted(flat.items())
+                      if not k.startswith((OBJECT_ERROR, MIRROR_PATHS))}
     out["notes"] = sorted({n for r in records for n in r.get("notes", [])})
     return out
+
+
+def summarise_objects(records: list[dict]) -> dict[str, dict[str, Any]]:
+    """Object name → {frames, observable_frames, error_m, status} over the frames whose ground
+    truth lists the object.
+
+    observable_frames: frames in which it has an open mirror path (``metrics.mirror_paths``; a
+    record without that key counts as observable). error_m: mean over frames of
+    ``reconstruction.object_error_m`` [m] where it was reconstructed, else None. status: "not
+    observable" (no mirror path in any frame: nothing could be reconstructed, so no score, rather
+    than a vacuous F1 of 1), "reconstructed", "not reconstructed", or "not scored" (the pipeline has
+    no reconstructor)."""
+    out: dict[str, dict[str, Any]] = {}
+    for r in records:
+        m = r.get("metrics") or {}
+        paths = m.get("mirror_paths")
+        errors = (m.get("reconstruction") or {}).get("object_error_m")
+        names = list(paths or {}) + [n for n in (errors or {}) if n not in (paths or {})]
+        for name in names:
+            o = out.setdefault(name, {"frames": 0, "observable_frames": 0, "errors": [], "scored": False})
+            o["frames"] += 1
+            o["observable_frames"] += int(paths is None or paths.get(name, 0) > 0)
+            if errors is not None:
+                o["scored"] = True
+                o["errors"].append(errors.get(name))
+    for o in out.values():
+        o["error_m"] = _mean(o.pop("errors"))
+        scored = o.pop("scored")
+        o["status"] = ("not observable" if o["observable_frames"] == 0 else "not scored" if not scored
+                       else "not reconstructed" if o["error_m"] is None else "reconstructed")
+    return {k: out[k] for k in sorted(out)}
+
+
+def object_verdict(info: dict[str, Any]) -> str:
+    """One object's result as the summary and the command line print it (one number, one rounding):
+    "0.32 m", "not observable (no mirror path in any of 3 frames)", "not reconstructed", …"""
+    if info["status"] == "reconstructed":
+        return f"{info['error_m']:.2f} m"
+    if info["status"] == "not observable":
+        return f"not observable (no mirror path in any of {info['frames']} frame(s))"
+    if info["status"] == "not scored":
+        return "not scored (no reconstructor)"
+    return "n/a (not reconstructed)"
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, float]:
@@ -171,18 +231,19 @@ def render_summary(summary: dict, prov: dict, config: PipelineConfig) -> str:
              "- plugins: " + ", ".join(f"{k} = `{v['name']}` ({v['provider']})" for k, v in prov["plugins"].items()),
              "- versions: " + ", ".join(f"{k} {v}" for k, v in prov["versions"].items() if v), ""]
     m = summary["metrics"]
-    errs = {k.split(".")[-1]: v for k, v in m.items() if k.startswith("reconstruction.object_error_m.")}
-    if errs:
+    objects = summary.get("objects") or {}
+    if objects:
         lines += ["## Hidden objects", "",
-                  "Mean distance from the reconstructed points to the object's nearest true (illuminated) "
-                  "surface point, over the frames where it was reconstructed.", "",
-                  "| object | reconstruction error [m] |", "|---|---|"]
-        lines += [f"| {k} | {'n/a (not reconstructed)' if v is None else f'{v:.2f}'} |" for k, v in errs.items()]
+                  "Reconstruction error: mean distance from the reconstructed points to the object's nearest "
+                  "true (illuminated) surface point, over the frames where it was reconstructed. An object "
+                  "with no mirror path (no relay wall shows it to the radar) is not observable and not scored.",
+                  "", "| object | reconstruction error | frames with a mirror path |", "|---|---|---|"]
+        lines += [f"| {k} | {object_verdict(o)} | {o['observable_frames']} of {o['frames']} |"
+                  for k, o in objects.items()]
         lines.append("")
     if m:
         lines += ["## Metrics (mean over frames)", "", "| metric | value |", "|---|---|"]
-        lines += [f"| {k} | {'n/a' if v is None else f'{v:.4g}'} |" for k, v in m.items()
-                  if not k.startswith("reconstruction.object_error_m.")]
+        lines += [f"| {k} | {'n/a' if v is None else f'{v:.4g}'} |" for k, v in m.items()]
         lines.append("")
     lines += ["## Time per stage (mean per frame)", "", "| stage | ms |", "|---|---|"]
     lines += [f"| {k} | {v:.1f} |" for k, v in summary["time_ms"].items()]

@@ -202,6 +202,17 @@ class ObjectSpec(BaseModel):
         model = self.trajectory or ConstantVelocity(velocity=self.velocity)
         return model.state(t, self.center, self.heading)
 
+    def footprint(self, t: float = 0.0) -> np.ndarray:
+        """Bird's-eye outline at time t [s]: the box's 4 corners (4, 2) [m] in order around it, or
+        the centre (1, 2) [m] of a point object (figures draw it, e.g. for an unobservable object)."""
+        c = self.center_at(t)
+        if self.shape == "point":
+            return c[None, :]
+        heading = self.heading_at(t)
+        u = np.array([math.cos(heading), math.sin(heading)]) * self.size[0] / 2
+        v = np.array([-math.sin(heading), math.cos(heading)]) * self.size[1] / 2
+        return np.stack([c + u + v, c - u + v, c - u - v, c + u - v])
+
     def scatterers(self, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Scatterer positions (K, 2) [m], outward normals (K, 2) (zero for a point), RCS (K,) [m²].
 

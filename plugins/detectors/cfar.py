@@ -53,6 +53,7 @@ class CFARDetector(Detector):
     """2-D cell-averaging CFAR on |κ|²; 3×3 local maxima over threshold, sub-bin refined, UNCLASSIFIED."""
 
     Params = CFARParams
+    classifies = False  # every detection is UNCLASSIFIED
 
     def check_radar(self, radar: RadarConfig) -> None:
         """The CFAR window must fit the radar's RA map (:func:`.peaks.window_error`)."""

@@ -50,7 +50,7 @@ def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path, sweep_toml):
 def test_run_cli_writes_outputs(tmp_path, capsys, sweep_toml):
     p = tmp_path / "p.toml"
     p.write_text(sweep_toml.split("[sweep]")[0].replace("figure = false", "figure = true"))
-    assert main(["run", str(p), "--out", str(tmp_path / "o"), "-q"]) == 0
+    assert main(["run", str(p), "--out", str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "summary.md").exists() and list((tmp_path / "o").glob("*.png"))
     assert "hidden car" in capsys.readouterr().out
 

@@ -118,7 +118,8 @@ def test_dataset_backend_errors_name_the_input(tiny_dataset, tmp_path):
 def test_eval_cli_end_to_end_resume_and_figures(tiny_dataset, tmp_path, capsys, eval_config):
     cfg, out = eval_config(tmp_path, tiny_dataset), tmp_path / "out"
     assert main(["eval", str(cfg), "--out", str(out), "--limit", "3", "--figures", "1", "-q"]) == 0
-    assert "Table 2" in capsys.readouterr().out
+    assert capsys.readouterr().out == ""  # -q: the table is in eval.md, not on stdout
+    assert "Table 2" in (out / "eval.md").read_text()
     res = json.loads((out / "eval.json").read_text())
     (run,) = res["runs"]
     assert run["overall"]["maps"] == 3 and run["dataset"]["split"] == "test"
