@@ -8,6 +8,8 @@ from xnlos_core.registry import get_registry
 from xnlos_core.testing import check_backend, check_component, check_detector, small_radar, synthetic_frame
 from xnlos_core.types import Frame, RAMap
 
+pytestmark = pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")  # toy maps, not the models' grid
+
 REG = get_registry()
 CASES = [(c.kind, c.name) for c in REG.components() if c.provider.startswith("xnlos ")]
 

@@ -74,6 +74,9 @@ def _spy(stage, method: str) -> list:
     return outputs
 
 
+# expected: the shipped models on this small test radar, and cfar (class-less) in front of the wall stages
+@pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")
+@pytest.mark.filterwarnings("ignore::xnlos_core.errors.PipelineWarning")
 @pytest.mark.parametrize("kind", STAGE_KINDS)
 def test_every_registered_plugin_swaps_in_by_one_line(kind, tmp_path, request):
     """For each kind, every registered name replaces the current one by changing `name` only: the

@@ -15,6 +15,8 @@ from xnlos_core.registry import get_registry
 from xnlos_core.testing import check_component, synthetic_frame
 from xnlos_core.types import Detections, Frame, RAMap
 
+pytestmark = pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")  # toy maps, not the models' grid
+
 NAMES = sorted(LEARNED)
 SMALL = RadarConfig(n_samples=128, max_range=30.0, n_azimuth_bins=31)
 
