@@ -161,6 +161,7 @@ def test_window_larger_than_the_map_is_a_clear_error(train):
     CFARDetector({"train_cells": (3, 56)}).detect(frame(np.ones((H, W))))  # 2·(56 + 4) + 1 = 121 fits
 
 
+@pytest.mark.filterwarnings("ignore::xnlos_core.errors.PipelineWarning")  # cfar in front of the wall stages, on purpose
 @pytest.mark.parametrize("name", ["cfar", "nlos_cfar"])
 def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
     # `xnlos check` builds the Pipeline, which checks the detector against the radar's map size

@@ -180,6 +180,7 @@ def learned():
             for n in DETECTORS if n in LEARNED}
 
 
+@pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")  # random maps of any size: not the models' grid
 @pytest.mark.parametrize("name", [n for n in DETECTORS if n in LEARNED])
 def test_learned_detectors_on_random_maps(name, learned, fuzz_cases):
     """Shipped checkpoints on small odd-sized maps, decoded as the checkpoint says and at extremes:
