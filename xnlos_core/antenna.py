@@ -8,7 +8,8 @@ A plane wave from (θ, ε) has direction u = (cos ε cos θ, cos ε sin θ, sin 
 
 * RX element j sits at (y, z) = (j·d_rx, 0); TX element i at (i·d_tx, h_tx) with
   d_rx = rx_spacing·λ, d_tx = tx_spacing·λ (default n_rx·d_rx: a filled virtual array) and
-  h_tx = tx_elevation_offset·λ. Each element is a broadside column of ``n_elevation`` patches
+  h_tx = tx_elevation_offset·λ — or, for any layout, where ``radar.tx_positions`` /
+  ``radar.rx_positions`` put them ([[y, z], …] in wavelengths; ``radar.tx_layout``). Each element is a broadside column of ``n_elevation`` patches
   (vertical spacing elevation_spacing·λ): a planar n_elevation × (n_tx + n_rx) patch layout.
 * MIMO (``radar.mimo``): TX elements take turns, so channel (i, j) is a virtual element at
   p_tx,i + p_rx,j (tx-major order), n_tx·n_rx channels. Without MIMO the TX elements radiate
@@ -105,29 +106,45 @@ def element_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
 
 
 def tx_positions(radar: RadarConfig) -> np.ndarray:
-    """(n_tx, 2) TX element (y, z) positions [m] (module doc), y centred on the RX array's centre."""
-    lam = radar.wavelength
-    step = radar.tx_spacing if radar.tx_spacing is not None else radar.n_rx * radar.rx_spacing
-    y = np.arange(radar.n_tx) * step * lam
-    return np.stack([y - y.mean(), np.full(radar.n_tx, radar.tx_elevation_offset * lam)], axis=1)
+    """(n_tx, 2) TX element (y, z) positions [m] (module doc): ``radar.tx_layout``·λ, y centred on its mean.
+
+    Centring each array on its own y shifts the virtual array as a whole, which no consumer sees
+    (array gains are relative; :func:`channel_positions` re-centres the virtual array).
+    """
+    p = radar.tx_layout * radar.wavelength
+    return np.stack([p[:, 0] - p[:, 0].mean(), p[:, 1]], axis=1)
 
 
 def rx_positions(radar: RadarConfig) -> np.ndarray:
-    """(n_rx, 2) RX element (y, z) positions [m], centred on y = 0, z = 0."""
-    y = np.arange(radar.n_rx) * radar.rx_spacing * radar.wavelength
-    return np.stack([y - y.mean(), np.zeros(radar.n_rx)], axis=1)
+    """(n_rx, 2) RX element (y, z) positions [m]: ``radar.rx_layout``·λ, y centred on 0, z as configured."""
+    p = radar.rx_layout * radar.wavelength
+    return np.stack([p[:, 0] - p[:, 0].mean(), p[:, 1]], axis=1)
 
 
 def channel_positions(radar: RadarConfig) -> np.ndarray:
     """(n_channels, 2) phase-centre (y, z) [m] of each recorded channel.
 
-    MIMO: p_tx,i + p_rx,j tx-major (y equals ``radar.virtual_positions``); else the RX elements.
+    MIMO: the virtual array p_tx,i + p_rx,j, tx-major (y equals ``radar.virtual_positions``),
+    coinciding virtual elements kept (their channels add coherently); else the RX elements.
     """
     rx = rx_positions(radar)
     if not radar.mimo:
         return rx
     v = (tx_positions(radar)[:, None, :] + rx[None, :, :]).reshape(-1, 2)
     return v - np.array([v[:, 0].mean(), 0.0])
+
+
+def virtual_layout(radar: RadarConfig) -> np.ndarray:
+    """(n_channels, 2) virtual element (y, z) [wavelengths], uncentred: tx_i + rx_j tx-major with MIMO,
+    else the RX elements. The positions p_k of the array factor Σ_k exp(j k·p_k)."""
+    rx = radar.rx_layout
+    return (radar.tx_layout[:, None, :] + rx[None, :, :]).reshape(-1, 2) if radar.mimo else rx
+
+
+def has_elevation_aperture(radar: RadarConfig) -> bool:
+    """True when the channels sit at more than one height z (elevation can be beamformed)."""
+    z = channel_positions(radar)[:, 1] / radar.wavelength
+    return bool(np.ptp(z) > 1e-9)
 
 
 def array_response(positions, wavelength: float, azimuth, elevation=0.0) -> np.ndarray:
@@ -190,21 +207,58 @@ def transmit_gain(radar: RadarConfig, azimuth, elevation=0.0) -> np.ndarray:
 
 
 def azimuth_weights(radar: RadarConfig, window: str | None = None) -> np.ndarray:
-    """Real taper over the channels (n_channels,), symmetric; default radar.azimuth_window."""
+    """Real taper over the channels (n_channels,), symmetric; default radar.azimuth_window.
+
+    Uniform rows (no ``tx_positions`` / ``rx_positions``): the window over the channel index, as
+    the tx-major channels of a filled ULA are in aperture order. Explicit layouts: the taper
+    follows each channel's y (:func:`aperture_taper`), so a raised or interleaved transmitter
+    does not scramble it.
+    """
     name = radar.azimuth_window if window is None else window
+    if radar.has_custom_layout:
+        return aperture_taper(name, channel_positions(radar)[:, 0] / radar.wavelength)
     # symmetric (fftbins=False) so the beam is symmetric about the steering angle
     return np.asarray(get_window(name, radar.n_channels, fftbins=False), dtype=np.float64)
 
 
-def array_factor(radar: RadarConfig, theta, steer_to: float = 0.0, window: str = "boxcar") -> np.ndarray:
-    """Normalised power array factor |Σ w_k a_k(θ) a_k*(θ₀)|² / (Σ w_k)², shape like ``theta``.
+def aperture_taper(window: str, y) -> np.ndarray:
+    """Window weights (K,) for elements at along-array positions y (K,) [any unit], any order.
 
-    Equals 1 at θ = θ₀ = ``steer_to`` [rad]; ``window`` is a scipy.signal window name.
-    Element pattern not included (multiply by :func:`element_gain` for the full two-way beam).
+    A filled uniform line (distinct, equally spaced y) gets the K-point window by rank in y, which
+    is the index taper when y ascends. Otherwise (gaps, coinciding virtual elements) the window is
+    sampled finely over [min y, max y] and read at each y, so coinciding elements weigh the same.
+    All elements at one y: uniform weights (no azimuth aperture to taper).
+    """
+    y = np.asarray(y, dtype=np.float64)
+    k = len(y)
+    order = np.argsort(y, kind="stable")
+    ys = y[order]
+    span = ys[-1] - ys[0] if k else 0.0
+    if k < 2 or span <= 0:
+        return np.ones(k)
+    gaps = np.diff(ys)
+    w = np.empty(k)
+    if np.all(gaps > 1e-9 * span) and np.allclose(gaps, gaps[0], rtol=1e-6, atol=0.0):
+        w[order] = get_window(window, k, fftbins=False)
+        return w
+    fine = 4096 + 1
+    return np.interp(y, np.linspace(ys[0], ys[-1], fine), get_window(window, fine, fftbins=False))
+
+
+def array_factor(radar: RadarConfig, theta, steer_to: float = 0.0, window: str = "boxcar",
+                 elevation=0.0) -> np.ndarray:
+    """Normalised power array factor |Σ w_k a_k(θ, ε) a_k*(θ₀, 0)|² / (Σ w_k)² of the channels
+    (the virtual array with MIMO), shape of the broadcast (θ, ε).
+
+    Equals 1 at θ = θ₀ = ``steer_to`` [rad], ε = 0; ``window`` is a scipy.signal window name
+    (:func:`azimuth_weights`); ``elevation`` ε [rad] of the arriving wave: channels at different
+    heights (a raised transmitter) dephase there. Element pattern not included (multiply by
+    :func:`element_gain` for the full two-way beam).
     """
     th = np.asarray(theta, dtype=np.float64)
     w = azimuth_weights(radar, window)
-    return array_gain(channel_positions(radar), radar.wavelength, th, steer_to, weights=w) * np.sum(w**2) / w.sum() ** 2
+    return array_gain(channel_positions(radar), radar.wavelength, th, steer_to, elevation,
+                      weights=w) * np.sum(w**2) / w.sum() ** 2
 
 
 @functools.lru_cache(maxsize=32)
@@ -225,7 +279,8 @@ def coupling_matrix(radar: RadarConfig) -> np.ndarray | None:
     base_mag, base_phase = 10 ** (radar.coupling_db / 20), radar.coupling_phase
 
     def toeplitz(pos):
-        d = np.abs(pos[:, None, 0] - pos[None, :, 0]) / d0
+        # element distance in the y–z plane (hypot(dy, 0) = |dy| exactly: rows as before)
+        d = np.hypot(pos[:, None, 0] - pos[None, :, 0], pos[:, None, 1] - pos[None, :, 1]) / d0
         return np.where(d == 0, 1.0 + 0j, base_mag**d * np.exp(1j * base_phase * d))
 
     c = toeplitz(rx_positions(radar))

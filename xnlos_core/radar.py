@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
@@ -17,10 +17,16 @@ from .validation import validate_model
 
 SPEED_OF_LIGHT = 299_792_458.0  # m/s
 BOLTZMANN = 1.380_649e-23  # J/K
+OVERLAP_TOLERANCE = 1e-6  # [wavelengths]: two elements of one array closer than this are one place
+
+# one element's (y, z) in wavelengths: y along the array (azimuth), z up (elevation)
+_Coordinate = Annotated[float, Field(ge=-1000, le=1000, allow_inf_nan=False)]
+ElementPositions = tuple[tuple[_Coordinate, _Coordinate], ...]
 
 
 class RadarConfig(BaseModel):
-    """An FMCW radar with a MIMO uniform linear array along the ego y axis.
+    """An FMCW radar with a MIMO array in the ego y–z plane: uniform rows along y by default, or any
+    layout given element by element (``tx_positions``, ``rx_positions``).
 
     The default is the X-band configuration of DESIGN.md: 10 GHz carrier, 600 MHz sweep
     (range resolution c/2B = 0.25 m), 512 complex samples per chirp (unambiguous range
@@ -48,6 +54,18 @@ class RadarConfig(BaseModel):
     )
     tx_elevation_offset: float = Field(
         0.0, ge=-100, le=100, description="height of the TX row above the RX row [wavelengths] (planar layout)")
+    # any antenna layout (issue 29). Unset (None) keeps the uniform rows above and is left out of
+    # the serialised config, so existing configs keep their JSON and digest.
+    tx_positions: ElementPositions | None = Field(
+        None, min_length=1, max_length=64,
+        description="TX element positions [[y, z], …] [wavelengths], y along the array (ego y, azimuth), "
+                    "z up (elevation), in the same board frame as rx_positions; replaces the uniform TX "
+                    "row (tx_spacing, tx_elevation_offset); n_tx is derived from it")
+    rx_positions: ElementPositions | None = Field(
+        None, min_length=1, max_length=256,
+        description="RX element positions [[y, z], …] [wavelengths], same frame as tx_positions; replaces "
+                    "the uniform RX row; n_rx is derived from it and rx_spacing (the coupling model's "
+                    "neighbour distance) from its smallest element separation")
     mimo: bool = Field(True, description="MIMO virtual array (TX time-multiplexed, n_tx·n_rx channels); "
                                          "False: the TX elements radiate together as one beam steered to "
                                          "tx_steering and only the n_rx RX channels are recorded")
@@ -89,6 +107,47 @@ class RadarConfig(BaseModel):
         None, gt=0, le=3600, description="start-to-start interval of frames [s], ≥ n_chirps·n_tdm·T_c; "
                                          "None: n_chirps·n_tdm·T_c (back-to-back frames)")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _derive_from_positions(cls, data: Any) -> Any:
+        # n_tx, n_rx (and rx_spacing) follow from explicit positions unless given; given ones are
+        # checked against the positions in _check_layout
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        for positions, count in (("tx_positions", "n_tx"), ("rx_positions", "n_rx")):
+            pos = data.get(positions)
+            if pos is not None and count not in data and hasattr(pos, "__len__"):
+                data[count] = len(pos)
+        rx = data.get("rx_positions")
+        if rx is not None and "rx_spacing" not in data:
+            gap = _smallest_separation(rx)
+            if gap is not None and gap > OVERLAP_TOLERANCE:
+                data["rx_spacing"] = gap
+        return data
+
+    @model_validator(mode="after")
+    def _check_layout(self) -> "RadarConfig":
+        for positions, count in (("tx_positions", "n_tx"), ("rx_positions", "n_rx")):
+            pos = getattr(self, positions)
+            if pos is not None and len(pos) != getattr(self, count):
+                raise ValueError(f"{count}={getattr(self, count)} contradicts {positions}, which lists "
+                                 f"{len(pos)} elements; leave {count} out (it is derived) or make them agree")
+            if pos is not None:
+                _check_no_overlap(positions, pos)
+        if self.tx_positions is not None:
+            for name, unset in (("tx_spacing", None), ("tx_elevation_offset", 0.0)):
+                if getattr(self, name) != unset:
+                    raise ValueError(f"{name}={getattr(self, name)} contradicts tx_positions, which places "
+                                     f"every TX element; leave {name} out (or {unset}) with tx_positions")
+        if self.rx_positions is not None:
+            gap = _smallest_separation(self.rx_positions)
+            if gap is not None and not math.isclose(self.rx_spacing, gap, rel_tol=1e-9):
+                raise ValueError(f"rx_spacing={self.rx_spacing} contradicts rx_positions, whose closest "
+                                 f"elements are {gap:.6g} wavelengths apart; leave rx_spacing out (it is "
+                                 "derived) or make them agree")
+        return self
+
     @model_validator(mode="after")
     def _check_range(self) -> "RadarConfig":
         if self.max_range > self.max_unambiguous_range:
@@ -117,7 +176,7 @@ class RadarConfig(BaseModel):
         # while unset so those stay byte-identical; a set value serialises and round-trips
         data = handler(self)
         if isinstance(data, dict):
-            for name in _OPTIONAL_TIMING:
+            for name in _OMIT_WHEN_UNSET:
                 if data.get(name, 0) is None:
                     del data[name]
         return data
@@ -186,18 +245,42 @@ class RadarConfig(BaseModel):
         return self.coupling_db is not None or self.coupling_file is not None
 
     @property
+    def tx_layout(self) -> np.ndarray:
+        """(n_tx, 2) TX element (y, z) [wavelengths], as configured (not centred).
+
+        ``tx_positions`` when given, else the uniform row y_i = i·tx_spacing (default
+        n_rx·rx_spacing: a filled virtual array), z = tx_elevation_offset.
+        """
+        if self.tx_positions is not None:
+            return _layout_array("tx_positions", self.tx_positions, self.n_tx, "n_tx")
+        step = self.tx_spacing if self.tx_spacing is not None else self.n_rx * self.rx_spacing
+        return np.stack([np.arange(self.n_tx) * step, np.full(self.n_tx, self.tx_elevation_offset)], axis=1)
+
+    @property
+    def rx_layout(self) -> np.ndarray:
+        """(n_rx, 2) RX element (y, z) [wavelengths]: ``rx_positions``, else y_j = j·rx_spacing, z = 0."""
+        if self.rx_positions is not None:
+            return _layout_array("rx_positions", self.rx_positions, self.n_rx, "n_rx")
+        return np.stack([np.arange(self.n_rx) * self.rx_spacing, np.zeros(self.n_rx)], axis=1)
+
+    @property
+    def has_custom_layout(self) -> bool:
+        """True when ``tx_positions`` or ``rx_positions`` places the elements (not the uniform rows)."""
+        return self.tx_positions is not None or self.rx_positions is not None
+
+    @property
     def virtual_positions(self) -> np.ndarray:
         """y positions of the n_tx·n_rx virtual elements [m], shape (n_tx·n_rx,), centred on 0.
 
-        Virtual element (i, j) sits at y_tx,i + y_rx,j, ordered tx-major. Without MIMO the
-        channels are the RX elements themselves, (n_rx,) centred on 0.
+        Virtual element (i, j) sits at y_tx,i + y_rx,j, ordered tx-major (coinciding virtual
+        elements are kept: their channels add). Without MIMO the channels are the RX elements
+        themselves, (n_rx,) centred on 0. Heights: :func:`xnlos_core.antenna.channel_positions`.
         """
         lam = self.wavelength
-        rx = np.arange(self.n_rx) * self.rx_spacing * lam
+        rx = self.rx_layout[:, 0] * lam
         if not self.mimo:
             return rx - rx.mean()
-        tx_step = self.tx_spacing if self.tx_spacing is not None else self.n_rx * self.rx_spacing
-        tx = np.arange(self.n_tx) * tx_step * lam
+        tx = self.tx_layout[:, 0] * lam
         v = (tx[:, None] + rx[None, :]).ravel()
         return v - v.mean()
 
@@ -257,7 +340,37 @@ class RadarConfig(BaseModel):
         return 0.5 * self.doppler_wavelength * self.doppler_axis
 
 
-_OPTIONAL_TIMING = ("chirp_period", "frame_period")
+_OMIT_WHEN_UNSET = ("chirp_period", "frame_period", "tx_positions", "rx_positions")
+
+
+def _layout_array(name: str, positions, n: int, count: str) -> np.ndarray:
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
+    if len(p) != n:  # only reachable through model_copy(update=…), which skips validation
+        raise ConfigError(f"{count}={n} contradicts {name}, which lists {len(p)} elements")
+    return p
+
+
+def _smallest_separation(positions) -> float | None:
+    """Smallest distance between two elements [wavelengths], None for fewer than two (or malformed)."""
+    try:
+        p = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2:
+        return None
+    d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    return float(d[np.triu_indices(len(p), 1)].min())
+
+
+def _check_no_overlap(name: str, positions) -> None:
+    p = np.asarray(positions, dtype=np.float64)
+    d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    i, j = np.nonzero(np.triu(d < OVERLAP_TOLERANCE, 1))
+    if len(i):
+        a, b = int(i[0]), int(j[0])
+        raise ValueError(f"{name}: elements {a} and {b} overlap (both at {list(positions[a])} wavelengths); "
+                         f"two elements of one array must be at least {OVERLAP_TOLERANCE:g} wavelengths "
+                         "apart (virtual elements may coincide, physical ones may not)")
 
 
 def _check_window(name: str, window: str) -> None:
