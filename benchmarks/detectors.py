@@ -186,17 +186,18 @@ def _class_panels(names, curves, x, xlabel: str, quantity: str, figure: str, tic
     import matplotlib.pyplot as plt
 
     from xnlos_core.figures import save_png
+    from xnlos_core.palette import detector_colour
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):
         for name in names:
-            ax.plot(x, curves[name, c], "o-", label=name)
+            ax.plot(x, curves[name, c], "o-", label=name, color=detector_colour(name))
         ax.set(title=f"{title} {quantity}", xlabel=xlabel, ylim=(0, 1.02))
         if ticks is not None:
             ax.set(xticks=x, xticklabels=ticks)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(f"{quantity} at the match radius")
-    axes[1].legend(fontsize=8)
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)  # off the curves
     save_png(fig, figure, dpi=110)
 
 

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .bev import bev, set_bev_limits
+from . import palette
+from .bev import bev, legend_outside, orient_azimuth, set_bev_limits
 from .figures import CLASS_STYLE, _ellipse_xy, credible_radius
 from .frame_snapshot import FrameSnapshot
 from .io import atomic_write_bytes
@@ -104,22 +105,22 @@ def _ra_panel(fig, ax, s: FrameSnapshot, scales: _Scales) -> None:
         mk = MARKERS.get(lab, marker)
         if (~known).any():
             ax.scatter(_az(s, m)[~known], s.det_range[m][~known], s=30, marker=mk, c="0.6", edgecolors="k",
-                       linewidths=0.5, label=f"{name}, no velocity")
+                       linewidths=0.5, label=f"{name}, no velocity ({(~known).sum()})")
         if known.any():
             sc = ax.scatter(_az(s, m)[known], s.det_range[m][known], s=30, marker=mk, c=v[known], cmap="RdBu_r",
-                            vmin=-scales.v_max, vmax=scales.v_max, edgecolors="k", linewidths=0.5, label=name)
+                            vmin=-scales.v_max, vmax=scales.v_max, edgecolors="k", linewidths=0.5,
+                            label=f"{name} ({known.sum()})")
     if sc is None:  # keep the layout of every frame the same: a colourbar even without velocities
         import matplotlib as mpl
 
         sc = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(-scales.v_max, scales.v_max), cmap="RdBu_r")
     fig.colorbar(sc, ax=ax, label="radial velocity [m/s] (+ receding)")
-    ax.set_xlim(ext[0], ext[1])
+    orient_azimuth(ax, ext[:2])
     ax.set_ylim(ext[2], ext[3])
-    ax.set_xlabel("azimuth θ [deg] (positive = left)")
     ax.set_ylabel("range [m]")
-    ax.set_title(f"RA map and detections ({len(s.det_range)})", fontsize=10)
-    if len(s.det_range):
-        ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    ax.set_title(f"RA map and detections ({len(s.det_range)})", fontsize=10, pad=20)
+    if len(s.det_range):  # above the map, under the title: the dB colourbar is below it
+        legend_outside(ax, where="above", ncol=4, frameon=False)
 
 
 def _az(s: FrameSnapshot, mask) -> np.ndarray:
@@ -130,50 +131,49 @@ def _az(s: FrameSnapshot, mask) -> np.ndarray:
 def _bev_panel(ax, s: FrameSnapshot, tracks, history, region, scales: _Scales) -> None:
     rmax = s.range_axis[-1]
     for a in s.azimuth_axis[[0, -1]]:
-        ax.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":")
+        ax.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":", zorder=palette.Z_BAND)
     for i, (a, b) in enumerate(s.true_walls):
-        ax.plot(*bev([a, b]), color="0.75", lw=5, solid_capstyle="butt", label="true walls" if i == 0 else None)
+        ax.plot(*bev([a, b]), color=palette.TRUE_WALL_BAND, lw=5, solid_capstyle="butt", zorder=palette.Z_BAND)
+        ax.plot(*bev([a, b]), color=palette.TRUE_WALL, lw=1.0, zorder=palette.Z_TRUTH,
+                label="true walls" if i == 0 else None)
     for i, c in enumerate(s.walls):
-        ax.plot(*bev(c), color="tab:orange", lw=2, ls="--", zorder=4, label="fitted walls" if i == 0 else None)
+        ax.plot(*bev(c), color=palette.WALL_ESTIMATE, lw=2, ls="--", zorder=palette.Z_ESTIMATE,
+                label="fitted walls" if i == 0 else None)
     m = s.det_label == MNLOS
     if m.any():
-        ax.scatter(*bev(s.det_position[m]), s=10, c="tab:red", marker="x", alpha=0.5, label="mNLOS (virtual o')")
-    if len(s.true_hidden):
-        ax.scatter(*bev(s.true_hidden), s=8, c="tab:green", alpha=0.6, label="true hidden points")
+        ax.scatter(*bev(s.det_position[m]), s=10, c=CLASS_STYLE[MNLOS][1], marker="x", alpha=0.5,
+                   label=f"mNLOS (virtual o') ({m.sum()})", zorder=palette.Z_ESTIMATE)
     if len(s.hidden_mean):
-        ax.scatter(*bev(s.hidden_mean), s=40, c="tab:purple", marker="+", linewidths=1.4,
-                   label="reconstructed (90 % credible)")
+        ax.scatter(*bev(s.hidden_mean), s=40, c=palette.ESTIMATE, marker="+", linewidths=1.4, zorder=palette.Z_ESTIMATE,
+                   label=f"reconstructed hidden points ({len(s.hidden_mean)}; 90 % credible)")
         for mu, c in zip(s.hidden_mean, s.hidden_cov):
-            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(0.9))), color="tab:purple", lw=0.6, alpha=0.6)
+            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(0.9))), color=palette.ESTIMATE, lw=0.6, alpha=0.6,
+                    zorder=palette.Z_ESTIMATE)
+    if len(s.true_hidden):
+        ax.scatter(*bev(s.true_hidden), s=8, c=palette.TRUTH, alpha=0.6, label="true hidden points",
+                   zorder=palette.Z_TRUTH)
     draw_tracks(ax, tracks, history, region)
-    ax.scatter([0], [0], marker="^", s=70, c="k", label="radar", zorder=5)
+    ax.scatter([0], [0], marker="^", s=70, c="k", label="radar", zorder=palette.Z_RADAR)
     set_bev_limits(ax, scales.points, margin=5.0)
     handles, _ = ax.get_legend_handles_labels()
     if tracks is not None and len(tracks):
         handles += track_legend_handles(tracks)
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7, frameon=False)
+    legend_outside(ax, handles=handles, where="right", frameon=False)
     ax.grid(alpha=0.3)
     n, m = 0 if tracks is None else len(tracks), len(s.hidden_mean)
-    ax.set_title(f"bird's-eye view: {m} hidden point{'s' * (m != 1)}, {n} track{'s' * (n != 1)}", fontsize=10)
+    ax.set_title(f"bird's-eye view: {m} reconstructed hidden point{'s' * (m != 1)}, {n} track{'s' * (n != 1)}",
+                 fontsize=10)
 
 
 def render_frame(s: FrameSnapshot, record: dict, history=None, region=None, scales: _Scales | None = None,
                  title: str = "", dpi: int = 90):
     """One animation frame as a palette (``P``) PIL image; ``record``: the frame's results.jsonl
     record (its ``tracks``), history: track id → past positions (:func:`track_history`)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    scales = scales or _scales_from([s])
-    tracks = tracks_from_record(record.get("tracks"), s.timestamp, where=f"frame {s.index}: tracks")
-    fig, (ax_ra, ax_bev) = plt.subplots(1, 2, figsize=(15, 6), gridspec_kw={"width_ratios": [1, 1.05]})
+    fig = animation_figure(s, record, history, region, scales, title)
     try:
-        _ra_panel(fig, ax_ra, s, scales)
-        _bev_panel(ax_bev, s, tracks, history, region, scales)
-        fig.suptitle(f"{title} — frame {s.index}, t = {s.timestamp:.2f} s".lstrip(" —"))
         fig.tight_layout()
         fig.set_dpi(dpi)
         fig.canvas.draw()
@@ -181,6 +181,28 @@ def render_frame(s: FrameSnapshot, record: dict, history=None, region=None, scal
     finally:
         plt.close(fig)
     return Image.fromarray(np.ascontiguousarray(rgb)).quantize(colors=256, method=Image.Quantize.MAXCOVERAGE)
+
+
+def animation_figure(s: FrameSnapshot, record: dict, history=None, region=None, scales: _Scales | None = None,
+                     title: str = ""):
+    """The matplotlib Figure of one animation frame (not laid out, not closed); arguments as
+    :func:`render_frame`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scales = scales or _scales_from([s])
+    tracks = tracks_from_record(record.get("tracks"), s.timestamp, where=f"frame {s.index}: tracks")
+    fig, (ax_ra, ax_bev) = plt.subplots(1, 2, figsize=(15, 6), gridspec_kw={"width_ratios": [1, 1.05]})
+    try:
+        _ra_panel(fig, ax_ra, s, scales)
+        _bev_panel(ax_bev, s, tracks, history, region, scales)
+    except BaseException:
+        plt.close(fig)
+        raise
+    fig.suptitle(f"{title} — frame {s.index}, t = {s.timestamp:.2f} s".lstrip(" —"))
+    return fig
 
 
 def _scales_from(snaps) -> _Scales:

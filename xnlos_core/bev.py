@@ -44,3 +44,35 @@ def set_bev_limits(ax, points, margin: float = 5.0) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("−y [m] (right →)")
     ax.set_ylabel("x [m] (forward)")
+
+
+#: Label of every RA-map azimuth axis (θ = atan2(y, x), DESIGN.md conventions).
+AZIMUTH_LABEL = "azimuth θ [deg] (positive = left)"
+
+
+def orient_azimuth(ax, azimuth_deg) -> None:
+    """Put positive azimuth on the LEFT of an RA-map panel's x-axis, as in the bird's-eye view
+    (y left is drawn to the left), over the span of ``azimuth_deg`` (any array of azimuths [deg]):
+    the x limits run from the largest azimuth to the smallest, whatever was drawn before, and the
+    axis is labelled :data:`AZIMUTH_LABEL`. Idempotent (unlike ``invert_xaxis``)."""
+    a = np.asarray(azimuth_deg, float)
+    ax.set_xlim(float(a.max()), float(a.min()))
+    ax.set_xlabel(AZIMUTH_LABEL)
+
+
+def legend_outside(ax, handles=None, where: str = "right", **kw):
+    """A legend placed outside ``ax``'s data area: to its right (``where="right"``, top-aligned) or
+    below its tick labels (``"below"``) or above it (``"above"``, under the title); returns it."""
+    anchors = {"right": ("upper left", (1.02, 1.0)), "below": ("upper center", (0.5, -0.13)),
+               "above": ("lower center", (0.5, 1.01))}
+    if where not in anchors:
+        from .errors import InputError
+
+        raise InputError(f"legend where={where!r}: expected one of {sorted(anchors)}")
+    loc, anchor = anchors[where]
+    kw.setdefault("fontsize", 7)
+    if where != "right":
+        kw.setdefault("ncol", 3)
+    if handles is not None:
+        kw["handles"] = handles
+    return ax.legend(loc=loc, bbox_to_anchor=anchor, borderaxespad=0.0, **kw)

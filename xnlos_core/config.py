@@ -34,7 +34,7 @@ import hashlib
 import itertools
 import json
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
@@ -62,10 +62,25 @@ class RunConfig(BaseModel):
     frames: int = Field(1, ge=1, le=1_000_000, description="frames to simulate or read")
     frame_interval: float = Field(0.1, gt=0, le=3600, description="time between simulated frames [s]")
     match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m]")
-    figure: bool = Field(True, description="write the per-run PNG")
+    figure: bool = Field(True, description="write frame PNGs (which ones: ``figures``); false: none")
+    figures: Literal["last", "all"] | Annotated[int, Field(ge=1, le=1_000_000)] = Field(
+        "last", description="which frames get a frame_NNNN.png: 'last' (the last frame), 'all', or N (every "
+                            "N-th frame, the first and the last included)")
     animation: bool | None = Field(None, description="write sequence.gif (RA map with Doppler-coloured detections "
                                                      "beside the bird's-eye view with tracks) when the run has more "
                                                      "than one frame; unset: only when a tracker is configured")
+
+    def figure_frames(self, indices) -> list[int]:
+        """Which of the recorded frame ``indices`` get a figure (sorted): none without ``figure``;
+        per ``figures`` the last, all, or every N-th in frame order plus the last."""
+        idx = sorted(indices)
+        if not self.figure or not idx:
+            return []
+        if self.figures == "last":
+            return idx[-1:]
+        if self.figures == "all":
+            return idx
+        return sorted(set(idx[::self.figures]) | {idx[-1]})
 
     def wants_animation(self, tracker: bool) -> bool:
         """Whether ``xnlos run`` writes sequence.gif: more than one frame and ``animation``, which
@@ -130,10 +145,10 @@ class PipelineConfig(BaseModel):
         return {k: getattr(self, k) for k in STAGE_KINDS if getattr(self, k) is not None}
 
     def digest(self) -> str:
-        """sha256 of the canonical JSON of this config (provenance). ``run.animation`` is left out: it
-        changes no result, only whether the GIF is drawn (so turning it on resumes a finished run, and
-        runs made before it existed keep their hash)."""
-        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation"}})
+        """sha256 of the canonical JSON of this config (provenance). ``run.animation`` and
+        ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
+        them on resumes a finished run, and runs made before they existed keep their hash)."""
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures"}})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

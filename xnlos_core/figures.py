@@ -12,12 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .bev import bev, save_png  # noqa: F401  (re-exported: figure modules import them from here)
+from . import palette
+from .bev import bev, legend_outside, orient_azimuth, save_png  # noqa: F401  (re-exported to figure modules)
 from .io import atomic_write_bytes
-from .types import LOS, MNLOS, UNCLASSIFIED
-
-CLASS_STYLE = {LOS: ("LOS", "tab:cyan", "o"), MNLOS: ("mNLOS", "tab:red", "x"),
-               UNCLASSIFIED: ("unclassified", "gold", "s")}
+from .palette import CLASS_STYLE  # noqa: F401  (re-exported: figure modules import it from here)
+from .types import MNLOS
 
 
 def credible_radius(p: float) -> float:
@@ -26,25 +25,47 @@ def credible_radius(p: float) -> float:
 
 
 def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", samples: int = 0) -> None:
-    """Bird's-eye walls on ``ax``: the true walls (GroundTruth.walls, grey bands) when given, each
+    """Bird's-eye walls on ``ax``: the true walls (GroundTruth.walls) when given — a wide light band
+    under everything and a thin centre line above the estimates (ground truth on top) — each
     estimated WallPosterior over its extent (dashed), and for a sampled wall ``samples`` posterior
     draws as thin lines."""
     if true_walls is not None:
         for i, w in enumerate(true_walls):
-            ax.plot(*bev([w.start, w.end]), color="0.75", lw=5, solid_capstyle="butt",
+            ax.plot(*bev([w.start, w.end]), color=palette.TRUE_WALL_BAND, lw=5, solid_capstyle="butt",
+                    zorder=palette.Z_BAND)
+            ax.plot(*bev([w.start, w.end]), color=palette.TRUE_WALL, lw=1.0, zorder=palette.Z_TRUTH,
                     label="true walls" if i == 0 else None)
     drawn = False
     for i, w in enumerate(walls):
         curve = _wall_curve(w)
         if curve is None:
             continue
-        ax.plot(*bev(curve), color="tab:orange", lw=2, ls="--", zorder=4, label=None if drawn else label)
+        ax.plot(*bev(curve), color=palette.WALL_ESTIMATE, lw=2, ls="--", zorder=palette.Z_ESTIMATE,
+                label=None if drawn else label)
         drawn = True
         if w.samples is not None and samples > 0 and w.extent is not None:
             _plot_wall_draws(ax, w, samples, first=i == 0)
 
 
-def draw_unobservable(ax, outlines: dict) -> None:
+def draw_objects(ax, outlines: dict, annotate: bool = True) -> None:
+    """True outlines of the hidden objects that have a mirror path: name → (K, 2) [m] bird's-eye
+    outline (``ObjectSpec.footprint``: a box's corners, or one point), drawn solid in the truth
+    colour above the reconstructions, labelled by name."""
+    for i, (name, pts) in enumerate(outlines.items()):
+        pts = np.asarray(pts, float).reshape(-1, 2)
+        label = "hidden objects (true outline)" if i == 0 else None
+        if len(pts) > 1:
+            ax.fill(*bev(pts), facecolor="none", edgecolor=palette.TRUTH, lw=1.6, label=label, zorder=palette.Z_TRUTH)
+        else:
+            ax.scatter(*bev(pts), s=80, facecolors="none", edgecolors=palette.TRUTH, lw=1.6, label=label,
+                       zorder=palette.Z_TRUTH)
+        if annotate:
+            x, y = bev(pts.mean(0, keepdims=True))
+            ax.annotate(name, (x[0], y[0]), textcoords="offset points", xytext=(0, 10), ha="center", fontsize=8,
+                        color=palette.TRUTH, zorder=palette.Z_TRUTH)
+
+
+def draw_unobservable(ax, outlines: dict, annotate: bool = True) -> None:
     """Outlines of hidden objects without a mirror path (no relay wall shows them to the radar):
     name → (K, 2) [m] bird's-eye outline (a box's corners, or one point), drawn dashed grey with a
     "<name>: not observable" label, so that an object nothing could reconstruct stays visible."""
@@ -52,12 +73,41 @@ def draw_unobservable(ax, outlines: dict) -> None:
         pts = np.asarray(pts, float).reshape(-1, 2)
         label = "hidden, no mirror path (not observable)" if i == 0 else None
         if len(pts) > 1:
-            ax.fill(*bev(pts), facecolor="none", edgecolor="0.35", ls="--", lw=1.4, label=label, zorder=4)
+            ax.fill(*bev(pts), facecolor="none", edgecolor=palette.UNOBSERVABLE, ls="--", lw=1.4, label=label,
+                    zorder=palette.Z_TRUTH)
         else:
-            ax.scatter(*bev(pts), s=60, facecolors="none", edgecolors="0.35", linestyle="--", label=label, zorder=4)
-        x, y = bev(pts.mean(0, keepdims=True))
-        ax.annotate(f"{name}: not observable", (x[0], y[0]), textcoords="offset points", xytext=(0, 10),
-                    ha="center", fontsize=8, color="0.25")
+            ax.scatter(*bev(pts), s=60, facecolors="none", edgecolors=palette.UNOBSERVABLE, linestyle="--",
+                       label=label, zorder=palette.Z_TRUTH)
+        if annotate:
+            x, y = bev(pts.mean(0, keepdims=True))
+            ax.annotate(f"{name}: not observable", (x[0], y[0]), textcoords="offset points", xytext=(0, 10),
+                        ha="center", fontsize=8, color="0.25")
+
+
+def zoom_inset(ax, draw, focus, *, margin: float = 2.0, bounds=(1.04, 0.0, 0.55, 0.45)):
+    """A zoomed copy of the bird's-eye panel ``ax`` around the points ``focus`` (N, 2) [m] (the
+    hidden object): an inset axes at ``bounds`` (axes fraction x0, y0, width, height; the default
+    sits outside the data area, right of the panel under its legend) on which ``draw(inset)`` draws
+    the panel's content again, limited to the focus box plus ``margin`` [m] (at least 1.5 m around
+    its centre), with the zoomed region marked on ``ax``. Returns the inset axes, or None when
+    ``focus`` holds no finite point."""
+    pts = np.asarray(focus, float).reshape(-1, 2)
+    pts = pts[np.isfinite(pts).all(1)]
+    if not len(pts):
+        return None
+    inset = ax.inset_axes(bounds)
+    draw(inset)
+    x, y = bev(pts)
+    cx, cy = 0.5 * (x.min() + x.max()), 0.5 * (y.min() + y.max())
+    half = max(1.5, 0.5 * max(np.ptp(x), np.ptp(y)) + margin)
+    inset.set_xlim(cx - half, cx + half)
+    inset.set_ylim(cy - half, cy + half)
+    inset.set_aspect("equal")
+    inset.tick_params(labelsize=6)
+    inset.set_title("zoom: hidden object", fontsize=7)
+    inset.grid(alpha=0.3)
+    ax.indicate_inset_zoom(inset, edgecolor="0.3")
+    return inset
 
 
 def frame_bev(ax, gt, fallback, extra=()) -> None:
@@ -108,21 +158,29 @@ def _ellipse_xy(mean, cov, nsigma=2.0, n=48):
     return mean + nsigma * (circle * np.sqrt(vals)) @ vecs.T
 
 
-def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9),
-               wall_samples: int = 30, history=None, region=None, unobservable=None) -> Path:
-    """Write a two-panel PNG for one FrameResult: RA map (dB) and bird's-eye reconstruction, with
-    the tracks (history, velocity, prediction cones: :func:`xnlos_core.track_figure.draw_tracks`)
-    when the result has them.
+def plot_frame(result, path: str | Path, title: str = "", **kw) -> Path:
+    """Write :func:`frame_figure` of one FrameResult to ``path`` as PNG; returns the path. Keywords
+    as :func:`frame_figure`."""
+    return save_png(frame_figure(result, title, **kw), path, dpi=110)
+
+
+def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9), wall_samples: int = 30,
+                 history=None, region=None, unobservable=None, objects=None, zoom: bool = True):
+    """The two-panel figure of one FrameResult: RA map (dB, positive azimuth on the left like the
+    bird's-eye view) with the detections, and the bird's-eye reconstruction with the tracks
+    (history, velocity, prediction cones: :func:`xnlos_core.track_figure.draw_tracks`) when the
+    result has them; legends outside the data areas, ground truth drawn above the estimates.
+    Returns the matplotlib Figure (not closed).
 
     credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
     HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
     draws of each sampled wall (WallPosterior.samples) are drawn as thin lines; history: track id
     → (n, 2) [m] past positions; region: (P, 2) [m] the tracker's arrival region polygon or None;
     unobservable: name → (K, 2) [m] outline of each hidden object without a mirror path
-    (:func:`draw_unobservable`) or None.
+    (:func:`draw_unobservable`) or None; objects: name → (K, 2) [m] true outline of each hidden
+    object with one (:func:`draw_objects`) or None; zoom: add :func:`zoom_inset` around the hidden
+    objects (their outlines, else the true hidden points, else the reconstructed ones).
     """
-    from .track_figure import draw_tracks, track_legend_handles
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -130,12 +188,13 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
 
     frame, det = result.frame, result.detections
     ra = frame.ra_map
-    fig, (ax_ra, ax_bev) = plt.subplots(1, 2, figsize=(14, 6.2), gridspec_kw={"width_ratios": [1, 1.25]})
+    fig, (ax_ra, ax_bev) = plt.subplots(1, 2, figsize=(17, 6.8), gridspec_kw={"width_ratios": [1, 1.25]})
 
     p_db = ra.power_db()
     floor = np.median(p_db)
     az_deg = np.degrees(ra.azimuth_axis)
-    im = ax_ra.imshow(p_db - floor, origin="lower", aspect="auto", cmap="viridis", vmin=0, vmax=max(30.0, np.percentile(p_db - floor, 99.9)),
+    im = ax_ra.imshow(p_db - floor, origin="lower", aspect="auto", cmap="viridis", vmin=0,
+                      vmax=max(30.0, np.percentile(p_db - floor, 99.9)),
                       extent=[az_deg[0], az_deg[-1], ra.range_axis[0], ra.range_axis[-1]])
     fig.colorbar(im, ax=ax_ra, label="power above median [dB]")
     for lab, (name, color, marker) in CLASS_STYLE.items():
@@ -144,51 +203,72 @@ def plot_frame(result, path: str | Path, title: str = "", *, credible: tuple[flo
             style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
             ax_ra.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker,
                           label=f"{name} ({m.sum()})", linewidths=1.2, **style)
-    ax_ra.set_xlabel("azimuth θ [deg] (positive = left)")
+    orient_azimuth(ax_ra, az_deg)
     ax_ra.set_ylabel("range [m]")
-    ax_ra.set_title("RA map and detections")
+    ax_ra.set_title(f"RA map and detections ({len(det)})")
     if len(det):
-        ax_ra.legend(loc="upper right", fontsize=8)
+        legend_outside(ax_ra, where="below", fontsize=8)
 
     gt = frame.ground_truth
-    fov = ra.azimuth_axis[[0, -1]]
-    rmax = ra.range_axis[-1]
-    for a in fov:
-        ax_bev.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":")
-    draw_walls(ax_bev, result.walls, None if gt is None else gt.walls, samples=wall_samples)
-    for lab, (name, color, marker) in CLASS_STYLE.items():
-        m = det.label == lab
-        if m.any():
-            label = "mNLOS detections (virtual o')" if lab == MNLOS else f"{name} detections"
-            ax_bev.scatter(*bev(det.position[m]), s=16, c=color, marker=marker, label=label, alpha=0.8)
-    if gt is not None and len(gt.hidden_points):
-        ax_bev.scatter(*bev(gt.hidden_points), s=14, c="tab:green", marker="o", label="true hidden points")
     h = result.hidden
-    if len(h):
-        levels = sorted(credible)
-        pct = "/".join(f"{100 * p:g}" for p in levels)
-        ax_bev.scatter(*bev(h.mean), s=60, c="tab:purple", marker="+", linewidths=2,
-                       label=f"reconstructed ({pct} % credible)" if levels else "reconstructed")
-        for mu, c in zip(h.mean, h.cov):
-            for p in levels:
-                ax_bev.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color="tab:purple",
-                            lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75)
     tracks = result.tracks
-    if (tracks is not None and len(tracks)) or region is not None:
-        draw_tracks(ax_bev, tracks, history, region)
-    if unobservable:
-        draw_unobservable(ax_bev, unobservable)
-    ax_bev.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=5)
-    frame_bev(ax_bev, gt, [det.position, h.mean], extra=list((unobservable or {}).values()))
-    ax_bev.set_title("bird's-eye view: walls and hidden points" + (f", {len(tracks)} tracks" if tracks else ""))
+    objects = objects or {}
+    unobservable = unobservable or {}
+
+    def draw(ax, main: bool = True) -> None:
+        fov = ra.azimuth_axis[[0, -1]]
+        rmax = ra.range_axis[-1]
+        for a in fov:
+            ax.plot(*bev([[0, 0], [rmax * np.cos(a), rmax * np.sin(a)]]), color="0.8", lw=0.8, ls=":",
+                    zorder=palette.Z_BAND)
+        draw_walls(ax, result.walls, None if gt is None else gt.walls, samples=wall_samples)
+        for lab, (name, color, marker) in CLASS_STYLE.items():
+            m = det.label == lab
+            if m.any():
+                label = f"mNLOS detections (virtual o') ({m.sum()})" if lab == MNLOS else f"{name} detections ({m.sum()})"
+                ax.scatter(*bev(det.position[m]), s=16, c=color, marker=marker, label=label, alpha=0.8,
+                           zorder=palette.Z_ESTIMATE)
+        if len(h):
+            levels = sorted(credible)
+            pct = "/".join(f"{100 * p:g}" for p in levels)
+            ax.scatter(*bev(h.mean), s=60, c=palette.ESTIMATE, marker="+", linewidths=2, zorder=palette.Z_ESTIMATE,
+                       label=f"reconstructed hidden points ({len(h)}; {pct} % credible)" if levels
+                       else f"reconstructed hidden points ({len(h)})")
+            for mu, c in zip(h.mean, h.cov):
+                for p in levels:
+                    ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(p))), color=palette.ESTIMATE,
+                            lw=0.9 if p == levels[-1] else 0.7, ls="-" if p == levels[-1] else ":", alpha=0.75,
+                            zorder=palette.Z_ESTIMATE)
+        if gt is not None and len(gt.hidden_points):
+            ax.scatter(*bev(gt.hidden_points), s=14, c=palette.TRUTH, marker="o", label="true hidden points",
+                       zorder=palette.Z_TRUTH)
+        if (tracks is not None and len(tracks)) or region is not None:
+            from .track_figure import draw_tracks
+
+            draw_tracks(ax, tracks, history, region)
+        draw_objects(ax, objects, annotate=main)
+        draw_unobservable(ax, unobservable, annotate=main)
+        ax.scatter([0], [0], marker="^", s=90, c="k", label="radar", zorder=palette.Z_RADAR)
+
+    draw(ax_bev)
+    frame_bev(ax_bev, gt, [det.position, h.mean], extra=list(objects.values()) + list(unobservable.values()))
+    n_tracks = 0 if tracks is None else len(tracks)
+    ax_bev.set_title(f"bird's-eye view: {len(h)} reconstructed hidden point{'s' * (len(h) != 1)}"
+                     + (f", {n_tracks} track{'s' * (n_tracks != 1)}" if n_tracks else ""))
     handles, _ = ax_bev.get_legend_handles_labels()
-    if tracks is not None and len(tracks):
+    if n_tracks:
+        from .track_figure import track_legend_handles
+
         handles += track_legend_handles(tracks)
-    ax_bev.legend(handles=handles, loc="upper right", fontsize=7, framealpha=0.85)
+    legend_outside(ax_bev, handles=handles, where="right", framealpha=0.85)
     ax_bev.grid(alpha=0.3)
+    if zoom:
+        focus = (np.concatenate([np.reshape(v, (-1, 2)) for v in objects.values()]) if objects
+                 else gt.hidden_points if gt is not None and len(gt.hidden_points) else h.mean)
+        zoom_inset(ax_bev, lambda ax: draw(ax, main=False), focus)
     if title:
         fig.suptitle(f"{title} — frame {frame.index}, t = {frame.timestamp:.2f} s")
-    return save_png(fig, path, dpi=110)
+    return fig
 
 
 def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:
@@ -200,7 +280,7 @@ def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:
         draw = replace(wall, mean=s, cov=np.zeros_like(wall.cov), samples=None, info={})
         curve = _wall_curve(draw)
         if curve is not None:
-            ax.plot(*bev(curve), color="tab:orange", lw=0.5, alpha=0.25, zorder=3,
+            ax.plot(*bev(curve), color=palette.WALL_ESTIMATE, lw=0.5, alpha=0.25, zorder=palette.Z_ESTIMATE,
                     label="wall posterior draws" if first and j == 0 else None)
 
 

@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .figures import CLASS_STYLE, _ellipse_xy, bev, credible_radius, draw_walls, frame_bev, save_png
+from . import palette
+from .figures import (CLASS_STYLE, _ellipse_xy, bev, credible_radius, draw_walls, frame_bev, legend_outside,
+                      orient_azimuth, save_png)
 from .geometry import cartesian_to_polar
 from .types import LOS, MNLOS
 
@@ -38,7 +40,8 @@ def _detections_bev(ax, det, classes=(LOS, MNLOS)):
         m = det.label == lab
         if m.any():
             label = "mNLOS detections (virtual o')" if lab == MNLOS else f"{name} detections"
-            ax.scatter(*bev(det.position[m]), s=12, c=color, marker=marker, label=label, alpha=0.8)
+            ax.scatter(*bev(det.position[m]), s=12, c=color, marker=marker, label=f"{label} ({m.sum()})", alpha=0.8,
+                       zorder=palette.Z_ESTIMATE)
 
 
 def _walls_bev(ax, result, gt):
@@ -47,14 +50,22 @@ def _walls_bev(ax, result, gt):
 
 def _frame_bev(ax, result, gt):
     frame_bev(ax, gt, [result.detections.position, result.hidden.mean])
-    ax.scatter([0], [0], marker="^", s=60, c="k", label="radar", zorder=5)
+    ax.scatter([0], [0], marker="^", s=60, c="k", label="radar", zorder=palette.Z_RADAR)
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize=6, framealpha=0.85)
+    legend_outside(ax, where="below", fontsize=6, ncol=2)
 
 
 def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = None, title: str = "",
                       detector: str = "", credible: float = 0.9) -> Path:
-    """Write the six-panel PNG (module doc) of one FrameResult to ``path``; returns the path.
+    """Write the six-panel PNG (module doc, :func:`frame_panels_figure`) of one FrameResult to
+    ``path``; returns the path."""
+    return save_png(frame_panels_figure(result, heatmaps, title, detector, credible), path, dpi=90)
+
+
+def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str = "", detector: str = "",
+                        credible: float = 0.9):
+    """The six-panel Figure (module doc) of one FrameResult (not closed). Every RA-map panel puts
+    positive azimuth on the left, like the bird's-eye panels; legends sit below their panels.
 
     heatmaps: (2, H', W') LOS / mNLOS confidences in [0, 1] over the RA map's extent (any grid),
     or None; detector: its name, for the panel titles; credible: level of the hidden points'
@@ -70,7 +81,7 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
         heatmaps = np.asarray(heatmaps)
         if heatmaps.ndim != 3 or heatmaps.shape[0] < 2:
             raise InputError(f"heatmaps: expected shape (2, H, W) (LOS, mNLOS confidences), got {heatmaps.shape}")
-    fig, axes = plt.subplots(2, 3, figsize=(17, 10.5))
+    fig, axes = plt.subplots(2, 3, figsize=(17, 12.5))
     p_db = ra.power_db()
     rel = p_db - np.median(p_db)
     vmax = max(30.0, float(np.percentile(rel, 99.9)))
@@ -90,7 +101,7 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
             im = ax.imshow(heatmaps[k], origin="lower", aspect="auto", cmap="magma", vmin=0, vmax=1, extent=ext)
             fig.colorbar(im, ax=ax, label="confidence")
     for ax in axes[0]:
-        ax.set_xlabel("azimuth θ [deg] (positive = left)")
+        orient_azimuth(ax, ext[:2])
         ax.set_ylabel("range [m]")
 
     ax = axes[1, 0]
@@ -98,19 +109,18 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
     if gt is not None:
         for pts, color, label in ((gt.los_points, "tab:cyan", "true LOS"), (gt.mnlos_points, "tab:red", "true mNLOS")):
             if len(pts):
-                ax.scatter(*_polar_deg(pts), s=4, c=color, alpha=0.5, label=label)
+                ax.scatter(*_polar_deg(pts), s=4, c=color, alpha=0.5, label=label, zorder=palette.Z_TRUTH)
     for lab, (name, color, marker) in CLASS_STYLE.items():
         m = det.label == lab
         if m.any():
             style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
             ax.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker, linewidths=1.2,
-                       label=f"{name} ({m.sum()})", **style)
-    ax.set_xlim(ext[0], ext[1])
+                       label=f"{name} ({m.sum()})", zorder=palette.Z_ESTIMATE, **style)
+    orient_azimuth(ax, ext[:2])
     ax.set_ylim(ext[2], ext[3])
-    ax.set_title("(d) detections")
-    ax.set_xlabel("azimuth θ [deg] (positive = left)")
+    ax.set_title(f"(d) detections ({len(det)})")
     ax.set_ylabel("range [m]")
-    ax.legend(loc="upper right", fontsize=7)
+    legend_outside(ax, where="below", fontsize=7)
 
     ax = axes[1, 1]
     _walls_bev(ax, result, gt)
@@ -122,21 +132,23 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
     _walls_bev(ax, result, gt)
     _detections_bev(ax, det, (LOS,))
     if gt is not None and len(gt.hidden_points):
-        ax.scatter(*bev(gt.hidden_points), s=10, c="tab:green", marker="o", label="true hidden points")
+        ax.scatter(*bev(gt.hidden_points), s=10, c=palette.TRUTH, marker="o", label="true hidden points",
+                   zorder=palette.Z_TRUTH)
     h = result.hidden
     if len(h):
-        ax.scatter(*bev(h.mean), s=50, c="tab:purple", marker="+", linewidths=1.5,
-                   label=f"reconstructed ({100 * credible:g} % credible)")
+        ax.scatter(*bev(h.mean), s=50, c=palette.ESTIMATE, marker="+", linewidths=1.5, zorder=palette.Z_ESTIMATE,
+                   label=f"reconstructed hidden points ({len(h)}; {100 * credible:g} % credible)")
         for mu, c in zip(h.mean, h.cov):
-            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color="tab:purple", lw=0.8, alpha=0.7)
+            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color=palette.ESTIMATE, lw=0.8, alpha=0.7,
+                    zorder=palette.Z_ESTIMATE)
     if result.tracks is not None and len(result.tracks):
         from .track_figure import draw_tracks
 
         draw_tracks(ax, result.tracks)
-    ax.set_title(f"(f) reconstruction ({len(h)} hidden points)")
+    ax.set_title(f"(f) reconstruction ({len(h)} reconstructed hidden point{'s' * (len(h) != 1)})")
     _frame_bev(ax, result, gt)
 
     fam = frame.meta.get("family")
     head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")
     fig.suptitle(head)
-    return save_png(fig, path, dpi=90)
+    return fig

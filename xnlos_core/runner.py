@@ -45,7 +45,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     done: dict[int, dict] = {}
     animate = config.run.wants_animation("tracker" in pipe.stages)
     old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
-                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz"], state=prov["state_sha256"])
+                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png"],
+                state=prov["state_sha256"])
     if old is not None:
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
@@ -56,7 +57,9 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
 
     records = dict(done)
     bar = _progress(total=n, initial=len(done), enabled=progress, desc=f"run {config.name}")
-    last = None
+    # Figures drawn as frames come (no result is held): those ``run.figures`` wants among frames
+    # 0 … n−1; the last (or any other) still missing at the end is recomputed for its figure.
+    early = set(config.run.figure_frames(range(n))) if config.run.figures != "last" else set()
     # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
     for res in pipe.run(skip=done):
         if animate:  # before the record: a recorded frame always has its snapshot
@@ -64,32 +67,65 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         rec = json.loads(json.dumps(res.record(), default=json_default))
         append_jsonl(res_path, rec)
         records[rec["frame"]] = rec
-        last = res
+        if res.frame.index in early:
+            plot_result(pipe, res, out, list(records.values()))
         bar.update(1)
     bar.close()
     ordered = [records[k] for k in sorted(records)]
     if list(records) != sorted(records):  # a gap was filled after later frames: store in frame order
         write_jsonl(res_path, ordered)
     records = ordered
-    if config.run.figure and n and (last is None or last.frame.index != records[-1]["frame"]):
-        # Resumed after every frame was done (or only a gap was filled): re-make the last frame.
-        last = next(pipe.run(start=n - 1), None)
-    fig_path = None
-    if config.run.figure and last is not None:
-        from .figures import plot_frame
-
-        fig_path = out / f"frame_{last.frame.index:04d}.png"
-        plot_frame(last, fig_path, title=config.name, history=track_history(records, last.frame.index),
-                   region=tracker_region(config), unobservable=unobservable_outlines(pipe, last))
+    figures = _write_figures(pipe, out, records)
     gif = _write_animation(pipe, out, records, progress) if animate else None
     summary = summarise(records)
-    summary["figure"] = fig_path.name if fig_path else None
+    summary["figure"] = figures[-1].name if figures else None
+    if len(figures) > 1:
+        summary["figures"] = [p.name for p in figures]
     if gif is not None:
         summary["animation"] = gif.name
     summary["state_sha256"] = prov.get("state_sha256", {})
     atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
     return summary
+
+
+def figure_path(out: str | Path, index: int) -> Path:
+    """Where ``xnlos run`` writes frame ``index``'s figure under its output directory ``out``."""
+    return Path(out) / f"frame_{index:04d}.png"
+
+
+def plot_result(pipe: Pipeline, result, out: Path, records: list[dict]) -> Path:
+    """Write frame ``result``'s figure (:func:`xnlos_core.figures.plot_frame`) with its tracks'
+    history from ``records``, the tracker's region and the hidden objects' outlines."""
+    from .figures import plot_frame
+
+    k = result.frame.index
+    return plot_frame(result, figure_path(out, k), title=pipe.config.name, history=track_history(records, k),
+                      region=tracker_region(pipe.config), unobservable=unobservable_outlines(pipe, result),
+                      objects=object_outlines(pipe, result))
+
+
+def _write_figures(pipe: Pipeline, out: Path, records: list[dict]) -> list[Path]:
+    """The figures ``run.figures`` asks for among the recorded frames: those not on disk yet (a
+    resumed run, a finished one whose ``figures`` was changed) are recomputed and drawn; returns the
+    paths, in frame order."""
+    wanted = pipe.config.run.figure_frames(r["frame"] for r in records)
+    missing = {k for k in wanted if not figure_path(out, k).exists()}
+    if missing:
+        for res in pipe.run(skip={r["frame"] for r in records} - missing):
+            if res.frame.index in missing:
+                plot_result(pipe, res, out, records)
+    return [figure_path(out, k) for k in wanted]
+
+
+def object_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
+    """Object name → bird's-eye outline (K, 2) [m] (``ObjectSpec.footprint``) at the frame's time of
+    each scene object that has a mirror path in ``result`` (or whose paths were not counted): the
+    true outline the figure draws and zooms on. Empty without a simulated scene."""
+    paths = result.metrics.get("mirror_paths") or {}
+    if pipe.scene is None:
+        return {}
+    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects if paths.get(o.name, 1) != 0}
 
 
 def unobservable_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:

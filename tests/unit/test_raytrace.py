@@ -202,3 +202,23 @@ def test_picture_is_written(tmp_path):
     out = plot_trace(load_scene({"builtin": "corner"}, "test"), RadarConfig(n_samples=256, max_range=60.0),
                      tmp_path / "rt.png", max_rays=50)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_picture_is_oriented_like_every_bev_and_ra_figure():
+    import matplotlib.pyplot as plt
+
+    from sims.raytrace.picture import trace_figure
+    from xnlos_core.bev import AZIMUTH_LABEL
+
+    fig = trace_figure(load_scene({"builtin": "corner"}, "test"), RadarConfig(n_samples=256, max_range=60.0),
+                       max_rays=20)
+    try:
+        ax, ax2 = fig.axes[:2]
+        assert ax.get_ylabel() == "x [m] (forward)" and ax.get_xlim()[0] < ax.get_xlim()[1]  # −y to the right
+        assert ax2.get_xlabel() == AZIMUTH_LABEL and ax2.get_xlim()[0] > 0 > ax2.get_xlim()[1]
+        ax.figure.canvas.draw()
+        leg = ax.get_legend().get_window_extent()
+        data = ax.get_window_extent()
+        assert leg.y1 <= data.y0  # the legend is below the data area
+    finally:
+        plt.close(fig)

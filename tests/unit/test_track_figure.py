@@ -104,4 +104,4 @@ def test_the_frame_figures_draw_the_tracks_of_a_result(tmp_path, monkeypatch):
     res = FrameResult(synthetic_frame(), Detections.empty(), [], HiddenPoints.empty(), _tracks())
     assert plot_frame(res, tmp_path / "f.png", "t", history={1: np.array([[20.0, -12.0]])}).exists()
     assert plot_frame_panels(res, tmp_path / "p.png").exists()
-    assert [len(a["cone50"]) for a in drawn] == [2, 2]
+    assert [len(a["cone50"]) for a in drawn] == [2, 2, 2]  # plot_frame: its panel and the zoom inset
