@@ -21,6 +21,19 @@ class InsufficientDataError(XnlosError, ValueError):
     """A stage was given too little data to produce a result (e.g. a wall from < 2 LOS points)."""
 
 
+class SchemaKeywordError(InputError):
+    """A JSON Schema uses a keyword that :mod:`xnlos_core.json_schema` does not implement."""
+
+
+class SchemaViolation(InputError):
+    """A record does not match its schema; ``path`` is the key path of the offending value
+    (e.g. ``walls[0].cov``), ``reason`` what was expected there."""
+
+    def __init__(self, path: str, reason: str):
+        super().__init__(f"{path or '<record>'}: {reason}")
+        self.path, self.reason = path, reason
+
+
 class XnlosWarning(UserWarning):
     """Base class of every warning xnlos issues on purpose (the CLI prints them as ``xnlos: warning: …``)."""
 
@@ -33,3 +46,8 @@ class GridMismatchWarning(XnlosWarning):
 class PipelineWarning(XnlosWarning):
     """A pipeline is valid and runs, but cannot deliver part of what it is configured for (e.g. a
     detector that labels nothing mNLOS feeding a wall estimator and reconstructor: it never reconstructs)."""
+
+
+class LegacyRecordWarning(XnlosWarning):
+    """A results.jsonl holds records of schema 1 (no ``schema_version``), which lack what schema 2
+    added: per-detection rows, hidden-point covariances, wall extents and arc anchors."""

@@ -16,6 +16,7 @@ import numpy as np
 from . import metrics
 from .config import PipelineConfig
 from .errors import ConfigError, InsufficientDataError, PipelineWarning
+from .frame_record import SCHEMA_VERSION, detections_record, hidden_record, wall_record
 from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
@@ -45,7 +46,14 @@ class FrameResult:
         and its variance [m²/s²]) and ``hidden_velocity`` (per hidden point, in the order of
         ``hidden_points``: velocity (2,) [m/s], velocity_cov (2, 2) [m²/s²] and source_index, the
         row of ``detection_doppler`` it was mirrored from). ``tracks`` gains the forecast and
-        time-to-appearance fields when the tracker gives them (:mod:`xnlos_core.track_record`)."""
+        time-to-appearance fields when the tracker gives them (:mod:`xnlos_core.track_record`).
+
+        Schema 2 (issue 29) adds ``schema_version``, ``detection_table`` (every detection: range,
+        azimuth, label, class, confidence, range_std, azimuth_std, velocity/velocity_var with Doppler),
+        each wall's param_names, params, extent and anchor, and ``hidden`` (mean, cov, source_index,
+        wall_index, velocity/velocity_cov with Doppler): :mod:`xnlos_core.frame_record`. The keys of
+        version 1 stay as they were, so old readers and resumed runs keep working. The whole line is
+        described by :data:`xnlos_core.results_schema.RESULTS_SCHEMA`."""
         return _no_nan({**self._base_record(), **self._doppler_record()})
 
     def _doppler_record(self) -> dict[str, Any]:
@@ -62,13 +70,15 @@ class FrameResult:
     def _base_record(self) -> dict[str, Any]:
         d = self.detections
         return {
+            "schema_version": SCHEMA_VERSION,
             "frame": self.frame.index,
             "timestamp": self.frame.timestamp,
             "detections": {"LOS": int((d.label == 0).sum()), "mNLOS": int((d.label == 1).sum()),
                            "unclassified": int((d.label == 2).sum())},
-            "walls": [{"model": w.model, "mean": w.mean.tolist(), "cov": w.cov.tolist(),
-                       "n_points": w.n_points} for w in self.walls],
+            "detection_table": detections_record(d),
+            "walls": [wall_record(w) for w in self.walls],
             "hidden_points": self.hidden.mean.tolist(),
+            "hidden": hidden_record(self.hidden),
             "tracks": None if self.tracks is None else tracks_record(self.tracks),
             "metrics": self.metrics,
             "timings_s": self.timings,

@@ -42,6 +42,14 @@ def _floats(rec: dict, key: str, where: str) -> np.ndarray:
         raise InputError(f"{where}.{key}: expected (nested) numbers or null, got {str(rec[key])[:80]}") from None
 
 
+def _shaped(rec: dict, key: str, where: str, shape: tuple[int, ...]) -> np.ndarray:
+    """:func:`_floats` reshaped to ``shape``; InputError naming ``where``.key when the size differs."""
+    arr = _floats(rec, key, where)
+    if arr.size != int(np.prod(shape)):
+        raise InputError(f"{where}.{key}: expected shape {shape} (one row per track id), got {arr.shape}")
+    return arr.reshape(shape)
+
+
 def _none_to_nan(x):
     if x is None:
         return float("nan")
@@ -62,8 +70,8 @@ def tracks_from_record(rec: dict[str, Any] | None, timestamp: float = 0.0, where
     if missing:
         raise InputError(f"{where}: missing {', '.join(missing)}")
     k = len(rec["id"])
-    pos = _floats(rec, "position", where).reshape(k, 2) if k else np.zeros((0, 2))
-    vel = _floats(rec, "velocity", where).reshape(k, 2) if k else np.zeros((0, 2))
+    pos = _shaped(rec, "position", where, (k, 2))
+    vel = _shaped(rec, "velocity", where, (k, 2))
     kw: dict[str, Any] = {}
     if "forecast" in rec:
         kw = {n: _floats(rec, n, where) for n in _ARRAYS}
@@ -73,7 +81,7 @@ def tracks_from_record(rec: dict[str, Any] | None, timestamp: float = 0.0, where
             kw.update(forecast=np.zeros((0, n_h, 2)), radius50=np.zeros((0, n_h)), radius90=np.zeros((0, n_h)))
     if "arrival" in rec:
         kw["arrival"] = _floats(rec, "arrival", where)
-        kw["arrival_interval"] = _floats(rec, "arrival_interval", where).reshape(k, 2)
+        kw["arrival_interval"] = _shaped(rec, "arrival_interval", where, (k, 2))
     return Tracks(np.asarray(rec["id"], dtype=np.int64), pos, vel, pos, float(timestamp), **kw)
 
 
