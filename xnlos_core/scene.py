@@ -320,7 +320,8 @@ def generated_scene(table: dict, source: str, base_dir: str | Path, registry=Non
     """The scene of ``[scene] family = NAME``: the registered scene generator ``NAME`` (kind
     ``scene_generator``, e.g. ``t_junction``) with ``overrides`` (its ``Params``, validated and named
     ``scene.overrides.KEY`` in errors) draws one scene from ``seed`` (default 0).
-    ``registry``: where the generator is looked up (default: the shared one)."""
+    ``registry``: where the generator is looked up (:class:`xnlos_core.registry.Registry`, e.g.
+    the pipeline's); required."""
     from .errors import ConfigError, PluginError
     from .validation import validate_model
 
@@ -333,9 +334,9 @@ def generated_scene(table: dict, source: str, base_dir: str | Path, registry=Non
         raise ConfigError(f"{source}: [scene.seed] expected an integer in [0, 2^63), got {seed!r}")
     if not isinstance(overrides, dict):
         raise ConfigError(f"{source}: [scene.overrides] expected a table of the family's parameters, got {overrides!r}")
-    if registry is None:
-        from .registry import get_registry
-        registry = get_registry()
+    if registry is None:  # the caller's registry (the pipeline's): the core's scene module imports no registry
+        raise ConfigError(f"{source}: [scene.family] a generated scene is built by a pipeline (or a caller that "
+                          "passes its plugin registry); here only builtin, file or inline scenes are read")
     if not isinstance(family, str):
         raise ConfigError(f"{source}: [scene.family] expected a scene generator name, got {family!r}")
     try:

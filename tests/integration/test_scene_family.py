@@ -28,10 +28,13 @@ def test_pipeline_runs_on_a_generated_t_junction():
 
 
 def test_seed_picks_the_draw_and_defaults_to_zero():
-    a = load_scene({"family": "t_junction"}, "t")
+    reg = get_registry()
+    a = load_scene({"family": "t_junction"}, "t", registry=reg)
     assert a.meta["seed"] == 0
-    assert load_scene({"family": "t_junction", "seed": 0}, "t").walls == a.walls
-    assert load_scene({"family": "t_junction", "seed": 1}, "t").walls != a.walls
+    assert load_scene({"family": "t_junction", "seed": 0}, "t", registry=reg).walls == a.walls
+    assert load_scene({"family": "t_junction", "seed": 1}, "t", registry=reg).walls != a.walls
+    with pytest.raises(ConfigError, match=r"\[scene.family\] a generated scene is built by a pipeline"):
+        load_scene({"family": "t_junction"}, "t")
 
 
 @pytest.mark.parametrize(("scene", "message"), [
