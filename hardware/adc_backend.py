@@ -14,13 +14,15 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from xnlos_core.interfaces import Backend
 from xnlos_core.types import Frame
+from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
 
 from .recording import Recording
 
 
 class ADCParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    recording: str = Field(..., min_length=1, description="TOML description of the recording ([recording], [chirp], [radar])")
+    recording: ConfigPath = Field(..., min_length=1, description="TOML description of the recording ([recording], "
+                                                                 "[chirp], [radar])" + RELATIVE_TO_CONFIG)
     start: int = Field(0, ge=0, description="first frame of the file to yield")
 
 

@@ -45,6 +45,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
+from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
 
 from .assembler import FrameAssembler, LinkStats, LostFrame, on_radar_message
 from .emulator import RadarEmulator
@@ -81,7 +82,8 @@ class CANParams(BaseModel):
     data_bitrate: int = Field(5_000_000, ge=500_000, le=12_000_000, description="CAN FD data bit rate [bit/s]")
     bus_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra can.Bus keyword arguments")
     sensor_id: int = Field(0, ge=0, le=7, description="identifiers are base + 0x10·sensor_id")
-    dbc: str | None = Field(None, description="DBC file (default: the packaged radar.dbc); checked on open")
+    dbc: ConfigPath | None = Field(None, description="DBC file (default: the packaged radar.dbc); checked on "
+                                                     "open" + RELATIVE_TO_CONFIG)
     payload: Literal["ra_complex64", "adc_int16", "adc_complex64"] = Field(
         "ra_complex64", description="what the radar sends: the RA map, or the ADC cube (int16 I/Q or complex64)")
     frame_interval: float = Field(0.1, ge=0, le=3600, description="frame period requested [s]; 0 = as fast as possible")
@@ -98,7 +100,8 @@ class CANParams(BaseModel):
         "block", description="consumer behind and queue full: block = request no more than fits (the radar "
         "pauses; nothing dropped), drop_oldest / drop_newest = the radar keeps its rate and the oldest queued / "
         "the arriving frame is dropped and counted as overrun (never as lost)")
-    record: str | None = Field(None, description="record the bus to this python-can log (.blf, .asc) while open")
+    record: ConfigPath | None = Field(None, description="record the bus to this python-can log (.blf, .asc) "
+                                                        "while open" + RELATIVE_TO_CONFIG)
     emulate: Literal["auto", "always", "never"] = Field(
         "auto", description="run an in-process radar emulator on the bus (auto: only on the virtual interface)")
     emulator: EmulatorSpec = Field(default_factory=EmulatorSpec, description="the emulator (hardware in the loop)")

@@ -16,11 +16,13 @@ from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.io import load_frame
 from xnlos_core.types import Frame
+from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
 
 
 class NPZParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    directory: str = Field(..., min_length=1, description="folder holding the recorded *.npz frames")
+    directory: ConfigPath = Field(..., min_length=1, description="folder holding the recorded *.npz frames"
+                                                                 + RELATIVE_TO_CONFIG)
 
 
 class NPZBackend(Backend):

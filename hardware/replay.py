@@ -27,6 +27,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
+from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
 
 from .assembler import FrameAssembler, LinkStats, LostFrame, on_radar_message
 from .link import _SIGNIFICANT, isotp_params, stop_quietly
@@ -81,10 +82,10 @@ class ReplayParams(BaseModel):
     """Parameters of the ``replay`` backend."""
 
     model_config = ConfigDict(extra="forbid")
-    file: str = Field(..., min_length=1, description="python-can log to replay (.blf, .asc, …)")
+    file: ConfigPath = Field(..., min_length=1, description="python-can log to replay (.blf, .asc, …)" + RELATIVE_TO_CONFIG)
     realtime: bool = Field(False, description="play at recorded speed (False: as fast as possible)")
     sensor_id: int = Field(0, ge=0, le=7, description="which radar of the recording (identifier offset 0x10·id)")
-    dbc: str | None = Field(None, description="DBC file (default: the packaged radar.dbc)")
+    dbc: ConfigPath | None = Field(None, description="DBC file (default: the packaged radar.dbc)" + RELATIVE_TO_CONFIG)
     payload: Literal["auto", "ra_complex64", "adc_int16", "adc_complex64"] = Field(
         "auto", description="payload format; auto: as the radar's first RadarState or FrameHeader says")
     frame_timeout: float = Field(2.0, gt=0, le=3600, description="a frame still incomplete this long (log "

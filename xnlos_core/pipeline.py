@@ -127,14 +127,15 @@ class Pipeline:
         self.radar = load_radar(config.radar, source, config.base_dir)
         self.stages = {}
         for kind, stage in config.stages().items():
-            self.stages[kind] = registry.create(kind, stage.name, stage.params, source=source)
+            self.stages[kind] = registry.create(kind, stage.name, stage.params, source=source,
+                                               base_dir=config.base_dir)
             try:  # bounds that depend on the map size: checked here, so `check` refuses what `run` would
                 self.stages[kind].check_radar(self.radar)
             except ConfigError as exc:
                 raise ConfigError(f"{source}: [{kind}] {stage.name}: {exc}") from None
         self.scene = None
         if "forward_model" in self.stages:
-            self.scene = load_scene(config.scene, source, config.base_dir)
+            self.scene = load_scene(config.scene, source, config.base_dir, registry=registry)
         self.validate()
 
     def validate(self) -> None:

@@ -5,6 +5,7 @@ All quantities are SI (Hz, s, W, m, rad) unless the field name says dB.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -382,12 +383,34 @@ def _check_window(name: str, window: str) -> None:
         raise ValueError(f"{name}={window!r} is not a scipy.signal window name (e.g. 'hann', 'taylor', 'boxcar'): {exc}") from None
 
 
-def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
-    """RadarConfig from a ``[radar]`` table: fields, or ``preset = "file.toml"`` plus overrides.
+PRESET_DIR = Path(__file__).with_name("defaults") / "radar"
+PRESET_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]{0,63}")
 
-    ``preset`` and ``coupling_file`` are files inside the config roots (:mod:`xnlos_core.files`):
-    the preset relative to ``base_dir`` (the config's folder), a coupling file relative to the
-    file that names it; the returned config holds the coupling file's resolved absolute path.
+
+def radar_presets() -> list[str]:
+    """Names of the radar presets shipped inside the package (``xnlos_core/defaults/radar/*.toml``),
+    usable as ``preset = "NAME"`` from any folder and from an installed package."""
+    return sorted(p.stem for p in PRESET_DIR.glob("*.toml"))
+
+
+def preset_path(preset, source: str, base_dir: str | Path) -> Path:
+    """The preset file ``preset`` names: a shipped preset by name (no ``.toml`` suffix, e.g.
+    ``"xband_default"``), else a ``.toml`` file relative to ``base_dir`` inside the config roots."""
+    if isinstance(preset, str) and not preset.lower().endswith(".toml"):
+        if not (PRESET_NAME.fullmatch(preset) and preset in radar_presets()):
+            raise ConfigError(f"{source}: [radar.preset] unknown preset {preset[:200]!r}; shipped presets: "
+                              f"{', '.join(radar_presets())} (or a path to a .toml file, relative to the config)")
+        return PRESET_DIR / f"{preset}.toml"
+    return resolve_config_path(preset, source=source, key="radar.preset", base_dir=base_dir, suffixes=(".toml",))
+
+
+def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> RadarConfig:
+    """RadarConfig from a ``[radar]`` table: fields, or ``preset = NAME | "file.toml"`` plus overrides.
+
+    ``preset`` is the name of a shipped preset (:func:`radar_presets`, e.g. ``"xband_default"``)
+    or a file inside the config roots (:mod:`xnlos_core.files`) relative to ``base_dir`` (the
+    config's folder); ``coupling_file`` is a file inside the config roots relative to the file
+    that names it; the returned config holds the coupling file's resolved absolute path.
     """
     if not isinstance(table, dict):
         raise ConfigError(f"{source}: [radar] expected a table of RadarConfig fields, got {table!r}")
@@ -395,8 +418,7 @@ def load_radar(table: dict[str, Any], source: str, base_dir: str | Path) -> Rada
     preset = table.pop("preset", None)
     coupling_dir = base_dir
     if preset is not None:
-        path = resolve_config_path(preset, source=source, key="radar.preset", base_dir=base_dir,
-                                   suffixes=(".toml",))
+        path = preset_path(preset, source, base_dir)
         base = load_toml(path)
         base = base.get("radar", base)
         if not isinstance(base, dict):

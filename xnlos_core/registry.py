@@ -14,6 +14,7 @@ import inspect
 import os
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any, Callable
 
 import pluggy
@@ -112,13 +113,19 @@ class Registry:
             known = ", ".join(self.names(kind)) or "(none)"
             raise PluginError(f"unknown {kind} {name!r}; registered {kind}s: {known}") from None
 
-    def create(self, kind: str, name: str, params: dict[str, Any] | None = None, *, source: str = "<config>"):
-        """Instantiate ``name`` with validated ``params`` (errors name ``source`` and the key)."""
+    def create(self, kind: str, name: str, params: dict[str, Any] | None = None, *, source: str = "<config>",
+               base_dir: str | Path | None = None, prefix: str | None = None):
+        """Instantiate ``name`` with validated ``params`` (errors name ``source`` and the key ``prefix``,
+        default ``<kind>.params``). ``base_dir``: the config file's folder; path parameters
+        (:data:`xnlos_core.param_paths.ConfigPath`) are resolved against it. None: left as written."""
         from .config import validate_model
+        from .param_paths import PathContext
 
         comp = self.get(kind, name)
         model = comp.params_model
-        validated = validate_model(model, params or {}, source=source, prefix=f"{kind}.params") if model else None
+        context = None if base_dir is None else PathContext(base_dir).validation_context()
+        validated = validate_model(model, params or {}, source=source, prefix=prefix or f"{kind}.params",
+                                   context=context) if model else None
         return comp.factory(validated) if model else comp.factory()
 
     def names(self, kind: str) -> list[str]:

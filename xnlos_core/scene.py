@@ -313,8 +313,49 @@ def builtin_scenes() -> list[str]:
     return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml") if p.stem != "demo")
 
 
-def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: str | Path | None = None) -> Scene:
-    """Scene from a pipeline's ``[scene]`` table: ``builtin = NAME``, ``file = PATH`` or inline.
+FAMILY_KEYS = ("family", "seed", "overrides")
+
+
+def generated_scene(table: dict, source: str, base_dir: str | Path, registry=None) -> Scene:
+    """The scene of ``[scene] family = NAME``: the registered scene generator ``NAME`` (kind
+    ``scene_generator``, e.g. ``t_junction``) with ``overrides`` (its ``Params``, validated and named
+    ``scene.overrides.KEY`` in errors) draws one scene from ``seed`` (default 0).
+    ``registry``: where the generator is looked up (:class:`xnlos_core.registry.Registry`, e.g.
+    the pipeline's); required."""
+    from .errors import ConfigError, PluginError
+    from .validation import validate_model
+
+    extra = sorted(set(table) - set(FAMILY_KEYS))
+    if extra:
+        raise ConfigError(f"{source}: [scene] a generated scene (family = …) takes only {', '.join(FAMILY_KEYS)}; "
+                          f"remove {', '.join(extra)} (builtin, file and inline walls/objects are other scene kinds)")
+    family, seed, overrides = table["family"], table.get("seed", 0), table.get("overrides", {})
+    if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
+        raise ConfigError(f"{source}: [scene.seed] expected an integer in [0, 2^63), got {seed!r}")
+    if not isinstance(overrides, dict):
+        raise ConfigError(f"{source}: [scene.overrides] expected a table of the family's parameters, got {overrides!r}")
+    if registry is None:  # the caller's registry (the pipeline's): the core's scene module imports no registry
+        raise ConfigError(f"{source}: [scene.family] a generated scene is built by a pipeline (or a caller that "
+                          "passes its plugin registry); here only builtin, file or inline scenes are read")
+    if not isinstance(family, str):
+        raise ConfigError(f"{source}: [scene.family] expected a scene generator name, got {family!r}")
+    try:
+        comp = registry.get("scene_generator", family)
+    except PluginError as exc:
+        raise ConfigError(f"{source}: [scene.family] {exc}") from None
+    model = comp.params_model
+    params = validate_model(model, overrides, source=source, prefix="scene.overrides") if model else None
+    generator = comp.factory(params) if model else comp.factory()
+    scene = generator.generate(seed)
+    return scene.model_copy(update={"base_dir": str(base_dir),
+                                    "meta": {**scene.meta, "family": family, "seed": seed}})
+
+
+def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: str | Path | None = None,
+               registry=None) -> Scene:
+    """Scene from a pipeline's ``[scene]`` table: ``builtin = NAME``, ``file = PATH``,
+    ``family = NAME`` (with ``seed`` and ``overrides``: :func:`generated_scene`, looked up in
+    ``registry``) or inline.
 
     ``file`` and every mesh ``file`` are regular files inside the config roots of ``root_dir``
     (default ``base_dir``, the top-level config's folder; :mod:`xnlos_core.files`): a scene file
@@ -330,11 +371,14 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: s
                           f"objects), got {table!r}")
     root_dir = base_dir if root_dir is None else root_dir
     table = dict(table)
-    if "builtin" in table and "file" in table:
-        raise ConfigError(f"{source}: [scene] give either 'builtin' or 'file', not both")
+    given = [k for k in ("builtin", "file", "family") if k in table]
+    if len(given) > 1:
+        raise ConfigError(f"{source}: [scene] give one of 'builtin', 'file' or 'family', not {' and '.join(given)}")
     if "base_dir" in table:  # where meshes are looked up follows from where the scene is written
         raise ConfigError(f"{source}: [scene.base_dir] is set by the loader (the scene file's folder); remove it")
-    if "builtin" in table:
+    if "family" in table:
+        scene, src = generated_scene(table, source, base_dir, registry), source
+    elif "builtin" in table:
         name = table.pop("builtin")
         if not (isinstance(name, str) and BUILTIN_NAME.fullmatch(name) and name in builtin_scenes()):
             raise ConfigError(f"{source}: [scene.builtin] unknown scene {name!r}; built-in scenes: "

@@ -98,12 +98,15 @@ def format_errors(model: type[BaseModel], exc: ValidationError, source: str, pre
     return "\n".join(lines)
 
 
-def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: str = ""):
-    """Validate ``data`` into ``model``; errors become one ConfigError naming source and keys."""
+def validate_model(model: type[BaseModel], data: Any, *, source: str, prefix: str = "",
+                   context: dict[str, Any] | None = None):
+    """Validate ``data`` into ``model``; errors become one ConfigError naming source and keys.
+    ``context``: pydantic validation context (e.g. :class:`xnlos_core.param_paths.PathContext`'s,
+    which makes path fields relative to the config file)."""
     if isinstance(data, model):
         return data
     try:
-        return model.model_validate(data)
+        return model.model_validate(data, context=context)
     except ValidationError as exc:
         raise ConfigError(format_errors(model, exc, source, prefix)) from None
     except ConfigError:

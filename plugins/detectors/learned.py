@@ -29,7 +29,7 @@ record (and ``checkpoint = "none"``) is not checked.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import warnings
 
@@ -40,6 +40,7 @@ from xnlos_core.detection_doppler import nearest_cells, with_cell_velocity
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.types import Detections, Frame, RAMap
+from xnlos_core.param_paths import config_path
 
 MODELS_DIR = Path(__file__).with_name("models")
 UNIFORM_STD = 1.0 / np.sqrt(12.0)  # cells: the error of a position uniform within one cell
@@ -49,8 +50,9 @@ class LearnedParams(BaseModel):
     """Parameters shared by the learned detectors."""
 
     model_config = ConfigDict(extra="forbid")
-    checkpoint: str = Field("default", description="checkpoint file from `xnlos train`; 'default': the model "
-                                                   "shipped with xnlos; 'none': untrained (tests only)")
+    checkpoint: Annotated[str, config_path("default", "none")] = Field(
+        "default", description="checkpoint file from `xnlos train`, relative to the config file's folder; "
+                               "'default': the model shipped with xnlos; 'none': untrained (tests only)")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$",
                         description="torch device: auto (cuda when available, else cpu), cpu, cuda[:N], mps")
     threshold: float | tuple[float, float] | None = Field(

@@ -29,6 +29,7 @@ from pydantic import Field
 
 from xnlos_core.errors import InputError
 from xnlos_core.types import LOS, Detections, HiddenPoints, WallPosterior
+from xnlos_core.param_paths import ConfigPath
 
 from plugins.mirror.association import wall_support
 from plugins.mirror.mirror import MirrorParams, MirrorReconstructor
@@ -39,8 +40,9 @@ DEFAULT_MODEL = Path(__file__).parent / "models" / "residual_mirror.pt"
 
 
 class ResidualMirrorParams(MirrorParams):
-    model: str | None = Field(None, description="checkpoint of the residual network (default: the shipped "
-                                                "plugins/residual_mirror/models/residual_mirror.pt)")
+    model: ConfigPath | None = Field(None, description="checkpoint of the residual network, relative to the "
+                                                       "config file's folder (default: the shipped "
+                                                       "plugins/residual_mirror/models/residual_mirror.pt)")
     neighbours: int | None = Field(None, ge=1, le=1024, description="supporting LOS points the attention sees "
                                                                    "(default: the checkpoint's)")
     support_distance: float | None = Field(None, gt=0, le=100, description="LOS points within this distance "

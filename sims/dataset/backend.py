@@ -3,8 +3,9 @@
 Frames come from :func:`sims.dataset.reader.open_dataset` (shard order; ``frame.index`` is the global map
 index, ``frame.meta`` names the scene family, split and seeds). ``start`` skips the first maps of
 the split, ``limit`` caps how many are read. The radar configuration is the dataset's own (each
-frame's RA map carries it); ``open``'s radar argument is not used. ``path`` is relative to the
-working directory.
+frame's RA map carries it); ``open``'s radar argument is not used. ``path`` in a pipeline file is
+relative to that file's folder (:mod:`xnlos_core.param_paths`); the default ``out/data/default``
+(what ``make dataset`` writes) and a path given in Python are relative to the working directory.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.types import Frame
+from xnlos_core.param_paths import ConfigPath
 
 from .reader import open_dataset
 from .shard import DatasetError
@@ -28,8 +30,10 @@ class DatasetParams(BaseModel):
     """Which maps of which dataset to read."""
 
     model_config = ConfigDict(extra="forbid")
-    path: str = Field("out/data/default", min_length=1,
-                      description="dataset directory written by `xnlos simulate` (holds manifest.json)")
+    path: ConfigPath = Field("out/data/default", min_length=1,
+                             description="dataset directory written by `xnlos simulate` (holds manifest.json), "
+                                         "relative to the config file's folder (the default: to the working "
+                                         "directory)")
     split: Literal["train", "val", "test", "all"] = Field("test", description="split to read; 'all': every map")
     start: int = Field(0, ge=0, description="skip this many maps of the split first")
     limit: int | None = Field(None, ge=1, description="read at most this many maps (None: to the split's end)")

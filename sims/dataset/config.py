@@ -14,7 +14,7 @@
                                              # of weights: [families] crossroads = 2.0
     [generator_params]               # parameters of every family's scene generator
     [family_overrides.crossroads]    # … and of one family (over generator_params)
-    [radar]                          # RadarConfig fields, or preset = "../radar/xband_default.toml"
+    [radar]                          # RadarConfig fields, or preset = "xband_default" (a shipped preset) or "file.toml"
     [forward_model]
     name = "raytrace"
     params = {}

@@ -84,7 +84,7 @@ def test_cli_hil_with_emcee_at_20_frames_per_second(tmp_path):
     """`configs/pipelines/can_hil.toml` with frame_interval = 0.05 and the emcee estimator through
     `xnlos run` delivered frames 0, 1, 8, 14, … (the rest lost); now 0..n-1 (small radar, 4 frames)."""
     src = (ROOT / "configs" / "pipelines" / "can_hil.toml").read_text()
-    for old, new in (('preset = "../radar/xband_default.toml"', "n_samples = 128\nmax_range = 20.0\nn_azimuth_bins = 31"),
+    for old, new in (('preset = "xband_default"', "n_samples = 128\nmax_range = 20.0\nn_azimuth_bins = 31"),
                      ("frame_interval = 0.2 ", "frame_interval = 0.05 "),
                      ("[run]\nframes = 5\nframe_interval = 0.2", "[run]\nframes = 4\nframe_interval = 0.05\nfigure = false"),
                      ('[wall_estimator]\nname = "lsq"', '[wall_estimator]\nname = "emcee"'),
