@@ -101,7 +101,7 @@ def analytic_signal(real_cube: np.ndarray, axis: int = 0) -> np.ndarray:
 
 def load_cube(path: Path, fmt: str, key: str) -> np.ndarray:
     """The array of a ``.npy`` file, of key ``key`` in a ``.npz``, or of dataset ``key`` in an HDF5 file
-    (needs h5py). Memory-mapped for ``.npy``. Raises InputError on a missing key or unreadable file."""
+    (h5py). Memory-mapped for ``.npy``. Raises InputError on a missing key or unreadable file."""
     try:
         if fmt == "npy":
             return np.load(path, mmap_mode="r", allow_pickle=False)
@@ -110,10 +110,8 @@ def load_cube(path: Path, fmt: str, key: str) -> np.ndarray:
                 if key not in z.files:
                     raise InputError(f"{path}: no array {key!r} (recording.key); it holds {sorted(z.files)}")
                 return z[key]
-        try:
-            import h5py
-        except ImportError:
-            raise ConfigError(f"{path}: reading HDF5 recordings needs h5py (pip install h5py)") from None
+        import h5py  # a dependency; imported here only because few recordings are HDF5
+
         with h5py.File(path, "r") as f:
             if key not in f:
                 raise InputError(f"{path}: no dataset {key!r} (recording.key); it holds {sorted(f.keys())}")

@@ -11,7 +11,7 @@ from hardware.recording import Recording, recording_radar
 from hardware.recording_checks import RecordingWarning
 from hardware.testing import write_dca1000_recording
 from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube
-from xnlos_core.errors import ConfigError
+from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig
 from xnlos_core.signal_chain import ra_map_from_cube
 
@@ -116,16 +116,21 @@ def test_npy_and_npz_cubes(tmp_path):
         assert np.abs(rec.ra_map(0).data - ref.data).max() < 1e-3 * np.abs(ref.data).max()
 
 
-def test_hdf5_without_h5py_is_a_clear_error(tmp_path):
-    pytest.importorskip("numpy")
-    try:
-        import h5py  # noqa: F401
-        pytest.skip("h5py installed")
-    except ImportError:
-        pass
-    (tmp_path / "c.h5").write_bytes(b"\x89HDF")
-    with pytest.raises(ConfigError, match="needs h5py"):
-        Recording.from_table({"recording": {"file": "c.h5", "format": "hdf5"}, "radar": {}}, "t.toml", tmp_path)
+def test_hdf5_cube(tmp_path):
+    import h5py
+
+    cube = _cubes(frames=1)[0]
+    with h5py.File(tmp_path / "c.h5", "w") as f:
+        f["adc"] = cube[None].astype(np.complex64)  # (frame, sample, chirp, channel)
+    common = {"radar": {k: v for k, v in RADAR.model_dump().items() if v is not None}}
+    rec = _quiet(Recording.from_table, {"recording": {"file": "c.h5", "format": "hdf5", "key": "adc"}, **common},
+                 "t.toml", tmp_path)
+    ref = ra_map_from_cube(cube.mean(axis=1), RADAR)
+    assert rec.n_frames == 1 and _peak(rec.ra_map(0)) == _peak(ref)
+    assert np.abs(rec.ra_map(0).data - ref.data).max() < 1e-3 * np.abs(ref.data).max()
+    with pytest.raises(InputError, match="no dataset 'frames'"):
+        Recording.from_table({"recording": {"file": "c.h5", "format": "hdf5", "key": "frames"}, **common},
+                             "t.toml", tmp_path).ra_map(0)
 
 
 # --- warnings ---------------------------------------------------------------------------------------
