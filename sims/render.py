@@ -9,7 +9,8 @@ Given the paths a forward model found (:class:`sims.paths.Paths`), :func:`render
 4. adds receiver noise (``noise``), forms the RA map (coupling compensated as the radar says);
    with ``doppler`` on, steps 3–4 run over the chirp sequence instead (:func:`render_doppler`);
 5. lists as ground truth the LOS and mNLOS paths inside the field of view and range whose RA-map
-   SNR reaches ``min_snr_db`` (other multipath is clutter, not ground truth).
+   SNR reaches ``min_snr_db`` (other multipath is clutter, not ground truth), with the owning
+   object of each (``mnlos_object``, ``los_object``: −1 for a wall seen directly).
 """
 from __future__ import annotations
 
@@ -82,7 +83,8 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
     gt = GroundTruth(los_points=paths.pos[los], mnlos_points=paths.pos[mn], hidden_points=paths.hidden[mn],
                      mnlos_object=owner, object_names=names, walls=walls,
                      los_snr_db=snr[los], mnlos_snr_db=snr[mn], hidden_velocity=hidden_velocity,
-                     mnlos_velocity=image_velocities(paths.hidden[mn], paths.pos[mn], hidden_velocity))
+                     mnlos_velocity=image_velocities(paths.hidden[mn], paths.pos[mn], hidden_velocity),
+                     los_object=np.where(paths.obj[los] >= 0, paths.obj[los], -1))  # walls: −1
     meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (paths.kind == LOS)).sum()),
             "n_mnlos_paths": int((live & (paths.kind == MNLOS)).sum()), "forward_model": forward_model,
             **(describe(live) if describe is not None else {}), "components": use}

@@ -37,7 +37,10 @@ def _report(summary: dict, out: Path) -> None:
     from .runner import object_verdict
 
     for name, info in (summary.get("objects") or {}).items():
-        print(f"hidden {name}: reconstruction error {object_verdict(info)}")
+        if info["status"] == "in line of sight":  # in plain view: no hidden-object error to report
+            print(f"{name}: {object_verdict(info)}")
+        else:
+            print(f"hidden {name}: reconstruction error {object_verdict(info)}")
     proc = sum(v for k, v in summary["time_ms"].items() if k != "source")
     print(f"{summary['frames']} frame(s), {proc:.1f} ms/frame processing; wrote {out / 'summary.md'}"
           + (f" and {out / summary['figure']}" if summary.get("figure") else "")

@@ -259,7 +259,10 @@ class Pipeline:
         ``hidden`` (hidden points alone; F1/precision/recall/CD are None, not the vacuous 1 of
         0/0, when there was nothing to reconstruct and nothing was). ``mirror_paths``: object
         name → number of its points with an open mirror path (mNLOS ground truth); 0 means the
-        object is not observable through a relay wall in this frame.
+        object is not observable through a relay wall in this frame. ``los_points``: object name →
+        number of its points the radar sees directly (LOS ground truth), only when the ground truth
+        records their owners (``GroundTruth.los_object``; not for frames read from a dataset): an
+        object with LOS points and no mirror path is in plain view, not hidden.
         """
         gt, det, hidden = res.frame.ground_truth, res.detections, res.hidden
         r = self.config.run.match_radius
@@ -274,6 +277,8 @@ class Pipeline:
                 alone.update(precision=None, recall=None, f1=None, cd=None)
             out.update(reconstruction=recon, hidden=alone)
         out["mirror_paths"] = {name: int(np.sum(gt.mnlos_object == k)) for k, name in enumerate(gt.object_names)}
+        if gt.los_object is not None:
+            out["los_points"] = {name: int(np.sum(gt.los_object == k)) for k, name in enumerate(gt.object_names)}
         return out
 
     def run(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[FrameResult]:

@@ -130,12 +130,15 @@ def object_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
 
 def unobservable_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
     """Object name → bird's-eye outline (K, 2) [m] at the frame's time of each scene object that
-    has no mirror path in ``result`` (``metrics.mirror_paths`` 0): what the figure draws so that an
-    object nothing could reconstruct does not vanish. Empty without a simulated scene."""
+    has no mirror path in ``result`` (``metrics.mirror_paths`` 0) and is not in line of sight either
+    (``metrics.los_points`` 0 or not recorded): what the figure draws so that an object nothing
+    could reconstruct does not vanish. Empty without a simulated scene."""
     paths = result.metrics.get("mirror_paths") or {}
+    los = result.metrics.get("los_points") or {}
     if pipe.scene is None:
         return {}
-    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects if paths.get(o.name, 1) == 0}
+    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects
+            if paths.get(o.name, 1) == 0 and los.get(o.name, 0) == 0}
 
 
 def tracker_region(config: PipelineConfig):
@@ -186,6 +189,7 @@ def _mean(values):
 
 OBJECT_ERROR = "reconstruction.object_error_m."
 MIRROR_PATHS = "mirror_paths."
+LOS_POINTS = "los_points."
 
 
 def summarise(records: list[dict]) -> dict[str, Any]:
@@ -200,52 +204,72 @@ def summarise(records: list[dict]) -> dict[str, Any]:
             flat.setdefault(key, []).append(v)
     out["objects"] = summarise_objects(records)
     out["metrics"] = {k: _mean(v) for k, v in sorted(flat.items())
-                      if not k.startswith((OBJECT_ERROR, MIRROR_PATHS))}
+                      if not k.startswith((OBJECT_ERROR, MIRROR_PATHS, LOS_POINTS))}
     out["notes"] = sorted({n for r in records for n in r.get("notes", [])})
     return out
 
 
 def summarise_objects(records: list[dict]) -> dict[str, dict[str, Any]]:
-    """Object name → {frames, observable_frames, error_m, status} over the frames whose ground
-    truth lists the object.
+    """Object name → {frames, observable_frames, los_frames, error_m, status} over the frames whose
+    ground truth lists the object.
 
     observable_frames: frames in which it has an open mirror path (``metrics.mirror_paths``; a
-    record without that key counts as observable). error_m: mean over frames of
-    ``reconstruction.object_error_m`` [m] where it was reconstructed, else None. status: "not
-    observable" (no mirror path in any frame: nothing could be reconstructed, so no score, rather
-    than a vacuous F1 of 1), "reconstructed", "not reconstructed", or "not scored" (the pipeline has
-    no reconstructor)."""
+    record without that key counts as observable). los_frames: frames in which the radar sees it
+    directly (``metrics.los_points`` > 0), counted over the records that hold ``los_points``; None
+    when none does (records of frames read from a dataset, or written before it existed).
+    error_m: mean over frames of ``reconstruction.object_error_m`` [m] where it was reconstructed,
+    else None. status, for an object with a mirror path in some frame: "reconstructed", "not
+    reconstructed", or "not scored" (the pipeline has no reconstructor); without one: "in line of
+    sight" (seen directly in some frame: in plain view, nothing hidden to reconstruct, not a
+    failure) or "not observable" (neither: nothing could be reconstructed, so no score, rather
+    than a vacuous F1 of 1; also every object without a mirror path when ``los_frames`` is None)."""
     out: dict[str, dict[str, Any]] = {}
     for r in records:
         m = r.get("metrics") or {}
-        paths = m.get("mirror_paths")
+        paths, los = m.get("mirror_paths"), m.get("los_points")
         errors = (m.get("reconstruction") or {}).get("object_error_m")
         names = list(paths or {}) + [n for n in (errors or {}) if n not in (paths or {})]
         for name in names:
-            o = out.setdefault(name, {"frames": 0, "observable_frames": 0, "errors": [], "scored": False})
+            o = out.setdefault(name, {"frames": 0, "observable_frames": 0, "los_frames": None, "errors": [],
+                                      "scored": False})
             o["frames"] += 1
             o["observable_frames"] += int(paths is None or paths.get(name, 0) > 0)
+            if los is not None:
+                o["los_frames"] = (o["los_frames"] or 0) + int(los.get(name, 0) > 0)
             if errors is not None:
                 o["scored"] = True
                 o["errors"].append(errors.get(name))
     for o in out.values():
         o["error_m"] = _mean(o.pop("errors"))
         scored = o.pop("scored")
-        o["status"] = ("not observable" if o["observable_frames"] == 0 else "not scored" if not scored
-                       else "not reconstructed" if o["error_m"] is None else "reconstructed")
+        if o["observable_frames"] == 0:
+            o["status"] = "in line of sight" if o["los_frames"] else "not observable"
+        else:
+            o["status"] = ("not scored" if not scored else "not reconstructed" if o["error_m"] is None
+                           else "reconstructed")
     return {k: out[k] for k in sorted(out)}
 
 
 def object_verdict(info: dict[str, Any]) -> str:
     """One object's result as the summary and the command line print it (one number, one rounding):
-    "0.32 m", "not observable (no mirror path in any of 3 frames)", "not reconstructed", …"""
+    "0.32 m", "not observable (no mirror path in any of 3 frames)", "in line of sight (…)",
+    "not reconstructed", …"""
     if info["status"] == "reconstructed":
         return f"{info['error_m']:.2f} m"
     if info["status"] == "not observable":
         return f"not observable (no mirror path in any of {info['frames']} frame(s))"
+    if info["status"] == "in line of sight":
+        return (f"in line of sight (seen directly in {info['los_frames']} of {info['frames']} frame(s), "
+                "no mirror path: nothing hidden to reconstruct)")
     if info["status"] == "not scored":
         return "not scored (no reconstructor)"
     return "n/a (not reconstructed)"
+
+
+def _los_cell(info: dict[str, Any]) -> str:
+    """The summary table's "frames in line of sight" cell: "k of n", or n/a when not recorded."""
+    los = info.get("los_frames")
+    return "n/a (not recorded)" if los is None else f"{los} of {info['frames']}"
 
 
 def _flatten(d: dict, prefix: str = "") -> dict[str, float]:
@@ -269,12 +293,15 @@ def render_summary(summary: dict, prov: dict, config: PipelineConfig) -> str:
     m = summary["metrics"]
     objects = summary.get("objects") or {}
     if objects:
-        lines += ["## Hidden objects", "",
+        lines += ["## Scene objects", "",
                   "Reconstruction error: mean distance from the reconstructed points to the object's nearest "
                   "true (illuminated) surface point, over the frames where it was reconstructed. An object "
-                  "with no mirror path (no relay wall shows it to the radar) is not observable and not scored.",
-                  "", "| object | reconstruction error | frames with a mirror path |", "|---|---|---|"]
-        lines += [f"| {k} | {object_verdict(o)} | {o['observable_frames']} of {o['frames']} |"
+                  "with no mirror path (no relay wall shows it to the radar) is not scored: \"in line of sight\" "
+                  "when the radar sees it directly (in plain view, nothing hidden to reconstruct, not a failure), "
+                  "else \"not observable\".",
+                  "", "| object | reconstruction error | frames with a mirror path | frames in line of sight |",
+                  "|---|---|---|---|"]
+        lines += [f"| {k} | {object_verdict(o)} | {o['observable_frames']} of {o['frames']} | {_los_cell(o)} |"
                   for k, o in objects.items()]
         lines.append("")
     if m:

@@ -155,6 +155,9 @@ class GroundTruth(_ReadOnlyArrays):
     hidden_velocity (M, 2) [m/s] or None: the velocity of each hidden point o (rigid-body, of its
     object; 0 for static surfaces); mnlos_velocity (M, 2) [m/s] or None: that of its virtual image o',
     (I − 2nnᵀ)·hidden_velocity across its wall (mirror Doppler). Both or neither.
+    los_object (N,) int or None: index into ``object_names`` of the object each LOS point belongs
+    to, −1 for walls and other static surfaces that are not scene objects; None where the source
+    did not record it (dataset shards, recordings).
     """
 
     los_points: np.ndarray = None
@@ -167,6 +170,7 @@ class GroundTruth(_ReadOnlyArrays):
     mnlos_snr_db: np.ndarray = None
     hidden_velocity: np.ndarray | None = None
     mnlos_velocity: np.ndarray | None = None
+    los_object: np.ndarray | None = None
 
     def __post_init__(self):
         _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
@@ -190,6 +194,14 @@ class GroundTruth(_ReadOnlyArrays):
             raise InputError("GroundTruth.hidden_velocity/mnlos_velocity: give both or neither")
         for name in ("hidden_velocity", "mnlos_velocity") if self.hidden_velocity is not None else ():
             _set(self, name, as_array(f"GroundTruth.{name}", getattr(self, name), shape=(len(m), 2), readonly=True))
+        if self.los_object is not None:
+            lo = as_array("GroundTruth.los_object", self.los_object, dtype=np.int64, shape=(len(self.los_points),),
+                          readonly=True)
+            if len(lo) and (lo.min() < -1 or lo.max() >= len(self.object_names)):
+                raise InputError(f"GroundTruth.los_object: indices must be −1 (a wall) or address "
+                                 f"GroundTruth.object_names (0 … {len(self.object_names) - 1}), got "
+                                 f"[{lo.min()}, {lo.max()}]")
+            _set(self, "los_object", lo)
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
         """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
@@ -199,7 +211,8 @@ class GroundTruth(_ReadOnlyArrays):
                                                                self.mnlos_velocity[keep_m])
         return GroundTruth(self.los_points[keep_l], self.mnlos_points[keep_m], self.hidden_points[keep_m],
                            self.mnlos_object[keep_m], self.object_names, self.walls, self.los_snr_db[keep_l],
-                           self.mnlos_snr_db[keep_m], *velocities)
+                           self.mnlos_snr_db[keep_m], *(velocities or (None, None)),
+                           los_object=None if self.los_object is None else self.los_object[keep_l])
 
 
 @dataclass(frozen=True, eq=False)
