@@ -1,7 +1,7 @@
 """Honest results (issue 29 item 4): a pipeline that can never reconstruct is flagged by `check`;
 detection-only pipelines run; an object without a mirror path is "not observable" (not a vacuous
-F1 of 1) in the summary and drawn in the figure; one object-error figure; `-q` is quiet; output
-files are readable by others."""
+F1 of 1) in the summary and drawn in the figure, unless it is in plain view ("in line of sight");
+one object-error figure; `-q` is quiet; output files are readable by others."""
 import json
 import os
 import re
@@ -21,6 +21,8 @@ from xnlos_core.testing import small_pipeline_table
 
 # A second vehicle far down the cross street: its mirror path is longer than the radar's 60 m range.
 VAN = {"name": "van", "shape": "box", "center": [22.0, -75.0], "size": [5.0, 2.0], "heading": 1.5707963267948966}
+# A kiosk in plain view left of the radar: seen directly, but no relay wall mirrors it back.
+KIOSK = {"name": "kiosk", "shape": "box", "center": [8.0, 6.0], "size": [1.5, 1.5], "heading": 0.0}
 
 
 def _corner(*extra) -> dict:
@@ -95,7 +97,7 @@ def test_detection_only_pipeline_is_valid_and_runs(tmp_path, capfd):
     (rec,) = read_jsonl(tmp_path / "o" / "results.jsonl")
     assert set(rec["timings_s"]) == {"source", "detector"}
     assert rec["detections"]["unclassified"] > 0 and rec["hidden_points"] == []
-    assert set(rec["metrics"]) == {"dense", "mirror_paths"}  # no reconstruction to score
+    assert set(rec["metrics"]) == {"dense", "mirror_paths", "los_points"}  # no reconstruction to score
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["objects"]["car"]["status"] == "not scored"
     assert "| car | not scored (no reconstructor) |" in (tmp_path / "o" / "summary.md").read_text()
@@ -110,6 +112,7 @@ def test_a_stage_without_its_input_stage_is_refused(drop, needs):
 
 
 # --- (c) one object-error figure; an object without a mirror path is "not observable" ------------
+# (or "in line of sight" when the radar sees it directly: in plain view, nothing hidden, no failure)
 
 def test_object_without_mirror_path_is_not_observable_and_drawn(tmp_path, capsys, monkeypatch, umask022):
     drawn = {}
@@ -120,23 +123,31 @@ def test_object_without_mirror_path_is_not_observable_and_drawn(tmp_path, capsys
         return real(result, path, **kw)
 
     monkeypatch.setattr(figures, "plot_frame", spy)
-    p = _write(tmp_path, scene=_corner(VAN), run={"frames": 1, "figure": True})
+    p = _write(tmp_path, scene=_corner(VAN, KIOSK), run={"frames": 1, "figure": True})
     assert main(["run", p, "--out", str(tmp_path / "o")]) == 0
     out = capsys.readouterr().out
     o = tmp_path / "o"
     summary = json.loads((o / "summary.json").read_text())
-    car, van = summary["objects"]["car"], summary["objects"]["van"]
-    assert van == {"frames": 1, "observable_frames": 0, "error_m": None, "status": "not observable"}
+    car, van, kiosk = (summary["objects"][k] for k in ("car", "van", "kiosk"))
+    assert van == {"frames": 1, "observable_frames": 0, "los_frames": 0, "error_m": None, "status": "not observable"}
+    assert kiosk == {"frames": 1, "observable_frames": 0, "los_frames": 1, "error_m": None,
+                     "status": "in line of sight"}
     assert car["status"] == "reconstructed" and car["observable_frames"] == 1 and car["error_m"] < 1.0
+    assert car["los_frames"] == 0  # hidden behind the block: no direct view
     md = (o / "summary.md").read_text()
-    assert "| van | not observable (no mirror path in any of 1 frame(s)) | 0 of 1 |" in md
+    assert "| van | not observable (no mirror path in any of 1 frame(s)) | 0 of 1 | 0 of 1 |" in md
+    assert ("| kiosk | in line of sight (seen directly in 1 of 1 frame(s), no mirror path: nothing hidden to "
+            "reconstruct) | 0 of 1 | 1 of 1 |") in md
     assert "hidden van: reconstruction error not observable" in out
+    assert "kiosk: in line of sight" in out and "hidden kiosk" not in out
+    (rec,) = read_jsonl(o / "results.jsonl")
+    assert rec["metrics"]["los_points"]["kiosk"] > 0 and rec["metrics"]["mirror_paths"]["kiosk"] == 0
     # One object-error figure: the headline and the summary table print the same number, rounded
     # alike, and no other object error is tabulated.
     (headline,) = re.findall(r"hidden car: reconstruction error ([0-9.]+ m)", out)
-    assert f"| car | {headline} | 1 of 1 |" in md and headline == f"{car['error_m']:.2f} m"
+    assert f"| car | {headline} | 1 of 1 | 0 of 1 |" in md and headline == f"{car['error_m']:.2f} m"
     assert "object_error" not in md and not any("object_error" in k for k in summary["metrics"])
-    # Drawn in the figure with its outline.
+    # Drawn in the figure with its outline; the kiosk in plain view is not "not observable".
     assert set(drawn) == {"van"} and drawn["van"].shape == (4, 2)
     # (a) readable by others: what a plain open() gives under umask 022.
     for name in ("summary.md", "summary.json", "provenance.json", summary["figure"], "results.jsonl"):
@@ -146,7 +157,7 @@ def test_object_without_mirror_path_is_not_observable_and_drawn(tmp_path, capsys
 def test_only_unobservable_hidden_object_scores_no_vacuous_f1():
     # The van is the scene's only object: nothing can be reconstructed, and F1 = 1 (0/0) would hide that.
     (res,) = Pipeline(parse_pipeline(small_pipeline_table(scene={**_corner(), "objects": [VAN]}), "t")).run()
-    assert res.metrics["mirror_paths"] == {"van": 0}
+    assert res.metrics["mirror_paths"] == {"van": 0} and res.metrics["los_points"] == {"van": 0}
     h = res.metrics["hidden"]
     assert len(res.hidden) == 0 and h["f1"] is None and h["recall"] is None and h["precision"] is None
     assert "object_error_m" not in h  # the one object error is reconstruction.object_error_m

@@ -119,3 +119,18 @@ def test_arrays_stay_read_only_through_pickle_and_deepcopy():
                 arr = getattr(clone, name)
                 np.testing.assert_array_equal(arr, getattr(obj, name))
                 assert not arr.flags.writeable, name
+
+
+def test_ground_truth_los_object_owner_of_each_los_point():
+    los = np.array([[10.0, 0.0], [11.0, 0.0], [8.0, 6.0]])
+    assert GroundTruth(los_points=los).los_object is None  # not recorded (a dataset frame)
+    gt = GroundTruth(los_points=los, object_names=("car", "kiosk"), los_object=[-1, -1, 1], los_snr_db=[1, 2, 30])
+    assert gt.los_object.dtype == np.int64 and gt.los_object.tolist() == [-1, -1, 1]
+    assert not gt.los_object.flags.writeable
+    assert gt.above_snr(10.0).los_object.tolist() == [1]  # filtered with its points
+    with pytest.raises(InputError, match=r"GroundTruth\.los_object: expected shape \(3\)"):
+        GroundTruth(los_points=los, object_names=("car",), los_object=[0, 0])  # one per LOS point
+    with pytest.raises(InputError, match=r"GroundTruth\.los_object: .*0 … 1.*got \[-1, 2\]"):
+        GroundTruth(los_points=los, object_names=("car", "kiosk"), los_object=[-1, 0, 2])
+    with pytest.raises(InputError, match=r"GroundTruth\.los_object: indices must be −1"):
+        GroundTruth(los_points=los, object_names=("car", "kiosk"), los_object=[-2, 0, 1])
