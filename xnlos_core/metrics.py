@@ -241,7 +241,8 @@ def thin_to_resolution(ground_truth: GroundTruth, radar: RadarConfig,
     mNLOS points by their cell and object, with their hidden points averaged alike (Eq. 7 is
     affine, so the mean hidden point is the mirror of the mean virtual point). A cell's SNR is
     the largest of its points'. ``shift`` offsets the cell grid by that many cells (range,
-    azimuth); the scored ground truth uses (0, 0).
+    azimuth); the scored ground truth uses (0, 0). ``los_object`` is not kept (a LOS cell may mix
+    objects and walls): count owners on the unthinned truth.
     """
     cell = resolution_cell(radar)
     gt = ground_truth
