@@ -53,7 +53,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
           f"done, {len(s['repaired'])} repaired, in {s['seconds']:.1f} s; wrote {out / 'manifest.json'}")
     if cfg.full_n_maps is not None:
         sizes = ", ".join(f"{k} {v}" for k, v in s["splits"].items())
-        print(f"the first {cfg.n_maps} of the full dataset's {cfg.full_n_maps} maps, split as there ({sizes})")
+        print(f"{cfg.n_maps} of the full dataset's {cfg.full_n_maps} maps: the first scenes of each of its "
+              f"splits, split as there ({sizes})")
     return 0
 
 

@@ -5,7 +5,7 @@
     name = "xnlos-default"
     seed = 2024                      # root of every random draw (scenes, families, splits, noise)
     n_maps = 2160                    # RA maps in the dataset (= scenes × frames_per_scene)
-    # full_n_maps = 21600            # set by --max-maps: this dataset is that one's first n_maps
+    # full_n_maps = 21600            # set by --max-maps: this dataset is n_maps of that one's (see make_plan)
     frames_per_scene = 1             # frames of one scene at t = k·frame_interval [s]
     frame_interval = 0.1
     shard_size = 24                  # maps per shard file (a multiple of frames_per_scene)
@@ -82,8 +82,9 @@ class DatasetConfig(BaseModel):
     frame_interval: float = Field(0.1, gt=0, le=3600, description="time between a scene's frames [s]")
     n_maps: int = Field(2160, ge=1, le=10_000_000, description="RA maps in the dataset")
     full_n_maps: int | None = Field(
-        None, ge=1, le=10_000_000, description="set by --max-maps: n_maps of the full dataset whose first "
-                                               "n_maps this one holds, with the full plan's scene seeds, families "
+        None, ge=1, le=10_000_000, description="set by --max-maps: n_maps of the full dataset of which this "
+                                               "one holds the first scenes of each split (split sizes ∝ the "
+                                               "fractions), with the full plan's scene indices, seeds, families "
                                                "and splits (a scene never changes split); None: the dataset is "
                                                "its own full plan")
     shard_size: int = Field(24, ge=1, le=100_000, description="maps per shard file")
@@ -169,7 +170,7 @@ class DatasetConfig(BaseModel):
 
     @property
     def plan_scenes(self) -> int:
-        """Scenes of the plan this dataset takes its first ``n_scenes`` from (``full_n_maps``)."""
+        """Scenes of the plan this dataset takes its ``n_scenes`` from (``full_n_maps``; see make_plan)."""
         return (self.full_n_maps or self.n_maps) // self.frames_per_scene
 
     def weights(self) -> dict[str, float]:
@@ -194,10 +195,11 @@ def parse_dataset_config(table: dict[str, Any], source: str, base_dir: str | Pat
                          n_maps: int | None = None) -> DatasetConfig:
     """Validate a dataset table; errors name ``source`` and the key.
 
-    n_maps (``--max-maps``) overrides the file's: fewer maps than the file's give the first
-    ``n_maps`` of the file's dataset (``full_n_maps`` = the file's ``n_maps``: the same scenes,
-    families and splits, so no scene of the full dataset's training or validation split lands in
-    this one's test split); more give a larger dataset with a plan of its own."""
+    n_maps (``--max-maps``) overrides the file's: fewer maps than the file's give ``n_maps`` of
+    the file's dataset, the first scenes of each of its splits in proportion to the split
+    fractions (``full_n_maps`` = the file's ``n_maps``: the same scenes, families and splits, so
+    no scene of the full dataset's training or validation split lands in this one's test split);
+    more give a larger dataset with a plan of its own."""
     if "base_dir" in table:  # relative paths and the config roots follow from where the file is
         raise ConfigError(f"{source}: [base_dir] is set by the loader (the config file's folder); remove it")
     table = {**table, "base_dir": str(base_dir)}

@@ -3,7 +3,8 @@
 ``manifest.json`` keys: format ("xnlos-dataset"), schema_version, name, config_sha256, config
 (the resolved config: full radar, forward-model parameters with defaults), radar, versions
 (package versions), n_maps, n_scenes, frames_per_scene, complete, splits (per split: n_scenes,
-n_maps, scene_seeds), scenes (scene_seed, family, split by scene index), shards (per planned
+n_maps, scene_seeds), scenes (scene_seed, family, split per scene in ascending scene index, and for
+a reduced dataset (``full_n_maps`` set), whose indices are those of its full plan, scene_index), shards (per planned
 shard: name, split, n_maps, n_scenes, scene_index, sha256 and bytes once written, else null),
 created, updated, and ``checksum_sha256``: the sha256 of the manifest's own canonical content
 (:func:`manifest_checksum`).
@@ -89,7 +90,9 @@ def write_manifest(out: Path, cfg: DatasetConfig, digest: str, plan: Plan, done:
                         "n_maps": sum(s.n_maps for s in plan.shards if s.split == sp),
                         "scene_seeds": seeds} for sp, seeds in plan.split_seeds().items()},
         "scenes": {"scene_seed": [int(x) for x in plan.scene_seed], "family": list(plan.family),
-                   "split": list(plan.split)},
+                   "split": list(plan.split),
+                   # a reduced dataset's scenes keep the full plan's indices (not 0 … S−1 in general)
+                   **({} if cfg.full_n_maps is None else {"scene_index": list(plan.scene_index)})},
         "shards": shards, "created": old.get("created", now) if isinstance(old, dict) else now, "updated": now,
     }
     manifest[CHECKSUM] = manifest_checksum(manifest)

@@ -80,20 +80,66 @@ class ShardSpec:
         return len(self.scenes) * self.frames_per_scene
 
 
+def reduced_counts(fractions, n: int, available: list[int]) -> list[int]:
+    """Scenes per split of a reduced dataset: ``apportion(fractions, n)``, each count at most
+    ``available[j]`` (the full plan's scenes of split j; n ≤ their sum).
+
+    Largest remainder need not be monotone in the total (the Alabama paradox), so a split could
+    ask for one scene more than the full plan holds; that scene then goes to the split, among those
+    with room, whose count falls furthest below its quota (ties to the earlier split).
+    """
+    if n > sum(available):
+        raise ValueError(f"n = {n} scenes, but the full plan holds only {sum(available)}")
+    counts = [min(c, a) for c, a in zip(apportion(fractions, n), available)]
+    w = np.asarray(fractions, dtype=np.float64)
+    quota = w / w.sum() * n
+    while sum(counts) < n:
+        j = max((i for i in range(len(counts)) if counts[i] < available[i]),
+                key=lambda i: (quota[i] - counts[i], -i))
+        counts[j] += 1
+    return counts
+
+
 @dataclass(frozen=True)
 class Plan:
-    """scene_seed (S,) int64, family (S,), split (S,) by scene index; shards in file order."""
+    """The S scenes of a dataset, in ascending global scene index: ``scene_index`` (S,),
+    ``scene_seed`` (S,) int64, ``family`` (S,), ``split`` (S,); shards in file order.
+
+    A full dataset's scene indices are 0 … S−1; a reduced one (``--max-maps``) holds a subset of
+    its full plan's indices, so positions and indices differ: look a scene up by index with
+    :meth:`scene`.
+    """
 
     scene_seed: np.ndarray
     family: tuple[str, ...]
     split: tuple[str, ...]
     shards: tuple[ShardSpec, ...]
+    scene_index: tuple[int, ...]
 
     def shard(self, name: str) -> ShardSpec:
         for s in self.shards:
             if s.name == name:
                 return s
         raise KeyError(name)
+
+    def scene(self, k: int) -> tuple[int, str, str]:
+        """(scene seed, family, split) of global scene index ``k``; KeyError if the plan lacks it."""
+        pos = self._positions().get(int(k))
+        if pos is None:
+            raise KeyError(f"scene index {k} is not in this plan ({len(self.scene_index)} scenes)")
+        return int(self.scene_seed[pos]), self.family[pos], self.split[pos]
+
+    def _positions(self) -> dict[int, int]:
+        cache = self.__dict__.get("_pos")
+        if cache is None:
+            cache = {k: i for i, k in enumerate(self.scene_index)}
+            object.__setattr__(self, "_pos", cache)
+        return cache
+
+    @property
+    def contiguous(self) -> bool:
+        """True when the scene indices are 0 … S−1 (every full dataset)."""
+        return self.scene_index == tuple(range(len(self.scene_index)))
 
     def split_seeds(self) -> dict[str, list[int]]:
         """split → the scene seeds in it (each scene seed lands in exactly one split)."""
@@ -110,13 +156,14 @@ def make_plan(config: DatasetConfig) -> Plan:
     of ``shard_size // frames_per_scene`` scenes named ``{split}-{i:05d}.npz``.
 
     A reduced dataset (``full_n_maps``, from ``--max-maps``) draws families and splits for the
-    full dataset's scenes and keeps its first ``n_scenes``: scene k has the full dataset's seed,
-    family, split and noise seeds, so its maps are the full dataset's and no scene changes split
-    (split sizes are then those of the prefix, not exact fractions).
+    full dataset's scenes and keeps, of each split, its first k_s scenes in index order, with
+    k_s = :func:`reduced_counts` (the split fractions apportioned over ``n_scenes``): split sizes
+    follow the fractions exactly, and every kept scene has the full dataset's index, seed,
+    family, split and noise seeds, so its maps are the full dataset's. Its scene indices are
+    then not contiguous.
     """
     n, n_plan = config.n_scenes, config.plan_scenes
     root = config.seed
-    seeds = np.array([scene_seed(root, k) for k in range(n)], dtype=np.int64)
     weights = config.weights()
     fams = sorted(weights)
     pool = [f for f, c in zip(fams, apportion([weights[f] for f in fams], n_plan)) for _ in range(c)]
@@ -133,13 +180,20 @@ def make_plan(config: DatasetConfig) -> Plan:
     split = [""] * n_plan
     for k, lab in zip(order, labels):
         split[k] = SPLITS[lab]
-    family, split = family[:n], split[:n]  # a reduced dataset: the full plan's first n scenes
+
+    by_split = {sp: [k for k in range(n_plan) if split[k] == sp] for sp in SPLITS}
+    if n < n_plan:  # a reduced dataset: the first k_s scenes of each split of the full plan
+        counts = reduced_counts(fractions, n, [len(by_split[sp]) for sp in SPLITS])
+        by_split = {sp: by_split[sp][:c] for sp, c in zip(SPLITS, counts)}
+    index = sorted(k for sp in SPLITS for k in by_split[sp])
+    seeds = np.array([scene_seed(root, k) for k in index], dtype=np.int64)
 
     per_shard = config.shard_size // config.frames_per_scene
     shards = []
     for sp in SPLITS:
-        idx = [k for k in range(n) if split[k] == sp]
+        idx = by_split[sp]
         for i, start in enumerate(range(0, len(idx), per_shard)):
             shards.append(ShardSpec(f"{sp}-{i:05d}.npz", sp, tuple(idx[start:start + per_shard]),
                                     config.frames_per_scene))
-    return Plan(seeds, family, tuple(split), tuple(shards))
+    return Plan(seeds, tuple(family[k] for k in index), tuple(split[k] for k in index), tuple(shards),
+                tuple(index))

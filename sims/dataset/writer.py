@@ -76,7 +76,7 @@ def simulate_dataset(config: DatasetConfig, out: str | Path, *, source: str = "<
     todo = [s for s in plan.shards if s.name not in done]
     jobs = [{"config": cfg.model_dump(mode="json"), "digest": digest, "generators": classes, "shard": s.name,
              "split": s.split,
-             "scenes": [(k, int(plan.scene_seed[k]), plan.family[k]) for k in s.scenes]} for s in todo]
+             "scenes": [(k, *plan.scene(k)[:2]) for k in s.scenes]} for s in todo]
     from tqdm import tqdm
 
     bar = tqdm(total=cfg.n_maps, initial=sum(r["n_maps"] for r in done.values()), disable=not progress,

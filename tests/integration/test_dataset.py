@@ -61,33 +61,77 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
 
 
 def test_max_maps_keeps_the_full_datasets_scenes_and_splits(dataset_table):
-    """--max-maps (issue 29): a reduced dataset is the full one's first scenes with their seeds,
-    families and splits, so no training or validation scene of the full dataset (that of the shipped
-    models) lands in its test split; the canonical form of a full config (its digest) is unchanged."""
+    """--max-maps (issue 29): a reduced dataset takes the first scenes of each split of the full
+    plan, as many per split as the fractions apportion, with their indices, seeds, families and
+    splits, so no training or validation scene of the full dataset (that of the shipped models)
+    lands in its test split; the canonical form of a full config (its digest) is unchanged."""
     from sims.dataset import load_dataset_config
 
     c = load_dataset_config(ROOT / "configs/datasets/default.toml")
     assert "full_n_maps" not in c.model_dump() and c.plan_scenes == 2160
     full = make_plan(c)
-    for m in (120, 7):
+    assert full.contiguous and full.scene_index == tuple(range(2160))
+    first = {sp: [k for k in full.scene_index if full.split[k] == sp] for sp in ("train", "val", "test")}
+    sizes = {6: [5, 1, 0], 7: [5, 1, 1], 24: [19, 3, 2], 120: [96, 12, 12]}  # apportion(0.8/0.1/0.1, m)
+    for m, want in sizes.items():
         r = load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=m)
         assert (r.n_maps, r.full_n_maps) == (m, 2160)
         plan = make_plan(r)
-        assert plan.scene_seed.tolist() == full.scene_seed[:m].tolist()
-        assert plan.family == full.family[:m] and plan.split == full.split[:m]
-        assert sorted(k for s in plan.shards for k in s.scenes) == list(range(m))
-        assert all(plan.split[k] == s.split for s in plan.shards for k in s.scenes)
-    assert {x for x in make_plan(load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=120)).split} \
-        == {"train", "val", "test"}
-    # on the tiny config: the full plan's prefix, also through a second --max-maps; more maps: own plan
+        assert [plan.split.count(sp) for sp in first] == want == apportion([0.8, 0.1, 0.1], m)
+        for sp, n in zip(first, want):  # the first n scenes of the full plan's split, in index order
+            assert [k for s in plan.shards if s.split == sp for k in s.scenes] == first[sp][:n]
+        assert list(plan.scene_index) == sorted(plan.scene_index) and len(plan.scene_index) == m
+        for pos, k in enumerate(plan.scene_index):  # no scene changes split, seed or family
+            assert plan.scene(k) == full.scene(k) == (int(plan.scene_seed[pos]), plan.family[pos], plan.split[pos])
+        assert all(plan.scene(k)[2] == s.split for s in plan.shards for k in s.scenes)
+        assert sum(s.n_maps for s in plan.shards) == m
+    assert not make_plan(load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=7)).contiguous
+    with pytest.raises(KeyError, match="scene index 4 is not in this plan"):
+        make_plan(load_dataset_config(ROOT / "configs/datasets/default.toml", n_maps=7)).scene(4)
+    # on the tiny config (50/25/25 of 12 scenes), also through a second --max-maps; more maps: own plan
     table = dataset_table()
+    whole = make_plan(parse_dataset_config(table, "t"))
     small = make_plan(parse_dataset_config(table, "t", n_maps=6))
-    assert small.split == make_plan(parse_dataset_config(table, "t")).split[:6]
+    assert [small.split.count(sp) for sp in first] == [3, 2, 1]
+    assert all(small.scene(k) == whole.scene(k) for k in small.scene_index)
     again = parse_dataset_config({**table, "n_maps": 6, "full_n_maps": 12}, "t", n_maps=4)
-    assert again.full_n_maps == 12 and make_plan(again).split == small.split[:4]
+    assert again.full_n_maps == 12 and set(make_plan(again).scene_index) <= set(small.scene_index)
     assert parse_dataset_config(table, "t", n_maps=24).full_n_maps is None
     with pytest.raises(ConfigError, match="full_n_maps"):
         parse_dataset_config({**table, "full_n_maps": 6}, "t")
+
+
+def test_reduced_counts_stay_within_the_full_plans_splits():
+    from sims.dataset.plan import reduced_counts
+
+    assert reduced_counts([0.8, 0.1, 0.1], 24, [1728, 216, 216]) == [19, 3, 2]
+    # a split the full plan cannot fill gives its scene to the split furthest below its quota
+    assert reduced_counts([0.5, 0.25, 0.25], 6, [3, 1, 8]) == [3, 1, 2]
+    assert reduced_counts([0.5, 0.5, 0.0], 3, [1, 1, 5]) == [1, 1, 1]
+    with pytest.raises(ValueError, match="holds only 3"):
+        reduced_counts([0.5, 0.25, 0.25], 4, [1, 1, 1])
+
+
+def test_reduced_dataset_maps_are_the_full_datasets(reference_dataset, tmp_path, dataset_cfg, simulate_tiny):
+    """A --max-maps dataset's maps are byte for byte the full dataset's maps of the same scenes."""
+    out = tmp_path / "six"
+    summary = simulate_tiny(dataset_cfg(n_maps=6, full_n_maps=12), out, workers=1, progress=False)
+    assert summary["splits"] == {"train": 3, "val": 2, "test": 1}
+    assert verify_dataset(out).healthy
+    man, whole = read_manifest(out), read_manifest(reference_dataset)
+    idx = man["scenes"]["scene_index"]
+    assert "scene_index" not in whole["scenes"] and idx != list(range(6)) and man["n_scenes"] == 6
+    for key in ("scene_seed", "family", "split"):
+        assert man["scenes"][key] == [whole["scenes"][key][k] for k in idx]
+    full = {f.index: f for f in open_dataset(reference_dataset, None)}
+    got = list(open_dataset(out, None))
+    assert sorted(f.meta["scene_index"] for f in got) == idx
+    for f in got:
+        g = full[f.index]
+        assert f.index == f.meta["scene_index"] and f.meta == g.meta
+        assert np.array_equal(f.ra_map.data, g.ra_map.data)
+        for a in ("los_points", "mnlos_points", "hidden_points", "mnlos_object", "los_snr_db", "mnlos_snr_db"):
+            assert np.array_equal(getattr(f.ground_truth, a), getattr(g.ground_truth, a)), a
 
 
 def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes,
@@ -205,7 +249,7 @@ def test_reader_round_trips_maps_and_ground_truth_exactly(reference_dataset, dat
         assert len(frames) == n and ds[n - 1].index == frames[-1].index
         for f in frames:
             k = f.meta["scene_index"]
-            assert plan.split[k] == split and f.meta["scene_seed"] == int(plan.scene_seed[k])
+            assert plan.scene(k)[2] == split and f.meta["scene_seed"] == plan.scene(k)[0]
             seen_seeds.setdefault(f.meta["scene_seed"], set()).add(split)
             with _one_blas_thread():  # as the shard workers: BLAS sums in one fixed order
                 want = fm.simulate(tiny_plugin.tiny_scene(plan.family[k], int(plan.scene_seed[k])), radar,
@@ -350,9 +394,10 @@ def test_cli_simulate_smoke_config_end_to_end(tmp_path, capsys, tiny_cli, tiny_p
                  "-q"]) == 0
     text = capsys.readouterr().out
     assert "6 map(s)" in text and len(open_dataset(tmp_path / "six", None)) == 6
-    assert "the first 6 of the full dataset's 24 maps, split as there" in text
+    assert "6 of the full dataset's 24 maps: the first scenes of each of its splits, split as there" in text
     six, whole = read_manifest(tmp_path / "six")["scenes"], read_manifest(out)["scenes"]
-    assert all(six[k] == whole[k][:6] for k in ("scene_seed", "family", "split"))  # the full one's scenes
+    assert all(six[k] == [whole[k][i] for i in six["scene_index"]]  # the full one's scenes
+               for k in ("scene_seed", "family", "split"))
     assert main(["simulate", "--verify", str(tmp_path / "six")]) == 0
 
 
