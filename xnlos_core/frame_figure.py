@@ -90,7 +90,9 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
         heatmaps = np.asarray(heatmaps)
         if heatmaps.ndim != 3 or heatmaps.shape[0] < 2:
             raise InputError(f"heatmaps: expected shape (2, H, W) (LOS, mNLOS confidences), got {heatmaps.shape}")
-    fig, axes = plt.subplots(2, 3, figsize=(17, 12.5))
+    objects, unobservable = split_outlines(outlines_from_meta(frame.meta), result.metrics)
+    inset = zoom and bool(objects)
+    fig, axes = plt.subplots(2, 3, figsize=(20 if inset else 17, 12.5))  # room for the inset right of (f)
     p_db = ra.power_db()
     rel = p_db - np.median(p_db)
     vmax = max(30.0, float(np.percentile(rel, 99.9)))
@@ -139,7 +141,6 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
 
     ax = axes[1, 2]
     h = result.hidden
-    objects, unobservable = split_outlines(outlines_from_meta(frame.meta), result.metrics)
 
     def draw(ax, main: bool = True) -> None:
         _walls_bev(ax, result, gt)
@@ -163,10 +164,9 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
     draw(ax)
     ax.set_title(f"(f) reconstruction ({len(h)} reconstructed hidden point{'s' * (len(h) != 1)})")
     _frame_bev(ax, result, gt, extra=list(objects.values()) + list(unobservable.values()))
-    if zoom and objects:
-        # Beside the panel, under nothing: (f) is the right column and its legend sits below it.
+    if inset:  # beside the panel, under nothing: (f) is the right column and its legend sits below it
         zoom_inset(ax, lambda a: draw(a, main=False), np.concatenate(list(objects.values())),
-                   bounds=(1.03, 0.0, 0.5, 0.5))
+                   bounds=(1.04, 0.0, 0.45, 0.45))
 
     fam = frame.meta.get("family")
     head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")
