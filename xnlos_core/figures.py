@@ -84,6 +84,46 @@ def draw_unobservable(ax, outlines: dict, annotate: bool = True) -> None:
                         ha="center", fontsize=8, color="0.25")
 
 
+OUTLINES_META = "object_outlines"
+
+
+def outlines_from_meta(meta: dict) -> dict[str, np.ndarray]:
+    """Object name → bird's-eye outline (K, 2) [m] from ``meta["object_outlines"]`` (what the dataset
+    reader puts into a map's ``frame.meta``: name → list of [x, y] at the map's time); {} when the
+    key is absent. InputError naming the object when an outline is not a list of finite [x, y]."""
+    raw = meta.get(OUTLINES_META)
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        from .errors import InputError
+
+        raise InputError(f"frame.meta[{OUTLINES_META!r}]: expected a mapping object name → [[x, y], …] [m], "
+                         f"got {type(raw).__name__}")
+    out = {}
+    for name, pts in raw.items():
+        a = np.asarray(pts, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 2 or not len(a) or not np.isfinite(a).all():
+            from .errors import InputError
+
+            raise InputError(f"frame.meta[{OUTLINES_META!r}][{name!r}]: expected a non-empty list of finite "
+                             f"[x, y] [m], got an array of shape {a.shape}")
+        out[str(name)] = a
+    return out
+
+
+def split_outlines(outlines: dict, metrics: dict) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """(objects, unobservable) of the outlines name → (K, 2) [m] of a frame's scene objects, by the
+    frame's metrics (:meth:`xnlos_core.pipeline.Pipeline` ground-truth counts): ``objects`` holds those
+    with a mirror path (``mirror_paths`` ≥ 1, or not counted), drawn by :func:`draw_objects`;
+    ``unobservable`` those with none that are not in line of sight either (``los_points`` 0 or not
+    recorded), drawn by :func:`draw_unobservable`; an object seen only directly is in neither."""
+    paths = metrics.get("mirror_paths") or {}
+    los = metrics.get("los_points") or {}
+    objects = {n: p for n, p in outlines.items() if paths.get(n, 1) != 0}
+    unobservable = {n: p for n, p in outlines.items() if paths.get(n, 1) == 0 and los.get(n, 0) == 0}
+    return objects, unobservable
+
+
 def zoom_inset(ax, draw, focus, *, margin: float = 2.0, bounds=(1.04, 0.0, 0.55, 0.45)):
     """A zoomed copy of the bird's-eye panel ``ax`` around the points ``focus`` (N, 2) [m] (the
     hidden object): an inset axes at ``bounds`` (axes fraction x0, y0, width, height; the default

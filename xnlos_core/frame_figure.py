@@ -7,7 +7,8 @@ classical detectors have none and the panel says so); (d) detections on the RA m
 mNLOS ×) with the thinned ground truth as small dots; (e) bird's-eye view of the LOS detections,
 the fitted relay walls and the true walls; (f) bird's-eye reconstruction: LOS detections, fitted
 walls, reconstructed hidden points with their 90 % credible ellipses (HiddenPoints.cov), the
-true hidden points and, when the result has tracks, the tracks and their prediction cones.
+true hidden points, when the result has tracks, the tracks and their prediction cones, and, when
+the frame's meta carries them (dataset maps), the hidden objects' true outlines with a zoom inset.
 Bird's-eye axes as in :mod:`xnlos_core.figures`: x forward (up), y left.
 """
 from __future__ import annotations
@@ -18,8 +19,9 @@ import numpy as np
 
 from .errors import InputError
 from . import palette
-from .figures import (CLASS_STYLE, _ellipse_xy, bev, credible_radius, draw_walls, frame_bev, legend_outside,
-                      orient_azimuth, save_png)
+from .figures import (CLASS_STYLE, _ellipse_xy, bev, credible_radius, draw_objects, draw_unobservable, draw_walls,
+                      frame_bev, legend_outside, orient_azimuth, outlines_from_meta, save_png, split_outlines,
+                      zoom_inset)
 from .geometry import cartesian_to_polar
 from .types import LOS, MNLOS
 
@@ -48,8 +50,8 @@ def _walls_bev(ax, result, gt):
     draw_walls(ax, result.walls, None if gt is None else gt.walls, label="fitted walls")
 
 
-def _frame_bev(ax, result, gt):
-    frame_bev(ax, gt, [result.detections.position, result.hidden.mean])
+def _frame_bev(ax, result, gt, extra=()):
+    frame_bev(ax, gt, [result.detections.position, result.hidden.mean], extra=extra)
     ax.scatter([0], [0], marker="^", s=60, c="k", label="radar", zorder=palette.Z_RADAR)
     ax.grid(alpha=0.3)
     legend_outside(ax, where="below", fontsize=6, ncol=2)
@@ -63,13 +65,20 @@ def plot_frame_panels(result, path: str | Path, heatmaps: np.ndarray | None = No
 
 
 def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str = "", detector: str = "",
-                        credible: float = 0.9):
+                        credible: float = 0.9, zoom: bool = True):
     """The six-panel Figure (module doc) of one FrameResult (not closed). Every RA-map panel puts
     positive azimuth on the left, like the bird's-eye panels; legends sit below their panels.
 
     heatmaps: (2, H', W') LOS / mNLOS confidences in [0, 1] over the RA map's extent (any grid),
     or None; detector: its name, for the panel titles; credible: level of the hidden points'
-    ellipses (radius √χ²₂(p) σ)."""
+    ellipses (radius √χ²₂(p) σ).
+
+    Panel (f) draws the hidden objects' true outlines when the frame carries them
+    (``frame.meta["object_outlines"]``, which the dataset reader fills from the scenes a shard
+    stores: :func:`xnlos_core.figures.outlines_from_meta`), split by the frame's metrics into objects
+    with a mirror path (solid, :func:`~xnlos_core.figures.draw_objects`) and unobservable ones
+    (dashed); zoom: then add a :func:`~xnlos_core.figures.zoom_inset` around the former, right of
+    the panel. Without that meta key the panel has neither."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -81,7 +90,9 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
         heatmaps = np.asarray(heatmaps)
         if heatmaps.ndim != 3 or heatmaps.shape[0] < 2:
             raise InputError(f"heatmaps: expected shape (2, H, W) (LOS, mNLOS confidences), got {heatmaps.shape}")
-    fig, axes = plt.subplots(2, 3, figsize=(17, 12.5))
+    objects, unobservable = split_outlines(outlines_from_meta(frame.meta), result.metrics)
+    inset = zoom and bool(objects)
+    fig, axes = plt.subplots(2, 3, figsize=(20 if inset else 17, 12.5))  # room for the inset right of (f)
     p_db = ra.power_db()
     rel = p_db - np.median(p_db)
     vmax = max(30.0, float(np.percentile(rel, 99.9)))
@@ -129,24 +140,33 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
     _frame_bev(ax, result, gt)
 
     ax = axes[1, 2]
-    _walls_bev(ax, result, gt)
-    _detections_bev(ax, det, (LOS,))
-    if gt is not None and len(gt.hidden_points):
-        ax.scatter(*bev(gt.hidden_points), s=10, c=palette.TRUTH, marker="o", label="true hidden points",
-                   zorder=palette.Z_TRUTH)
     h = result.hidden
-    if len(h):
-        ax.scatter(*bev(h.mean), s=50, c=palette.ESTIMATE, marker="+", linewidths=1.5, zorder=palette.Z_ESTIMATE,
-                   label=f"reconstructed hidden points ({len(h)}; {100 * credible:g} % credible)")
-        for mu, c in zip(h.mean, h.cov):
-            ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color=palette.ESTIMATE, lw=0.8, alpha=0.7,
-                    zorder=palette.Z_ESTIMATE)
-    if result.tracks is not None and len(result.tracks):
-        from .track_figure import draw_tracks
 
-        draw_tracks(ax, result.tracks)
+    def draw(ax, main: bool = True) -> None:
+        _walls_bev(ax, result, gt)
+        _detections_bev(ax, det, (LOS,))
+        if gt is not None and len(gt.hidden_points):
+            ax.scatter(*bev(gt.hidden_points), s=10, c=palette.TRUTH, marker="o", label="true hidden points",
+                       zorder=palette.Z_TRUTH)
+        if len(h):
+            ax.scatter(*bev(h.mean), s=50, c=palette.ESTIMATE, marker="+", linewidths=1.5, zorder=palette.Z_ESTIMATE,
+                       label=f"reconstructed hidden points ({len(h)}; {100 * credible:g} % credible)")
+            for mu, c in zip(h.mean, h.cov):
+                ax.plot(*bev(_ellipse_xy(mu, c, credible_radius(credible))), color=palette.ESTIMATE, lw=0.8,
+                        alpha=0.7, zorder=palette.Z_ESTIMATE)
+        if result.tracks is not None and len(result.tracks):
+            from .track_figure import draw_tracks
+
+            draw_tracks(ax, result.tracks)
+        draw_objects(ax, objects, annotate=main)
+        draw_unobservable(ax, unobservable, annotate=main)
+
+    draw(ax)
     ax.set_title(f"(f) reconstruction ({len(h)} reconstructed hidden point{'s' * (len(h) != 1)})")
-    _frame_bev(ax, result, gt)
+    _frame_bev(ax, result, gt, extra=list(objects.values()) + list(unobservable.values()))
+    if inset:  # beside the panel, under nothing: (f) is the right column and its legend sits below it
+        zoom_inset(ax, lambda a: draw(a, main=False), np.concatenate(list(objects.values())),
+                   bounds=(1.04, 0.0, 0.45, 0.45))
 
     fam = frame.meta.get("family")
     head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")

@@ -25,6 +25,7 @@ import numpy as np
 
 from .animation import SNAPSHOT_DIR, snapshot_path, write_sequence_gif
 from .config import PipelineConfig
+from .figures import split_outlines
 from .frame_snapshot import FrameSnapshot
 from .io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, write_jsonl
 from .pipeline import Pipeline
@@ -118,14 +119,20 @@ def _write_figures(pipe: Pipeline, out: Path, records: list[dict]) -> list[Path]
     return [figure_path(out, k) for k in wanted]
 
 
+def _scene_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
+    """Object name → bird's-eye outline (K, 2) [m] (``ObjectSpec.footprint``) at the frame's time of
+    every object of the run's scene; empty without a simulated scene."""
+    if pipe.scene is None:
+        return {}
+    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects}
+
+
 def object_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
     """Object name → bird's-eye outline (K, 2) [m] (``ObjectSpec.footprint``) at the frame's time of
     each scene object that has a mirror path in ``result`` (or whose paths were not counted): the
-    true outline the figure draws and zooms on. Empty without a simulated scene."""
-    paths = result.metrics.get("mirror_paths") or {}
-    if pipe.scene is None:
-        return {}
-    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects if paths.get(o.name, 1) != 0}
+    true outline the figure draws and zooms on (:func:`xnlos_core.figures.split_outlines`). Empty
+    without a simulated scene."""
+    return split_outlines(_scene_outlines(pipe, result), result.metrics)[0]
 
 
 def unobservable_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
@@ -133,12 +140,7 @@ def unobservable_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
     has no mirror path in ``result`` (``metrics.mirror_paths`` 0) and is not in line of sight either
     (``metrics.los_points`` 0 or not recorded): what the figure draws so that an object nothing
     could reconstruct does not vanish. Empty without a simulated scene."""
-    paths = result.metrics.get("mirror_paths") or {}
-    los = result.metrics.get("los_points") or {}
-    if pipe.scene is None:
-        return {}
-    return {o.name: o.footprint(result.frame.timestamp) for o in pipe.scene.objects
-            if paths.get(o.name, 1) == 0 and los.get(o.name, 0) == 0}
+    return split_outlines(_scene_outlines(pipe, result), result.metrics)[1]
 
 
 def tracker_region(config: PipelineConfig):

@@ -21,7 +21,8 @@ class Dataset:
 
     ``len()`` counts maps; iterating yields :class:`~xnlos_core.types.Frame` objects in shard
     order (``frame.index`` is the global map index; ``frame.meta`` names shard, split, scene,
-    family and seeds). verify: check each shard's sha256 before parsing it. An unfinished
+    family and seeds, and holds ``object_outlines``: the scene objects' true bird's-eye outlines at
+    the map's time, :mod:`sims.dataset.outlines`). verify: check each shard's sha256 before parsing it. An unfinished
     dataset is an error unless ``allow_incomplete`` (then only finished shards are read).
     Files are read with ``np.load(allow_pickle=False)`` only.
     """

@@ -64,6 +64,7 @@ from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
 
 from .config import DatasetConfig, scene_generators
+from .outlines import outline_meta, scene_objects
 from .plan import noise_seed
 from .truth import meta_from_arrays, object_rows, truth_arrays
 
@@ -231,9 +232,11 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
 
 
 def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Frame]:
-    """The shard's maps as Frames with exact ground truth; ``meta`` adds shard, split, scene and seeds."""
+    """The shard's maps as Frames with exact ground truth; ``meta`` adds shard, split, scene and seeds,
+    and ``object_outlines`` (:mod:`sims.dataset.outlines`) when the shard's scenes are readable."""
     name, split = str(z["shard"]), str(z["split"])
     metas = json.loads(str(z["frame_meta_json"]))
+    scenes = scene_objects(z)
     off = {k: z[f"{k}_offsets"] for k in ("los", "mnlos", "object", "wall")}
     out = []
     for i in range(len(z["map_index"])):
@@ -255,5 +258,7 @@ def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Fra
         objects = meta_from_arrays(z, i)
         if objects is not None:
             meta["object_truth"] = objects
+        if meta["scene_index"] in scenes:
+            meta["object_outlines"] = outline_meta(scenes[meta["scene_index"]], float(z["timestamp"][i]))
         out.append(Frame(ra, float(z["timestamp"][i]), gt, int(z["map_index"][i]), meta))
     return out

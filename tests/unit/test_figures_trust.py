@@ -157,3 +157,71 @@ def test_the_animation_frame_agrees_on_orientation_legends_and_zorder():
         assert z["true hidden points"] > z["reconstructed hidden points (1; 90 % credible)"]
     finally:
         plt.close(f)
+
+
+# --- the six-panel `xnlos eval` figure draws outlines carried by frame.meta (dataset maps) ---------
+
+def _panels(meta=None, metrics=None):
+    res = _result()
+    if meta is not None:
+        res.frame.meta.update(meta)
+    res.metrics = metrics or {}
+    f = frame_panels_figure(res)
+    f.canvas.draw()
+    return f
+
+
+def _panel_f(f):
+    (ax,) = [a for a in _bev_axes(f) if a.get_title().startswith("(f)")]
+    return ax
+
+
+def test_the_six_panel_figure_draws_the_meta_outline_and_a_zoom_inset():
+    meta = {"object_outlines": {k: v.tolist() for k, v in OUTLINE.items()}}
+    f = _panels(meta, {"mirror_paths": {"kit_object": 3}})
+    try:
+        ax = _panel_f(f)
+        (outline,) = [p for p in ax.patches if p.get_label() == "hidden objects (true outline)"]
+        want = np.column_stack(bev(OUTLINE["kit_object"]))
+        assert np.allclose(np.sort(outline.get_path().vertices[:4], 0), np.sort(want, 0))
+        (inset,) = ax.child_axes
+        cx, cy = want.mean(0)
+        assert inset.get_xlim()[0] < cx < inset.get_xlim()[1] and inset.get_ylim()[0] < cy < inset.get_ylim()[1]
+        assert np.ptp(inset.get_xlim()) < 0.5 * np.ptp(ax.get_xlim())
+        assert any(p.get_label() == "hidden objects (true outline)" for p in inset.patches)
+        assert not any(a.child_axes for a in f.axes if a is not ax)  # panel (e) stays as it was
+    finally:
+        plt.close(f)
+
+
+def test_without_outline_meta_the_six_panel_figure_has_no_outline_and_no_inset():
+    f = _panels()
+    try:
+        ax = _panel_f(f)
+        assert not ax.child_axes
+        assert not [p for p in ax.patches if "outline" in p.get_label() or "no mirror path" in p.get_label()]
+    finally:
+        plt.close(f)
+
+
+def test_an_object_without_mirror_path_is_dashed_and_not_zoomed():
+    meta = {"object_outlines": {k: v.tolist() for k, v in OUTLINE.items()}}
+    f = _panels(meta, {"mirror_paths": {"kit_object": 0}, "los_points": {"kit_object": 0}})
+    try:
+        ax = _panel_f(f)
+        assert not ax.child_axes
+        (p,) = [p for p in ax.patches if p.get_label() == "hidden, no mirror path (not observable)"]
+        assert p.get_linestyle() == "--"
+    finally:
+        plt.close(f)
+
+
+@pytest.mark.parametrize("bad, match", [([[0.0, 1.0]], "expected a mapping"),
+                                        ({"car": [[0.0, 1.0, 2.0]]}, r"\['car'\].*shape \(1, 3\)"),
+                                        ({"car": [[0.0, float("nan")]]}, "finite")])
+def test_malformed_outline_meta_is_an_input_error_naming_the_object(bad, match):
+    from xnlos_core.errors import InputError
+    from xnlos_core.figures import outlines_from_meta
+
+    with pytest.raises(InputError, match=match):
+        outlines_from_meta({"object_outlines": bad})
