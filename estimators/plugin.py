@@ -1,5 +1,5 @@
 """Entry point ``xnlos-estimators``: registers the wall estimators lsq, casadi_map and emcee and
-the trackers nearest, kalman and sindy."""
+the trackers nearest, kalman and sindy, and the optical NLOS solvers lct and fk."""
 from xnlos_core import hookimpl
 
 
@@ -8,6 +8,8 @@ def xnlos_register_components(registry):
     from .casadi_map import CasadiMapWallEstimator
     from .emcee_wall import EmceeWallEstimator
     from .lsq import LSQWallEstimator
+    from .nlos.fk import FKSolver
+    from .nlos.lct import LCTSolver
     from .trackers.kalman import KalmanTracker
     from .trackers.nearest import NearestTracker
     from .trackers.sindy import SindyTracker
@@ -18,3 +20,5 @@ def xnlos_register_components(registry):
     registry.add("tracker", "nearest", NearestTracker)
     registry.add("tracker", "kalman", KalmanTracker)
     registry.add("tracker", "sindy", SindyTracker)
+    registry.add("nlos_solver", "lct", LCTSolver)
+    registry.add("nlos_solver", "fk", FKSolver)

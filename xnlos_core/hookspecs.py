@@ -16,8 +16,8 @@ def xnlos_register_components(registry) -> None:
     """Register components with ``registry.add(kind, name, factory)``.
 
     Called once for every plugin when it is registered (historic: plugins registered later are
-    called too). ``kind`` is one of :data:`xnlos_core.interfaces.KINDS` (the six pipeline stages
-    and ``scene_generator``); ``factory`` is a
+    called too). ``kind`` is one of :data:`xnlos_core.interfaces.KINDS` (the six pipeline stages,
+    ``scene_generator`` and ``nlos_solver``); ``factory`` is a
     class with a pydantic ``Params`` model that subclasses the kind's interface. Returns nothing;
     all implementations are called.
     """

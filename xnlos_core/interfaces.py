@@ -1,8 +1,9 @@
 """The plugin kinds. A plugin is a class with a pydantic ``Params`` model; ``__init__`` only
 stores the validated parameters (scikit-learn style) and the stage method does the work.
 
-Six kinds are pipeline stages; the seventh, ``scene_generator``, draws the random scenes a
-dataset is rendered from (a dataset config names them in ``families``). Any registered plugin of
+Six kinds are pipeline stages; ``scene_generator`` draws the random scenes a dataset is
+rendered from (a dataset config names them in ``families``), and ``nlos_solver`` reconstructs
+optical transient volumes for the cross-modality comparison (neither is a stage). Any registered plugin of
 a kind can replace any other of that kind by a one-line config change, and a config can name
 nothing else: no module, no function. :data:`BASES` (kind → interface) is the one list of kinds.
 
@@ -27,7 +28,9 @@ from .validation import validate_model
 from .types import Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
 if TYPE_CHECKING:
+    from .nlos_volume import NLOSVolume
     from .scene import Scene
+    from .transient import TransientVolume
 
 
 class NoParams(BaseModel):
@@ -221,9 +224,25 @@ class SceneGenerator(Plugin, abc.ABC):
         process. Raises :class:`xnlos_core.errors.InputError` when no valid scene can be drawn."""
 
 
+class NLOSSolver(Plugin, abc.ABC):
+    """TransientVolume → NLOSVolume: a reconstruction solver of the optical (SPAD) modality for the
+    cross-modality comparison (Sec. 5.1.2, Fig. 5; issue 30) — f-k migration, LCT, or a third
+    party's (phasor fields). Not a pipeline stage: the comparison calls it on transient volumes.
+    """
+
+    kind: ClassVar[str] = "nlos_solver"
+    stage: ClassVar[bool] = False
+
+    @abc.abstractmethod
+    def reconstruct(self, volume: "TransientVolume") -> "NLOSVolume":
+        """Hidden albedo (Z, H, W) ≥ 0 on the volume's wall grid, depth z = c·t/2 [m] per time bin.
+        Raises :class:`xnlos_core.errors.InputError` naming the input for a volume the solver cannot
+        invert (all-zero counts, a non-square scan grid, too few time bins)."""
+
+
 # The one list of kinds, in the order ``xnlos plugins`` lists them: the registry, the config's
 # stage tables, the conformance kit and the tests all derive from it.
 BASES: dict[str, type[Plugin]] = {base.kind: base for base in (
-    ForwardModel, Backend, Detector, WallEstimator, Reconstructor, Tracker, SceneGenerator)}
+    ForwardModel, Backend, Detector, WallEstimator, Reconstructor, Tracker, SceneGenerator, NLOSSolver)}
 KINDS: tuple[str, ...] = tuple(BASES)
 STAGE_KINDS: tuple[str, ...] = tuple(kind for kind, base in BASES.items() if base.stage)

@@ -15,8 +15,8 @@ import numpy as np
 
 from .errors import ConfigError, InputError, InsufficientDataError
 from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
-from .interfaces import (BASES, Backend, Detector, ForwardModel, Reconstructor, SceneGenerator, Tracker,
-                         WallEstimator)
+from .interfaces import (BASES, Backend, Detector, ForwardModel, NLOSSolver, Reconstructor, SceneGenerator,
+                         Tracker, WallEstimator)
 from .radar import RadarConfig
 from .types import (LOS, MNLOS, Detections, Frame, GroundTruth, HiddenPoints, RAMap, Tracks,
                     WallPosterior, WallSegment)
@@ -263,6 +263,49 @@ def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:
         random.setstate(py_state)
     _assert(again.model_dump(mode="json") == first.model_dump(mode="json"), generator,
             f"seed {seed} gave two different scenes")
+
+
+def kit_transient(points, n: int = 16, n_bins: int = 128, wall: float = 1.0, max_depth: float = 1.0):
+    """A confocal TransientVolume (n_bins, n, n) of hidden points (x, y, z) [m] (z > 0 the depth):
+    scan point (x_j, y_i) counts 1/r⁴ at round-trip bin rint(2r/(c·Δt)), r = √((x − x_j)² + (y − y_i)² + z²);
+    Δt chosen so the bins reach depth ``max_depth`` [m]."""
+    from .transient import SPEED_OF_LIGHT, TransientVolume
+
+    bw = 2 * max_depth / SPEED_OF_LIGHT / n_bins
+    x = (np.arange(n) - (n - 1) / 2) * (wall / n)
+    data = np.zeros((n_bins, n, n))
+    for px, py, pz in points:
+        r = np.sqrt((x[None, :] - px) ** 2 + (x[:, None] - py) ** 2 + pz ** 2)
+        k = np.rint(2 * r / SPEED_OF_LIGHT / bw).astype(int)
+        i, j = np.nonzero(k < n_bins)
+        np.add.at(data, (k[i, j], i, j), r[i, j] ** -4.0)
+    return TransientVolume(data, bw, wall, wall)
+
+
+def check_nlos_solver(solver: NLOSSolver) -> None:
+    """Reconstructs a hidden point within one depth bin and one scan cell of where it is, returns an
+    NLOSVolume on the input's grid (depth z_k = c·t_k/2), the same twice, and refuses a volume without
+    counts with InputError."""
+    from .nlos_volume import NLOSVolume
+    from .transient import TransientVolume
+
+    _assert(isinstance(solver, NLOSSolver), solver, "is not a xnlos_core.interfaces.NLOSSolver")
+    vol = kit_transient([(0.125, -0.0625, 0.5)])
+    out = solver.reconstruct(vol)
+    _assert(isinstance(out, NLOSVolume), solver, f"reconstruct() must return an NLOSVolume, got {type(out).__name__}")
+    _assert(out.shape[1:] == vol.shape[1:], solver, f"albedo grid {out.shape[1:]} differs from the wall grid {vol.shape[1:]}")
+    dz, cell = vol.bin_length / 2, vol.wall_width / vol.shape[2]
+    z, y, x = out.peak()
+    _assert(abs(z - 0.5) <= dz + 1e-9 and abs(y + 0.0625) <= cell + 1e-9 and abs(x - 0.125) <= cell + 1e-9, solver,
+            f"a point at (z, y, x) = (0.5, -0.0625, 0.125) m came back at ({z:.4f}, {y:.4f}, {x:.4f}) m "
+            f"(tolerance one bin {dz:.4f} m, one cell {cell:.4f} m)")
+    _assert(np.array_equal(solver.reconstruct(vol).albedo, out.albedo), solver, "two runs on one volume differ")
+    try:
+        solver.reconstruct(TransientVolume(np.zeros(vol.shape), vol.bin_width, 1.0, 1.0))
+    except InputError:
+        pass
+    else:
+        _assert(False, solver, "an all-zero volume must raise InputError")
 
 
 def _same_state(a, b) -> bool:

@@ -201,6 +201,7 @@ def test_detect_requires_frame():
     ("plugins.residual_mirror.plugin", "reconstructor", ["residual_mirror"]),
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
     ("estimators.plugin", "tracker", ["kalman", "nearest", "sindy"]),
+    ("estimators.plugin", "nlos_solver", ["fk", "lct"]),
     ("hardware.plugin", "backend", ["adc", "can", "npz", "replay"]),
     ("sims.plugin", "forward_model", ["image", "raytrace"]),
     ("sims.plugin", "backend", ["dataset"]),

@@ -1,0 +1,1 @@
+"""Optical (SPAD) NLOS solvers for the cross-modality comparison (Sec. 5.1.2): LCT and f-k migration."""

@@ -1,0 +1,194 @@
+"""NLOS solvers of the optical modality (issue 30 item 2): LCT and f-k on volumes rendered here in
+closed form (independent of xnlos_core.testing's kit renderer), the NLOSVolume type, bad input,
+the conformance kit and a third party's solver through the registry."""
+import numpy as np
+import pytest
+
+from xnlos_core import InputError, hookimpl
+from xnlos_core.interfaces import NLOSSolver
+from xnlos_core.nlos_volume import NLOSVolume
+from xnlos_core.registry import PluginManager, get_registry
+from xnlos_core.testing import check_component, check_nlos_solver
+from xnlos_core.transient import TransientVolume
+
+C = 299_792_458.0
+SOLVERS = ("lct", "fk")
+
+
+def render(points, n=32, n_bins=256, wall=1.0, max_depth=1.2):
+    """Counts 1/r⁴ at the round-trip bin of t = 2·√((x − x_j)² + (y − y_i)² + z²)/c, the energy split
+    linearly between the two bins around t/Δt (an independent, sub-bin variant of the kit's renderer)."""
+    bw = 2 * max_depth / C / n_bins
+    x = (np.arange(n) - (n - 1) / 2) * (wall / n)
+    data = np.zeros((n_bins + 1, n, n))
+    for px, py, pz in points:
+        r = np.sqrt((x[None, :] - px) ** 2 + (x[:, None] - py) ** 2 + pz ** 2)
+        s = 2 * r / C / bw
+        k = np.floor(s).astype(int)
+        w = s - k
+        i, j = np.nonzero(k < n_bins)
+        np.add.at(data, (k[i, j], i, j), (1 - w[i, j]) / r[i, j] ** 4)
+        np.add.at(data, (k[i, j] + 1, i, j), w[i, j] / r[i, j] ** 4)
+    return TransientVolume(data[:n_bins], bw, wall, wall)
+
+
+def solver(name, **params):
+    return get_registry().create("nlos_solver", name, params)
+
+
+def cell(j, n=32):
+    """Lateral coordinate [m] of scan column/row j of the n × n, 1 m grid."""
+    return (j - (n - 1) / 2) / n
+
+
+# on scan-grid columns: LCT's shell kernel is discretised on the grid; half a cell off the grid its
+# peak moves up to ~3 bins shallower (test_off_grid_points below), f-k's does not
+POINTS = [(cell(16), cell(16), 0.5), (cell(20), cell(9), 0.7), (cell(7), cell(19), 0.35), (cell(17), cell(25), 0.9)]
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("point", POINTS)
+def test_point_comes_back_at_its_depth_and_place(name, point):
+    vol = render([point])
+    z, y, x = solver(name).reconstruct(vol).peak()
+    dz, cell = vol.bin_length / 2, vol.wall_width / vol.shape[2]
+    assert abs(z - point[2]) <= dz, (z, point)
+    assert abs(y - point[1]) <= cell and abs(x - point[0]) <= cell, (x, y, point)
+
+
+@pytest.mark.parametrize("name, tol_bins", [("lct", 3), ("fk", 1)])
+def test_off_grid_points(name, tol_bins):
+    """Half a cell off the scan grid: f-k keeps one bin; LCT (kernel on the grid) within three."""
+    vol = render([(-0.25, 0.1, 0.35)])
+    z, y, x = solver(name).reconstruct(vol).peak()
+    assert abs(z - 0.35) <= tol_bins * vol.bin_length / 2
+    assert abs(x + 0.25) <= 1 / 32 and abs(y - 0.1) <= 1 / 32
+
+
+def local_peak(out, point, half=8):
+    """(z, y, x) [m] of the maximum within ±half bins of the point's depth."""
+    k = int(np.argmin(np.abs(out.z - point[2])))
+    near = out.albedo[k - half:k + half + 1]
+    kk, i, j = np.unravel_index(int(np.argmax(near)), near.shape)
+    x, y = out.grid()
+    return out.z[k - half + kk], y[i], x[j]
+
+
+def test_lct_and_fk_agree_on_a_two_point_scene():
+    pts = [(cell(19), cell(19), 0.45), (cell(9), cell(11), 0.8)]
+    vol = render(pts)
+    a, b = (solver(n).reconstruct(vol) for n in SOLVERS)
+    for p in pts:  # each point: both solvers put its peak at the same place, within a bin and a cell
+        za, ya, xa = local_peak(a, p)
+        zb, yb, xb = local_peak(b, p)
+        assert abs(za - zb) <= vol.bin_length / 2 + 1e-12 and abs(ya - yb) <= 1 / 32 and abs(xa - xb) <= 1 / 32
+        assert abs(za - p[2]) <= vol.bin_length / 2 and abs(xa - p[0]) <= 1 / 32
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_depth_axis_is_half_the_round_trip(name):
+    """Closed-form time of flight: bin k holds round trip t_k = k·Δt, and its depth is z_k = c·t_k/2."""
+    vol = render([(0.0, 0.0, 0.5)], n=16, n_bins=64)
+    out = solver(name).reconstruct(vol)
+    assert out.shape == vol.shape
+    np.testing.assert_allclose(out.z, C * vol.times() / 2, rtol=1e-12)
+    # the point straight below scan point (0, 0)-ish returns first at t = 2z/c
+    first = np.flatnonzero(vol.data[:, 7, 7])[0]
+    r = np.hypot(np.hypot(vol.grid()[0][7], vol.grid()[1][7]), 0.5)
+    assert first == int(np.floor(2 * r / C / vol.bin_width))
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_t0_in_whole_bins_is_the_same_measurement(name):
+    vol = render([(0.1, 0.0, 0.6)], n=16, n_bins=128)
+    late = TransientVolume(vol.data[20:], vol.bin_width, 1.0, 1.0, t0=20 * vol.bin_width)
+    a, b = solver(name).reconstruct(vol), solver(name).reconstruct(late)
+    assert a.peak_index() == b.peak_index()
+    with pytest.raises(InputError, match=r"volume.t0 .* not a whole number of bins"):
+        solver(name).reconstruct(TransientVolume(vol.data, vol.bin_width, 1.0, 1.0, t0=0.5 * vol.bin_width))
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_float32_matches_float64(name):
+    vol = render([(0.1, -0.1, 0.5)], n=16, n_bins=128)
+    a = solver(name, dtype="float32").reconstruct(vol).albedo
+    b = solver(name, dtype="float64").reconstruct(vol).albedo
+    np.testing.assert_allclose(a, b, atol=1e-4 * b.max())
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_bad_input_is_a_typed_error_naming_it(name):
+    vol = render([(0.0, 0.0, 0.5)], n=8, n_bins=64)
+    s = solver(name)
+    with pytest.raises(InputError, match=rf"{name}.reconstruct\(volume\): volume.data holds no counts"):
+        s.reconstruct(TransientVolume(np.zeros((64, 8, 8)), vol.bin_width, 1.0, 1.0))
+    with pytest.raises(InputError, match=r"non-square scan grid H × W = 8 × 6"):
+        s.reconstruct(TransientVolume(vol.data[:, :, :6], vol.bin_width, 1.0, 0.75))
+    with pytest.raises(InputError, match=r"has 4 time bins .*expected at least 8"):
+        s.reconstruct(TransientVolume(np.ones((4, 8, 8)), vol.bin_width, 1.0, 1.0))
+    with pytest.raises(InputError, match=r"expected a xnlos_core.transient.TransientVolume, got ndarray"):
+        s.reconstruct(vol.data)
+    with pytest.raises(InputError, match="NaN"):  # refused by the volume itself
+        TransientVolume(np.full((64, 8, 8), np.nan), vol.bin_width, 1.0, 1.0)
+
+
+def test_nlos_volume_checks_and_peak():
+    a = np.zeros((4, 3, 3))
+    a[2, 0, 1] = 1.0
+    v = NLOSVolume(a, [0.0, 0.1, 0.2, 0.3], 0.3, 0.6)
+    assert v.peak_index() == (2, 0, 1)
+    assert v.peak() == pytest.approx((0.2, -0.2, 0.0))
+    assert not v.albedo.flags.writeable
+    with pytest.raises(InputError, match=r"NLOSVolume.albedo: expected values ≥ 0"):
+        NLOSVolume(-a, [0.0, 0.1, 0.2, 0.3], 0.3, 0.3)
+    with pytest.raises(InputError, match=r"NLOSVolume.z: expected 4 depths"):
+        NLOSVolume(a, [0.0, 0.1], 0.3, 0.3)
+    with pytest.raises(InputError, match=r"NLOSVolume.wall_width"):
+        NLOSVolume(a, [0.0, 0.1, 0.2, 0.3], 0.0, 0.3)
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_conformance_kit(name):
+    check_component("nlos_solver", name)
+
+
+def test_params_are_validated():
+    from xnlos_core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="snr"):
+        solver("lct", snr=0.0)
+    with pytest.raises(ConfigError, match="dtype"):
+        solver("fk", dtype="float16")
+
+
+class _Backprojection(NLOSSolver):
+    """A third party's solver: confocal backprojection (sum of each voxel's round-trip bins)."""
+
+    def reconstruct(self, volume):
+        t, h, w = volume.shape
+        x, y = volume.grid()
+        z = np.arange(t) * volume.bin_length / 2
+        r = np.sqrt((x[None, None, :, None, None] - x[None, None, None, None, :]) ** 2
+                    + (y[None, :, None, None, None] - y[None, None, None, :, None]) ** 2 + z[:, None, None, None, None] ** 2)
+        k = np.minimum(np.rint(2 * r / volume.bin_length).astype(int), t - 1)
+        jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+        albedo = volume.data[k, ii, jj].sum(axis=(3, 4))
+        return NLOSVolume(albedo, z, volume.wall_width, volume.wall_height)
+
+
+class _ThirdParty:
+    @hookimpl
+    def xnlos_register_components(self, registry):
+        registry.add("nlos_solver", "backprojection", _Backprojection)
+
+
+def test_a_third_party_solver_works_through_the_registry_and_the_kit_judges_it():
+    mgr = PluginManager(autoload=False)
+    mgr.register(_ThirdParty(), name="bp", provider="bp-dist 1.0")
+    assert mgr.registry.names("nlos_solver") == ["backprojection"]
+    bp = mgr.registry.create("nlos_solver", "backprojection", {})
+    vol = render([(cell(12), cell(20), 0.4)], n=16, n_bins=128)
+    z, y, x = bp.reconstruct(vol).peak()  # unfiltered backprojection: blurred, biased towards the wall
+    assert abs(z - 0.4) <= 4 * vol.bin_length / 2
+    with pytest.raises(AssertionError, match=r"_Backprojection: a point at .* came back at"):
+        check_component("nlos_solver", "backprojection", registry=mgr.registry)
