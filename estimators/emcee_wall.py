@@ -42,7 +42,7 @@ from xnlos_core.types import Detections, WallPosterior
 
 from .likelihood import WallLikelihood
 from .map_solver import MapFit
-from .robust import RobustWallParams, estimate_walls, fit_cluster, posterior_from_fit, warm_up
+from .robust import ClusterFit, RobustWallParams, estimate_walls, fit_cluster, posterior_from_fit, warm_up
 
 
 class EmceeParams(RobustWallParams):
@@ -148,6 +148,12 @@ class EmceeWallEstimator(WallEstimator):
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""
         fit = fit_cluster(points, point_cov, self.params, rng)
+        return self.posterior_of(fit, rng)
+
+    def posterior_of(self, fit: ClusterFit, rng: np.random.Generator, estimator: str = "emcee",
+                     extra_info: dict | None = None) -> WallPosterior:
+        """Sampled WallPosterior of an already fitted cluster (the chosen model's posterior, from
+        around its MAP); ``estimator`` and ``extra_info`` go into info (used by laplace_is's fallback)."""
         lik = fit.likelihoods[fit.chosen]
         chain, kept, diag = sample_posterior(lik, fit.best, self.params, rng)
         mean = chain.mean(axis=0)
@@ -156,7 +162,8 @@ class EmceeWallEstimator(WallEstimator):
         centred = chain - mean
         centred[:, 0] = np.angle(np.exp(1j * centred[:, 0]))
         cov = centred.T @ centred / max(len(chain) - 1, 1)
-        return posterior_from_fit(fit, "emcee", mean=mean, cov=cov, samples=kept, extra_info=diag)
+        return posterior_from_fit(fit, estimator, mean=mean, cov=cov, samples=kept,
+                                  extra_info={**diag, **(extra_info or {})})
 
     def warm_up(self, max_points: int = 64) -> int:
         """Build the casadi problems for clusters of up to ``max_points`` LOS points now, so that

@@ -1,0 +1,116 @@
+"""``laplace_is`` wall estimator: the casadi MAP's Laplace approximation corrected by importance
+sampling, with a fallback to emcee when the correction cannot be trusted.
+
+Per LOS cluster: the MAP fits and model choice of :mod:`estimators.robust` (as casadi_map and
+emcee), then, on the chosen model's posterior p(θ | x) over θ = (φ, b[, κ][, log s]) — the same
+log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_prob`):
+
+1. proposal q = t_ν(θ̂, c²·H⁻¹): a Student-t (``proposal_dof`` ν, default 5) around the MAP θ̂
+   with the Laplace covariance H⁻¹ scaled by ``proposal_scale`` c (heavy tails cover the t the
+   unknown noise scale leaves in the wall parameters, :func:`estimators.map_solver.student_t_cov`);
+2. ``n_draws`` draws, self-normalised weights w ∝ p/q (:mod:`estimators.importance`);
+3. diagnostics: ESS = (Σw)²/Σw² and the PSIS Pareto k̂ of the largest weights;
+4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (its default sampler
+   settings, :class:`estimators.emcee_wall.EmceeWallEstimator`) runs in-process on the same
+   cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
+   k̂ and ESS (``is_pareto_k``, ``is_ess``);
+5. otherwise the WallPosterior's mean and cov are the weighted moments (φ averaged on the
+   circle), ``samples`` are ``max_samples`` draws by systematic resampling.
+
+info: ``ess`` (IS ESS, or emcee's ESS after a fallback), ``pareto_k``, ``is_ess``,
+``is_pareto_k``, ``n_draws``, ``proposal_dof``, ``proposal_scale``, ``fallback`` (None or
+"emcee"), ``sample_time_s``, plus the MAP/selection keys every probabilistic estimator reports.
+Every draw comes from ``seed`` (the wall's generator; emcee's RandomState is set from it).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pydantic import Field
+
+from xnlos_core.errors import InputError, InsufficientDataError
+from xnlos_core.interfaces import WallEstimator
+from xnlos_core.types import Detections, WallPosterior
+
+from .emcee_wall import EmceeParams, EmceeWallEstimator
+from .importance import (effective_sample_size, normalised_weights, pareto_k, resample, student_t_draws,
+                         weighted_moments)
+from .robust import ClusterFit, RobustWallParams, estimate_walls, fit_cluster, posterior_from_fit, warm_up
+
+
+class LaplaceISParams(RobustWallParams):
+    """Parameters of laplace_is (proposal, diagnostics thresholds, plus RobustWallParams)."""
+
+    n_draws: int = Field(4000, ge=100, le=10_000_000, description="importance draws per wall")
+    proposal_dof: float = Field(5.0, gt=2, le=1e6, description="degrees of freedom ν of the Student-t "
+                                "proposal (large: Gaussian)")
+    proposal_scale: float = Field(1.2, gt=0, le=100, description="factor c on the Laplace standard "
+                                  "deviations in the proposal's scale matrix")
+    max_pareto_k: float = Field(0.7, gt=0, le=10, description="fall back to emcee when the Pareto k̂ "
+                                "of the weights exceeds this")
+    min_ess: float = Field(100.0, ge=0, le=1e9, description="fall back to emcee when the importance ESS "
+                           "is below this")
+    fallback: bool = Field(True, description="run emcee when a diagnostic fails (else keep the IS "
+                           "result and only report it)")
+    max_samples: int = Field(4000, ge=10, le=10_000_000, description="resampled draws kept in "
+                             "WallPosterior.samples")
+
+
+def importance_posterior(fit: ClusterFit, params: LaplaceISParams, rng: np.random.Generator):
+    """(mean (P,), cov (P, P), resampled draws (max_samples, P), diagnostics) of the chosen
+    model's posterior by Laplace + Student-t importance sampling (module doc, steps 1–3).
+    Raises InsufficientDataError when no proposal draw has a finite posterior."""
+    t0 = time.perf_counter()
+    lik = fit.likelihoods[fit.chosen]
+    mf = fit.best
+    draws, log_q = student_t_draws(mf.theta, params.proposal_scale**2 * mf.cov, params.proposal_dof,
+                                   params.n_draws, rng)
+    try:
+        w = normalised_weights(lik.log_prob(draws), log_q)
+    except InputError as exc:
+        raise InsufficientDataError(
+            f"laplace_is wall posterior ({lik.model}): none of {params.n_draws} draws around the MAP "
+            f"θ = {np.round(mf.theta, 6).tolist()} lies inside the posterior's support") from exc
+    ess = effective_sample_size(w)
+    k_hat = pareto_k(w)
+    mean, cov = weighted_moments(draws, w, mf.theta)
+    kept = draws[resample(w, params.max_samples, rng)]
+    diag = {"ess": ess, "pareto_k": k_hat, "is_ess": ess, "is_pareto_k": k_hat, "n_draws": params.n_draws,
+            "proposal_dof": params.proposal_dof, "proposal_scale": params.proposal_scale,
+            "sample_time_s": time.perf_counter() - t0}
+    return mean, cov, kept, diag
+
+
+class LaplaceISWallEstimator(WallEstimator):
+    """MAP + Laplace, corrected by Student-t importance sampling (ESS, Pareto k̂), emcee fallback."""
+
+    Params = LaplaceISParams
+
+    def _emcee(self) -> EmceeWallEstimator:
+        shared = RobustWallParams.model_fields.keys()
+        return EmceeWallEstimator(EmceeParams(**{k: getattr(self.params, k) for k in shared}))
+
+    def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
+        """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""
+        fit = fit_cluster(points, point_cov, self.params, rng)
+        mean, cov, kept, diag = importance_posterior(fit, self.params, rng)
+        failed = diag["pareto_k"] > self.params.max_pareto_k or diag["ess"] < self.params.min_ess
+        if failed and self.params.fallback:
+            extra = {k: diag[k] for k in ("is_ess", "is_pareto_k", "n_draws", "proposal_dof", "proposal_scale")}
+            extra.update({"pareto_k": diag["pareto_k"], "fallback": "emcee",
+                          "is_time_s": diag["sample_time_s"]})
+            return self._emcee().posterior_of(fit, rng, estimator="laplace_is", extra_info=extra)
+        return posterior_from_fit(fit, "laplace_is", mean=mean, cov=cov, samples=kept,
+                                  extra_info={**diag, "fallback": None, "diagnostic_failed": bool(failed)})
+
+    def warm_up(self, max_points: int = 64) -> int:
+        """Build the casadi problems for clusters of up to ``max_points`` LOS points now, so that
+        the first frames are as fast as later ones; returns how many problem shapes were built."""
+        return warm_up(self.params, max_points)
+
+    def estimate(self, detections: Detections) -> list[WallPosterior]:
+        """One sampled WallPosterior per LOS cluster (largest first); info carries the model
+        choice, ESS, Pareto k̂, fallback, outlier fraction, solver status and time. Raises
+        InsufficientDataError with < 2 LOS points or no usable cluster."""
+        return estimate_walls(detections, self.params, "LaplaceISWallEstimator", self.fit_wall)
