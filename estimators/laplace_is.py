@@ -10,9 +10,9 @@ log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_p
    unknown noise scale leaves in the wall parameters, :func:`estimators.map_solver.student_t_cov`);
 2. ``n_draws`` draws, self-normalised weights w ∝ p/q (:mod:`estimators.importance`);
 3. diagnostics: ESS = (Σw)²/Σw² and the PSIS Pareto k̂ of the largest weights;
-4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (its default sampler
-   settings, :class:`estimators.emcee_wall.EmceeWallEstimator`) runs in-process on the same
-   cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
+4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (``fallback_n_walkers``
+   × ``fallback_n_steps``, emcee's defaults; :class:`estimators.emcee_wall.EmceeWallEstimator`)
+   runs in-process on the same cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
    k̂ and ESS (``is_pareto_k``, ``is_ess``);
 5. otherwise the WallPosterior's mean and cov are the weighted moments (φ averaged on the
    circle), ``samples`` are ``max_samples`` draws by systematic resampling.
@@ -27,7 +27,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.interfaces import WallEstimator
@@ -53,8 +53,19 @@ class LaplaceISParams(RobustWallParams):
                            "is below this")
     fallback: bool = Field(True, description="run emcee when a diagnostic fails (else keep the IS "
                            "result and only report it)")
+    fallback_n_walkers: int = Field(16, ge=8, le=4096, description="emcee walkers of the fallback")
+    fallback_n_steps: int = Field(2000, ge=20, le=10_000_000, description="emcee steps of the fallback, "
+                                  "burn-in included")
+    fallback_burn: int = Field(250, ge=0, le=10_000_000, description="emcee burn-in steps of the fallback")
     max_samples: int = Field(4000, ge=10, le=10_000_000, description="resampled draws kept in "
                              "WallPosterior.samples")
+
+    @model_validator(mode="after")
+    def _burn_below_steps(self):
+        if self.fallback_burn >= self.fallback_n_steps:
+            raise ValueError(f"fallback_burn ({self.fallback_burn}) must be smaller than fallback_n_steps "
+                             f"({self.fallback_n_steps})")
+        return self
 
 
 def importance_posterior(fit: ClusterFit, params: LaplaceISParams, rng: np.random.Generator):
@@ -89,7 +100,10 @@ class LaplaceISWallEstimator(WallEstimator):
 
     def _emcee(self) -> EmceeWallEstimator:
         shared = RobustWallParams.model_fields.keys()
-        return EmceeWallEstimator(EmceeParams(**{k: getattr(self.params, k) for k in shared}))
+        return EmceeWallEstimator(EmceeParams(**{k: getattr(self.params, k) for k in shared},
+                                              n_walkers=self.params.fallback_n_walkers,
+                                              n_steps=self.params.fallback_n_steps, burn=self.params.fallback_burn,
+                                              max_samples=self.params.max_samples))
 
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""

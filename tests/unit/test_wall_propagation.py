@@ -9,6 +9,7 @@ from estimators.calibration import (chi2_2_quantile, coverage, evaluate, mahalan
                                     wall_errors)
 from estimators.casadi_map import CasadiMapWallEstimator
 from estimators.emcee_wall import EmceeWallEstimator
+from estimators.laplace_is import LaplaceISWallEstimator
 from xnlos_core.wall_propagation import propagate
 from xnlos_core.wall import mirror
 from plugins.mirror.mirror import MirrorReconstructor
@@ -127,6 +128,23 @@ def test_casadi_map_credible_regions_calibrated_fast():
     assert abs(wall[0.5] - 0.5) < 0.1 and abs(wall[0.9] - 0.9) < 0.05, wall
 
 
+def test_laplace_is_credible_regions_calibrated_fast():
+    """Issue 31 #2: the importance-corrected Laplace on casadi_map's 60 fast frames, to casadi_map's
+    tolerance; the few walls whose weights fail the Pareto-k̂ check fall back to a short emcee."""
+    est = LaplaceISWallEstimator({"fallback_n_steps": 300, "fallback_burn": 50})
+    total, wall = _calibration(est, 60, seed=21)
+    assert abs(total[0.5] - 0.5) < 0.1 and abs(total[0.9] - 0.9) < 0.05, total
+    assert abs(wall[0.5] - 0.5) < 0.1 and abs(wall[0.9] - 0.9) < 0.05, wall
+
+
+@pytest.mark.slow
+def test_laplace_is_calibration_within_5_points():
+    """The frames of emcee's slow test, to emcee's tolerance."""
+    total, wall = _calibration(LaplaceISWallEstimator(), 300, seed=31)
+    assert abs(total[0.5] - 0.5) <= 0.05 and abs(total[0.9] - 0.9) <= 0.05, total
+    assert abs(wall[0.5] - 0.5) <= 0.05 and abs(wall[0.9] - 0.9) <= 0.05, wall
+
+
 @pytest.mark.slow
 def test_casadi_map_calibration_within_5_points():
     """The frames of emcee's slow test, to emcee's tolerance (before the Student-t covariance:
@@ -154,7 +172,7 @@ def test_corner_plot_and_frame_figure(tmp_path):
     assert plot_frame(res, tmp_path / "frame2.png", credible=(0.9,), wall_samples=0).exists()
 
 
-@pytest.mark.parametrize("name", ["casadi_map", "emcee"])
+@pytest.mark.parametrize("name", ["casadi_map", "emcee", "laplace_is"])
 def test_pipeline_runs_with_probabilistic_walls(name):
     params = {"n_steps": 200, "burn": 50} if name == "emcee" else {}
     t = small_pipeline_table(wall_estimator={"name": name, "params": params})
