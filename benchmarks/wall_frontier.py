@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/wall_frontier.py [--frames 100] [--out benchmarks/out] [--quick]
 
-Every setting (lsq; casadi_map; casadi_map line-only; emcee at several (walkers, steps)) runs on
+Every setting (lsq; casadi_map; casadi_map line-only; laplace_is — Laplace + Student-t importance
+sampling with its emcee fallback —; emcee at several (walkers, steps)) runs on
 the same simulated frames (:func:`estimators.calibration.simulate_wall_scene`: one relay wall per
 frame, a line or — with probability ``--arc-fraction`` — an arc, 8–24 LOS detections of which
 ``--outlier-fraction`` are clutter, 6 hidden points). Per setting: estimator time per frame [ms]
@@ -38,13 +39,16 @@ SETTINGS = [
     ("lsq", "lsq", {}),
     ("casadi_map", "casadi_map", {}),
     ("casadi_map line-only", "casadi_map", {"models": ["line"]}),
+    ("laplace_is", "laplace_is", {}),
     ("emcee 16×300", "emcee", {"n_walkers": 16, "n_steps": 300, "burn": 100}),
     ("emcee 16×600", "emcee", {"n_walkers": 16, "n_steps": 600, "burn": 150}),
+    ("emcee 64×300", "emcee", {"n_walkers": 64, "n_steps": 300, "burn": 100}),
+    ("emcee 128×200", "emcee", {"n_walkers": 128, "n_steps": 200, "burn": 60}),
     ("emcee 16×2000 (default)", "emcee", {}),
     ("emcee 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300}),
     ("emcee stretch 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300, "moves": "stretch"}),
 ]
-QUICK = {"lsq", "casadi_map", "emcee 16×300", "emcee 16×2000 (default)"}
+QUICK = {"lsq", "casadi_map", "laplace_is", "emcee 16×300", "emcee 16×2000 (default)"}
 
 
 def make_frames(n: int, seed: int, arc_fraction: float, outlier_fraction: float):
@@ -165,7 +169,7 @@ def main() -> None:
     ap.add_argument("--arc-fraction", type=float, default=0.25)
     ap.add_argument("--outlier-fraction", type=float, default=0.1)
     ap.add_argument("--out", default=str(Path(__file__).with_name("out")))
-    ap.add_argument("--quick", action="store_true", help="only lsq, casadi_map and two emcee settings")
+    ap.add_argument("--quick", action="store_true", help="only lsq, casadi_map, laplace_is and two emcee settings")
     args = ap.parse_args()
     logging.getLogger("emcee").setLevel(logging.ERROR)  # our own RuntimeWarning counts short chains
     frames = make_frames(args.frames, args.seed, args.arc_fraction, args.outlier_fraction)
