@@ -199,7 +199,7 @@ def test_detect_requires_frame():
     ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "oracle", "rtn", "swin_unet", "unet"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
     ("plugins.residual_mirror.plugin", "reconstructor", ["residual_mirror"]),
-    ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "lsq"]),
+    ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "laplace_is", "lsq"]),
     ("estimators.plugin", "tracker", ["kalman", "nearest", "sindy"]),
     ("estimators.plugin", "nlos_solver", ["fk", "lct"]),
     ("hardware.plugin", "backend", ["adc", "can", "npz", "replay"]),
