@@ -13,6 +13,11 @@ from child k of the seed, so it is the frame an uninterrupted run computes) and 
 ``results.jsonl`` holding each index once, in order. A torn last line and a repeated identical
 line are repaired; a line that is not a JSON object, bytes that are not UTF-8, a frame index out
 of range or two different records of one frame are refused with an InputError naming the line.
+
+With a tracker that has a checkpoint (:attr:`xnlos_core.interfaces.Tracker.supports_state`), its
+state is written after each recorded frame to ``tracker_state.json`` (:mod:`xnlos_core.tracker_state`)
+and a resume restores it instead of replaying the recorded frames; otherwise (no checkpoint, a gap,
+an unusable file) every frame from 0 is replayed through the tracker. A finished run runs no stage.
 """
 from __future__ import annotations
 
