@@ -48,6 +48,12 @@ class PipelineWarning(XnlosWarning):
     detector that labels nothing mNLOS feeding a wall estimator and reconstructor: it never reconstructs)."""
 
 
+class CheckpointWarning(XnlosWarning):
+    """A resumable run's checkpoint (``tracker_state.json``) cannot be used — not JSON, another
+    configuration's, refused by the tracker — so the run falls back to the slower way that needs none
+    (replaying its frames from 0); the results are the same."""
+
+
 class LegacyRecordWarning(XnlosWarning):
     """A results.jsonl holds records of schema 1 (no ``schema_version``), which lack what schema 2
     added: per-detection rows, hidden-point covariances, wall extents and arc anchors."""

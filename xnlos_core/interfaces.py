@@ -10,6 +10,7 @@ nothing else: no module, no function. :data:`BASES` (kind → interface) is the 
 Each interface declares everything its callers use. Optional capabilities have a default that
 says "not available": :attr:`Backend.n_frames` (None), :meth:`Detector.heatmap` (None),
 :meth:`ForwardModel.simulate_adc` (PluginError; :attr:`ForwardModel.supports_adc` asks first),
+:meth:`Tracker.state` / :meth:`Tracker.load_state` (PluginError; :attr:`Tracker.supports_state`),
 :meth:`WallEstimator.warm_up` (builds nothing). Input checks every implementation needs live
 here once (:meth:`Backend.check_max_frames`, :meth:`Detector.check_frame`).
 """
@@ -205,6 +206,28 @@ class Tracker(Plugin, abc.ABC):
 
     def reset(self) -> None:
         """Forget all tracks (called at the start of a run)."""
+
+    def state(self) -> dict[str, Any]:
+        """Optional: everything :meth:`update` carries from frame to frame, as a JSON-able dict
+        (numbers, strings, lists; arrays as nested lists, floats exact through ``json``), so that
+        ``xnlos run`` can checkpoint it with each frame and resume without replaying the frames
+        before (:mod:`xnlos_core.tracker_state`). ``load_state(state())`` on a fresh instance with
+        the same parameters must give bit-identical outputs afterwards. The default raises
+        :class:`xnlos_core.errors.PluginError`: the tracker has no checkpoint, and a resumed run
+        replays every frame from 0 (:attr:`supports_state` asks first)."""
+        raise PluginError(f"{type(self).__name__}.state: this tracker has no checkpoint; a resumed run replays "
+                          "its frames from 0")
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Optional: restore what :meth:`state` returned (it replaces every track). Raises
+        :class:`xnlos_core.errors.InputError` naming the key for a state that is not one this tracker
+        wrote; the default raises :class:`xnlos_core.errors.PluginError` (no checkpoint)."""
+        raise PluginError(f"{type(self).__name__}.load_state: this tracker has no checkpoint")
+
+    @property
+    def supports_state(self) -> bool:
+        """True when the tracker overrides :meth:`state` and :meth:`load_state` (checkpointable)."""
+        return type(self).state is not Tracker.state and type(self).load_state is not Tracker.load_state
 
 
 class SceneGenerator(Plugin, abc.ABC):

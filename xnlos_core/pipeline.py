@@ -281,16 +281,22 @@ class Pipeline:
             out["los_points"] = {name: int(np.sum(gt.los_object == k)) for k, name in enumerate(gt.object_names)}
         return out
 
-    def run(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[FrameResult]:
+    def run(self, start: int = 0, skip: Collection[int] = (), restored: bool = False) -> Iterator[FrameResult]:
         """Yield results of frames ``start`` … in order, except those whose index is in ``skip``
         (the frames a resumed run already holds); the source's time is stage 'source'.
 
         A tracker carries state from frame to frame, so with one configured every frame from 0 is
         replayed through all stages and only the wanted ones are yielded: a resumed or gap-filled
-        frame gets the tracks an uninterrupted run would have given it.
+        frame gets the tracks an uninterrupted run would have given it. ``restored``: the tracker
+        already holds its state after the frames in ``skip`` (loaded from a checkpoint,
+        :mod:`xnlos_core.tracker_state`; the caller guarantees ``skip`` is every frame before the
+        first wanted one): it is not reset and nothing is replayed. With a simulated source and every
+        frame ``start`` … ``run.frames`` − 1 in ``skip`` nothing runs at all (a finished run).
         """
         skip = frozenset(skip)
-        replay = "tracker" in self.stages
+        if "forward_model" in self.stages and skip.issuperset(range(start, self.config.run.frames)):
+            return
+        replay = "tracker" in self.stages and not restored
         if replay:
             self.stages["tracker"].reset()
         frames = self.frames(0) if replay else self.frames(start, skip)

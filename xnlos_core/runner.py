@@ -13,6 +13,11 @@ from child k of the seed, so it is the frame an uninterrupted run computes) and 
 ``results.jsonl`` holding each index once, in order. A torn last line and a repeated identical
 line are repaired; a line that is not a JSON object, bytes that are not UTF-8, a frame index out
 of range or two different records of one frame are refused with an InputError naming the line.
+
+With a tracker that has a checkpoint (:attr:`xnlos_core.interfaces.Tracker.supports_state`), its
+state is written after each recorded frame to ``tracker_state.json`` (:mod:`xnlos_core.tracker_state`)
+and a resume restores it instead of replaying the recorded frames; otherwise (no checkpoint, a gap,
+an unusable file) every frame from 0 is replayed through the tracker. A finished run runs no stage.
 """
 from __future__ import annotations
 
@@ -31,6 +36,7 @@ from .io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl,
 from .pipeline import Pipeline
 from .rundir import claim, write_record
 from .track_record import track_history
+from .tracker_state import STATE_FILE, restore_tracker_state, write_tracker_state
 
 GIF = "sequence.gif"
 
@@ -46,7 +52,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     done: dict[int, dict] = {}
     animate = config.run.wants_animation("tracker" in pipe.stages)
     old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
-                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png"],
+                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE],
                 state=prov["state_sha256"])
     if old is not None:
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
@@ -59,15 +65,24 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     records = dict(done)
     bar = _progress(total=n, initial=len(done), enabled=progress, desc=f"run {config.name}")
     # Figures drawn as frames come (no result is held): those ``run.figures`` wants among frames
-    # 0 … n−1; the last (or any other) still missing at the end is recomputed for its figure.
-    early = set(config.run.figure_frames(range(n))) if config.run.figures != "last" else set()
+    # 0 … n−1 (with a simulated source the last one too: frames come in order, so the records before
+    # it are complete); one still missing at the end is recomputed for its figure.
+    simulated = "forward_model" in pipe.stages
+    early = set(config.run.figure_frames(range(n))) if simulated or config.run.figures != "last" else set()
+    # A tracker with a checkpoint: restored after the last recorded frame, nothing is replayed
+    # (xnlos_core.tracker_state); without one (or an unusable one) Pipeline.run replays from frame 0.
+    tracker = pipe.stages.get("tracker")
+    checkpoint = tracker is not None and tracker.supports_state
+    restored = checkpoint and restore_tracker_state(out, tracker, done, prov["config_sha256"], config.tracker.name)
     # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
-    for res in pipe.run(skip=done):
+    for res in pipe.run(skip=done, restored=restored):
         if animate:  # before the record: a recorded frame always has its snapshot
             FrameSnapshot.from_result(res).save(snapshot_path(out, res.frame.index))
         rec = json.loads(json.dumps(res.record(), default=json_default))
         append_jsonl(res_path, rec)
         records[rec["frame"]] = rec
+        if checkpoint and rec["frame"] == max(records):  # the tracker has seen every recorded frame
+            write_tracker_state(out, tracker, rec["frame"], len(records), prov["config_sha256"], config.tracker.name)
         if res.frame.index in early:
             plot_result(pipe, res, out, list(records.values()))
         bar.update(1)

@@ -228,16 +228,32 @@ def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
 
 
 def check_tracker(tracker: Tracker) -> None:
-    """Keeps one track id for one point moving at constant velocity."""
+    """Keeps one track id for one point moving at constant velocity. With a checkpoint
+    (:attr:`Tracker.supports_state`): the state after 3 frames survives ``json`` and, loaded into the
+    same tracker after a reset, gives the same tracks for the next frames as the uninterrupted run."""
+    import json
+
     _assert(isinstance(tracker, Tracker), tracker, "is not a xnlos_core.Tracker")
     tracker.reset()
-    ids = set()
+    ids, outs, state = set(), [], None
     for k in range(6):
         p = np.array([[20.0, -10.0 + 1.0 * k]])
         out = tracker.update(HiddenPoints(p, np.tile(np.eye(2) * 0.01, (1, 1, 1)), [0], [0]), 0.5 * k)
         _assert(isinstance(out, Tracks), tracker, "update() must return Tracks")
         ids.update(out.track_id.tolist())
+        outs.append(out)
+        if k == 2 and tracker.supports_state:
+            state = json.dumps(tracker.state())
     _assert(len(ids) == 1, tracker, f"one moving point produced track ids {sorted(ids)}")
+    tracker.reset()
+    if state is None:
+        return
+    tracker.load_state(json.loads(state))
+    for k in range(3, 6):
+        p = np.array([[20.0, -10.0 + 1.0 * k]])
+        out = tracker.update(HiddenPoints(p, np.tile(np.eye(2) * 0.01, (1, 1, 1)), [0], [0]), 0.5 * k)
+        same = all(np.array_equal(getattr(out, f), getattr(outs[k], f)) for f in ("track_id", "position", "velocity"))
+        _assert(same, tracker, f"after load_state(state()) frame {k} gave other tracks than the uninterrupted run")
     tracker.reset()
 
 

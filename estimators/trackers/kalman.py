@@ -50,6 +50,7 @@ from . import forecast as fc
 from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time, no_tracks
 from .measurements import Measurements, cluster
 from .region import Region, arrival
+from .state import FORMAT, StateReader, header
 
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 CV = fc.LinearMotion()
@@ -192,6 +193,38 @@ class KalmanTracker(Tracker):
         self._after_update(t)
         self._frame += 1
         return self._report(t)
+
+    def state(self) -> dict:
+        """Everything :meth:`update` carries to the next frame, JSON-able (:meth:`Tracker.state`):
+        every track (tentative ones too) with x (4,), P (4, 4), t [s], counters; the next id, the last
+        time [s], the last frame interval [s] and the frame counter (it seeds the arrival draws)."""
+        if not hasattr(self, "_tracks"):
+            self.reset()
+        return {"tracker": type(self).__name__, "format": FORMAT, "next_id": self._next_id,
+                "t_last": self._t_last, "dt_frame": self._dt_frame, "frame": self._frame,
+                "tracks": [self._track_state(tr) for tr in self._tracks]}
+
+    def load_state(self, state: dict) -> None:
+        """Restore :meth:`state` (InputError naming the key for anything else; the tracker is then reset)."""
+        self.reset()
+        r = header(state, type(self).__name__)
+        try:
+            tracks = [self._track_from(StateReader(d, f"{r.where}: tracks[{i}]"))
+                      for i, d in enumerate(r.items("tracks"))]
+            self._next_id, self._t_last = r.integer("next_id", 0), r.number("t_last", optional=True)
+            self._dt_frame, self._frame = r.number("dt_frame"), r.integer("frame", 0)
+        except BaseException:
+            self.reset()
+            raise
+        self._tracks = tracks
+
+    def _track_state(self, tr: _Track) -> dict:
+        return {"id": tr.id, "x": tr.x.tolist(), "P": tr.P.tolist(), "t": float(tr.t), "frames": tr.frames,
+                "hits": tr.hits, "misses": tr.misses, "confirmed": bool(tr.confirmed)}
+
+    def _track_from(self, r: StateReader) -> _Track:
+        return _Track(r.integer("id", 0), r.array("x", (4,)), r.array("P", (4, 4)), r.number("t"),
+                      r.integer("frames", 0), r.integer("hits", 0), r.integer("misses", 0), r.flag("confirmed"))
 
     # hooks for subclasses (the sindy tracker): time checks, track records, per-track motion model
     def _frame_time(self, points, timestamp) -> float:

@@ -28,6 +28,7 @@ from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
 from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time
+from .state import FORMAT, StateReader, header
 
 
 class NearestParams(BaseModel):
@@ -111,6 +112,34 @@ class NearestTracker(Tracker):
             self._dt_frame = t - self._t_last
         self._t_last = t
         return self._report(t)
+
+    def state(self) -> dict:
+        """Everything :meth:`update` carries to the next frame, JSON-able (:meth:`Tracker.state`):
+        every track's position, velocity, time [s] and counters, the next id, the last time [s] and
+        the last frame interval [s]."""
+        if not hasattr(self, "_tracks"):
+            self.reset()
+        return {"tracker": type(self).__name__, "format": FORMAT, "next_id": self._next_id,
+                "t_last": self._t_last, "dt_frame": self._dt_frame,
+                "tracks": [{"id": tr.id, "position": tr.position.tolist(), "velocity": tr.velocity.tolist(),
+                            "t": float(tr.t), "hits": tr.hits, "misses": tr.misses} for tr in self._tracks]}
+
+    def load_state(self, state: dict) -> None:
+        """Restore :meth:`state` (InputError naming the key for anything else; the tracker is then reset)."""
+        self.reset()
+        r = header(state, type(self).__name__)
+        try:
+            tracks = []
+            for i, d in enumerate(r.items("tracks")):
+                t = StateReader(d, f"{r.where}: tracks[{i}]")
+                tracks.append(_Track(t.integer("id", 0), t.array("position", (2,)), t.array("velocity", (2,)),
+                                     t.number("t"), t.integer("hits", 0), t.integer("misses", 0)))
+            self._next_id, self._t_last = r.integer("next_id", 0), r.number("t_last", optional=True)
+            self._dt_frame = r.number("dt_frame")
+        except BaseException:
+            self.reset()
+            raise
+        self._tracks = tracks
 
     def _associate(self, pred: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if len(pred) == 0 or len(z) == 0:

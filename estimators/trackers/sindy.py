@@ -53,6 +53,7 @@ from xnlos_core.errors import InputError, InsufficientDataError
 from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
+from .state import StateReader
 from .sindy_model import MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
@@ -123,7 +124,11 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
 
 
 class SindyTracker(KalmanTracker):
-    """Kalman association/birth/death with per-track motion models identified by ensemble SINDy."""
+    """Kalman association/birth/death with per-track motion models identified by ensemble SINDy.
+
+    Its checkpoint (:meth:`KalmanTracker.state`) adds per track the history window, the forecast
+    model (Ξ, members, label: what the filter and the forecast use, so nothing is re-identified on a
+    resume), the frame of the last identification and the identified :class:`MotionModel` itself."""
 
     Params = SindyParams
 
@@ -133,6 +138,44 @@ class SindyTracker(KalmanTracker):
             raise InputError(f"SindyTracker.update: timestamp {t} s repeats the previous frame's; timestamps "
                              "must increase strictly (Δt > 0) for the motion identification")
         return t
+
+    def _track_state(self, tr: _SindyTrack) -> dict:
+        m, ident = tr.motion, tr.identified
+        out = {**super()._track_state(tr), "fitted_frame": tr.fitted_frame,
+               "history": [[float(t), z.tolist(), R.tolist()] for t, z, R in tr.history],
+               "motion": {"xi": m.xi.tolist(), "members": m.members.tolist(), "label": m.label}, "identified": None}
+        if ident is not None:
+            out["identified"] = {"coefficients": ident.coefficients.tolist(), "ensemble": ident.ensemble.tolist(),
+                                 "fits": [{"mask": mask.tolist(), "theta": theta.tolist(), "cov": cov.tolist()}
+                                          for mask, theta, cov in ident.fits],
+                                 "t_last": float(ident.t_last), "sigma": float(ident.sigma),
+                                 "evidence": float(ident.evidence)}
+        return out
+
+    def _track_from(self, r: StateReader) -> _SindyTrack:
+        base = super()._track_from(r)
+        history = []
+        for i, h in enumerate(r.items("history")):
+            if not isinstance(h, list) or len(h) != 3:
+                raise InputError(f"{r.where}: history[{i}] must be [t, z (2,), R (2, 2)]")
+            e = StateReader({"t": h[0], "z": h[1], "R": h[2]}, f"{r.where}: history[{i}]")
+            history.append((e.number("t"), e.array("z", (2,)), e.array("R", (2, 2))))
+        m = r.sub("motion")
+        motion = fc.LinearMotion(m.array("xi", (2, 2)), m.array("members", (None, 2, 2)), m.text("label"))
+        identified = None
+        if r.data.get("identified") is not None:
+            d = r.sub("identified")
+            fits = []
+            for i, f in enumerate(d.items("fits")):
+                e = StateReader(f, f"{d.where}: fits[{i}]")
+                mask = e.array("mask", (2, 2), dtype=bool)
+                theta = e.array("theta", (4 + int(mask.sum()),))
+                fits.append((mask, theta, e.array("cov", (len(theta), len(theta)))))
+            identified = MotionModel(d.array("coefficients", (2, 2)), d.array("ensemble", (None, 2, 2)), tuple(fits),
+                                     d.number("t_last"), d.number("sigma"), d.number("evidence"))
+        return _SindyTrack(base.id, base.x, base.P, base.t, base.frames, base.hits, base.misses, base.confirmed,
+                           history=history, motion=motion, fitted_frame=r.integer("fitted_frame", -1),
+                           identified=identified)
 
     def _new_track(self, track_id, x, P, t) -> _SindyTrack:
         return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy())])
