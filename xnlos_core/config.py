@@ -151,8 +151,9 @@ class PipelineConfig(BaseModel):
     def digest(self) -> str:
         """sha256 of the canonical JSON of this config (provenance). ``run.animation`` and
         ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
-        them on resumes a finished run, and runs made before they existed keep their hash)."""
-        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures"}})
+        them on resumes a finished run, and runs made before they existed keep their hash); so is
+        ``run.blas_threads``, which changes only speed (like OPENBLAS_NUM_THREADS, never hashed)."""
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures", "blas_threads"}})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

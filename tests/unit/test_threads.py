@@ -111,3 +111,10 @@ def test_controller_refreshed_when_modules_are_imported(monkeypatch):
     assert _blas_controller() is first
     monkeypatch.setitem(sys.modules, "_xnlos_threads_test_module", object())
     assert _blas_controller() is not first
+
+
+def test_thread_count_leaves_the_config_digest_alone():
+    # Speed only: a finished run resumes under another blas_threads, and old runs keep their hash.
+    digest = lambda **run: parse_pipeline(small_pipeline_table(run={"frames": 1, **run}), "t").digest()  # noqa: E731
+    assert digest(blas_threads=4) == digest() == digest(blas_threads=0)
+    assert digest(frames=2) != digest()
