@@ -14,6 +14,10 @@ around the pipeline keeps its own setting. ``blas_threads = 0`` leaves BLAS alon
 ``OPENBLAS_NUM_THREADS`` / ``OMP_NUM_THREADS`` from the environment). Torch's intra-op threads are the
 learned detector's business (its ``threads`` parameter): the core imports no torch. Dataset workers
 use the same limit (:mod:`sims.dataset.shard`).
+
+BLAS limits are process-wide, not per thread: two pipelines processing frames at once in threads of
+one process would restore each other's limits out of order. Nothing in xnlos does that (parallel
+work runs in processes); code that does should set ``blas_threads = 0`` and limit BLAS itself.
 """
 from __future__ import annotations
 
