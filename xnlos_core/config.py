@@ -69,6 +69,10 @@ class RunConfig(BaseModel):
     animation: bool | None = Field(None, description="write sequence.gif (RA map with Doppler-coloured detections "
                                                      "beside the bird's-eye view with tracks) when the run has more "
                                                      "than one frame; unset: only when a tracker is configured")
+    blas_threads: int = Field(1, ge=0, le=1024, description="BLAS threads (numpy/scipy OpenBLAS, MKL) while a frame "
+                              "is simulated and processed, restored afterwards (xnlos_core.threads): 1 keeps BLAS "
+                              "from fighting torch for the cores; 0 leaves BLAS as it is (its default or "
+                              "OPENBLAS_NUM_THREADS)")
 
     def figure_frames(self, indices) -> list[int]:
         """Which of the recorded frame ``indices`` get a figure (sorted): none without ``figure``;
@@ -147,8 +151,9 @@ class PipelineConfig(BaseModel):
     def digest(self) -> str:
         """sha256 of the canonical JSON of this config (provenance). ``run.animation`` and
         ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
-        them on resumes a finished run, and runs made before they existed keep their hash)."""
-        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures"}})
+        them on resumes a finished run, and runs made before they existed keep their hash); so is
+        ``run.blas_threads``, which changes only speed (like OPENBLAS_NUM_THREADS, never hashed)."""
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures", "blas_threads"}})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

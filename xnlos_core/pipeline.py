@@ -21,6 +21,7 @@ from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
+from .threads import blas_limit
 from .track_record import tracks_record
 from .types import MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
@@ -201,7 +202,9 @@ class Pipeline:
                 if k in skip:
                     continue
                 t = k * self.config.run.frame_interval
-                yield fm.simulate(self.scene, self.radar, np.random.default_rng(seeds[k]), timestamp=t, index=k)
+                with blas_limit(self.config.run.blas_threads):
+                    frame = fm.simulate(self.scene, self.radar, np.random.default_rng(seeds[k]), timestamp=t, index=k)
+                yield frame
         else:
             backend = self.stages["backend"]
             backend.open(self.radar)
@@ -213,7 +216,12 @@ class Pipeline:
                 backend.close()
 
     def process(self, frame: Frame) -> FrameResult:
-        """Run detection, wall estimation, reconstruction and tracking on one frame."""
+        """Run detection, wall estimation, reconstruction and tracking on one frame (and score it),
+        with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`)."""
+        with blas_limit(self.config.run.blas_threads):
+            return self._process(frame)
+
+    def _process(self, frame: Frame) -> FrameResult:
         timings: dict[str, float] = {}
         notes: list[str] = []
 
