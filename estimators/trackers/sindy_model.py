@@ -20,8 +20,8 @@ Identification (``identify_motion``):
    sparsest model wins ties (CV when nothing more is supported). ``MotionModel.evidence`` is
    BIC(CV) − BIC(selected) ≥ 0, for a caller that demands stronger evidence than the BIC's own.
    Candidates with the same support share one refit.
-4. Ensemble: pysindy's EnsembleOptimizer with bagging at the chosen threshold; each member keeps
-   its own Ξ_m and refits (p₀, v₀) with covariance σ² (JᵀJ)⁻¹.
+4. Ensemble: bagging (pysindy STLSQ at the chosen threshold on seeded bootstrap resamples); each
+   member keeps its own Ξ_m and refits (p₀, v₀) with covariance σ² (JᵀJ)⁻¹.
 
 Prediction (``MotionModel.predict``) h ∈ [0, 3] s ahead: every member is integrated exactly (matrix
 exponential of the affine system); the predictive distribution is the mixture over members of
@@ -235,6 +235,20 @@ def _stlsq(threshold: float) -> ps.STLSQ:
     return ps.STLSQ(threshold=threshold, alpha=1e-6, normalize_columns=True, unbias=False)
 
 
+def _bagging(threshold: float, v, a, n_models: int, rng: np.random.Generator) -> np.ndarray:
+    """Ξ_m (n_models, 2, 2): STLSQ at ``threshold`` on n_models bootstrap resamples of the (v, a) rows.
+
+    The bagging of pysindy's EnsembleOptimizer(bagging=True) (n rows drawn with replacement per
+    member), with the draws from ``rng``: EnsembleOptimizer draws from numpy's global RNG, which
+    library code must neither seed nor advance."""
+    n = len(v)
+    members = []
+    for _ in range(n_models):
+        idx = rng.choice(n, n, replace=True)
+        members.append(_sindy_fit(_stlsq(threshold), v[idx], a[idx]))
+    return np.array(members)
+
+
 def _sindy_fit(optimizer, v, a) -> np.ndarray:
     """Ξ (2, 2) of dv/dt = Ξ θ(v) on the library θ(v) = (v_x, v_y) (FEATURES).
 
@@ -253,7 +267,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
 
     sigma [m]: per-axis measurement standard deviation; None profiles it out of the selection and
     estimates it from the selected model's residuals, σ² = RSS / (2n − k). n_models: bagging ensemble size. jerk_psd [m²/s⁵]: the smoother's jerk PSD.
-    seed: the bagging draws (pysindy draws from numpy's global RNG, which is restored afterwards).
+    seed: the bagging draws (numpy.random.default_rng(seed); numpy's global RNG is never touched).
     """
     t = as_array("identify_motion: t", t, ndim=1)
     z = as_array("identify_motion: xy", xy, shape=(len(t), 2))
@@ -295,14 +309,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
     if np.isinf(threshold):
         ensemble = np.zeros((n_models, 2, 2))
     else:
-        state = np.random.get_state()
-        np.random.seed(seed)
-        try:
-            opt = ps.EnsembleOptimizer(_stlsq(threshold), bagging=True, n_models=n_models)
-            _sindy_fit(opt, v, a)
-        finally:
-            np.random.set_state(state)
-        ensemble = np.array(opt.coef_list)
+        ensemble = _bagging(threshold, v, a, n_models, np.random.default_rng(seed))
     by_support = {}  # members sharing a support share its refit
     for m in ensemble:
         key = (m != 0).tobytes()
