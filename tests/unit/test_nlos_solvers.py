@@ -8,7 +8,7 @@ from xnlos_core import InputError, hookimpl
 from xnlos_core.interfaces import NLOSSolver
 from xnlos_core.nlos_volume import NLOSVolume
 from xnlos_core.registry import PluginManager, get_registry
-from xnlos_core.testing import check_component, check_nlos_solver
+from xnlos_core.testing import check_component
 from xnlos_core.transient import TransientVolume
 
 C = 299_792_458.0
