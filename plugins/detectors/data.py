@@ -92,19 +92,20 @@ def load_split(cfg: DataConfig, seed: int, split: str, keep_maps: bool, limit: i
         from sims.dataset import open_dataset
 
         name = {"train": cfg.train_split, "val": cfg.val_split}.get(split, split)
-        frames = open_dataset(cfg.dataset, name)
+        frames = open_dataset(Path(base_dir) / cfg.dataset, name)
     return _add(frames, keep_maps, limit, f"load {split}", progress)
 
 
-def dataset_record(cfg: DataConfig) -> dict[str, Any]:
-    """Provenance of the training data: the dataset's manifest hashes, or the generator spec."""
+def dataset_record(cfg: DataConfig, base_dir: str | Path = ".") -> dict[str, Any]:
+    """Provenance of the training data: the dataset's manifest hashes, or the generator spec.
+    base_dir: the config file's folder, which a relative ``dataset`` is taken from."""
     if cfg.generate is not None:
         spec = cfg.generate.model_dump(mode="json")
         return {"source": "generate", "spec": spec,
                 "sha256": hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()}
     from sims.dataset import open_dataset
 
-    ds = open_dataset(cfg.dataset, None)
+    ds = open_dataset(Path(base_dir) / cfg.dataset, None)
     shard_hashes = sorted(s["sha256"] for s in ds.shards)
     digest = hashlib.sha256(json.dumps({"config": ds.manifest.get("config_sha256"), "shards": shard_hashes},
                                        sort_keys=True).encode()).hexdigest()

@@ -174,7 +174,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     from .nets import architectures
     from .tasks import default_head
 
-    run = open_run(cfg, overwrite=overwrite, minimise=False)
+    run = open_run(cfg, overwrite=overwrite, minimise=False, base_dir=base_dir)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     device = resolve_device(cfg.device)
@@ -183,7 +183,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     head = default_head(cfg.model.name, hp, tuple(cfg.model.sigma))
     train_set = load_split(cfg.data, cfg.seed, "train", False, cfg.data.max_train_maps, progress, base_dir)
     val_set = load_split(cfg.data, cfg.seed, "val", True, cfg.data.max_val_maps, progress, base_dir)
-    data_rec = dataset_record(cfg.data)
+    data_rec = dataset_record(cfg.data, base_dir)
 
     torch.manual_seed(cfg.seed)  # the documented global seed: nn.init of the new network
     net = arch.module(hp).to(device)
@@ -242,10 +242,10 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     data_rec = {**data_rec, "n_train_maps": len(train_set), "n_val_maps": len(val_set)}
     if init is not None:
         data_rec = {**data_rec, "init": init}
-    return _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export)
+    return _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export, base_dir)
 
 
-def _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export) -> dict[str, Any]:
+def _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_export, base_dir) -> dict[str, Any]:
     """Best weights → calibrated, documented final model (model.pt, export) and summary.json."""
     from plugins.training.checkpoint import load_checkpoint
     from plugins.training.run import finish
@@ -263,7 +263,7 @@ def _finish(cfg, run, base_meta, head, val_set, device, data_rec, source, named_
     decode = {"threshold": best["threshold"], "window": list(win), "cells": best["cells"], "calibration": cal}
     return finish(cfg, run, net, {**base_meta, "decode": decode}, dataset=data_rec, source=source,
                      metrics={"val": best, "val_loss": val_loss, "match_radius_m": cfg.data.match_radius},
-                     named_export=named_export, training={"device": str(device)},
+                     named_export=named_export, training={"device": str(device)}, base_dir=base_dir,
                      summary={"val": best, "calibration": cal, "device": str(device)})
 
 

@@ -4,12 +4,12 @@
 
     name = "swin_unet-default"
     seed = 0                          # data order, crops, weight init: every draw derives from it
-    out = "out/train/swin_unet"       # checkpoints and logs (relative paths: to the working directory)
+    out = "../../out/train/swin_unet" # checkpoints and logs (relative paths: to this file's folder)
     device = "auto"                   # auto: cuda when available, else cpu
-    export = "plugins/detectors/models/swin_unet.pt"   # optional: also write the final model here
+    export = "../../plugins/detectors/models/swin_unet.pt"   # optional: also write the final model here
 
     [data]
-    dataset = "data/default"          # a dataset from `xnlos simulate` (splits train / val)
+    dataset = "../../out/data/default"  # a dataset from `xnlos simulate` (splits train / val)
     # or, for small runs, maps generated on the fly:
     # [data.generate]
     # forward_model = { name = "image" }
@@ -195,9 +195,9 @@ def load_train_config(path: str | Path) -> TrainConfig:
     return parse_train_config(load_toml(path), str(path))
 
 
-def check_train_config(cfg: TrainConfig, source: str) -> None:
+def check_train_config(cfg: TrainConfig, source: str, base_dir: str | Path = ".") -> None:
     """``xnlos check`` beyond parsing: what ``xnlos train`` builds from ``[data.generate]`` before
-    simulating (relative paths from the working directory, as the trainer takes them)."""
+    simulating (relative paths from ``base_dir``, the config file's folder, as the trainer takes them)."""
     gen = cfg.data.generate
     if gen is None:
         return
@@ -206,10 +206,10 @@ def check_train_config(cfg: TrainConfig, source: str) -> None:
     from xnlos_core.scene import load_scene
 
     source = f"{source}: [data.generate]"
-    radar = load_radar(gen.radar, source, ".")
+    radar = load_radar(gen.radar, source, base_dir)
     fm = get_registry().create("forward_model", gen.forward_model.name, gen.forward_model.params, source=source)
     if gen.scene is not None:
-        fm.check(load_scene(gen.scene, source, "."), radar)
+        fm.check(load_scene(gen.scene, source, base_dir), radar)
     scene_generators(gen, source)
 
 

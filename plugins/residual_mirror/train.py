@@ -222,9 +222,10 @@ def new_network(hp: HParams, seed: int):
 
 
 def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool = True,
-          source: str = "<config>", named_export: bool = False) -> dict[str, Any]:
+          source: str = "<config>", named_export: bool = False, base_dir: str | Path = ".") -> dict[str, Any]:
     """Train per ``cfg`` and write the files of the module doc; returns a summary. named_export: the
-    command line named ``cfg.export`` (:func:`plugins.training.run.export_target`)."""
+    command line named ``cfg.export`` (:func:`plugins.training.run.export_target`); base_dir: the
+    config file's folder, which relative paths (out, export, dataset) are taken from."""
     import torch
 
     from plugins.training.checkpoint import load_checkpoint
@@ -234,7 +235,7 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
     from .data import build_pairs
     from .reconstructor import ResidualMirrorReconstructor
 
-    run = open_run(cfg, overwrite=overwrite, minimise=True)
+    run = open_run(cfg, overwrite=overwrite, minimise=True, base_dir=base_dir)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     recon = ResidualMirrorReconstructor()
@@ -242,12 +243,12 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
     sets = {}
     for split, draws, cap in (("train", cfg.data.draws, cfg.data.max_train_maps),
                               ("val", cfg.data.val_draws, cfg.data.max_val_maps)):
-        ds = open_dataset(cfg.data.dataset, getattr(cfg.data, f"{split}_split"))
+        ds = open_dataset(Path(base_dir) / cfg.data.dataset, getattr(cfg.data, f"{split}_split"))
         seed = cfg.seed if split == "train" else cfg.seed + 1_000_003
         sets[split] = build_pairs(ds, recon, cfg.data.noise, seed, draws, cfg.model.neighbours,
                                   cfg.model.support_distance, cap, progress)
         sets[split + "_maps"] = min(len(ds), cap or len(ds))
-    manifest = Path(cfg.data.dataset) / "manifest.json"
+    manifest = Path(base_dir) / cfg.data.dataset / "manifest.json"
     data_rec = {"dataset": cfg.data.dataset, "n_train_pairs": len(sets["train"]["target"]),
                 "n_val_pairs": len(sets["val"]["target"]), "n_train_maps": sets["train_maps"],
                 "n_val_maps": sets["val_maps"], "pairs_seconds": time.perf_counter() - t0,
@@ -276,7 +277,7 @@ def train(cfg: ResidualTrainConfig, *, overwrite: bool = False, progress: bool =
     net.load_state_dict(sd)
     val = evaluate(net, val_t)
     return finish(cfg, run, net, base_meta, dataset=data_rec, metrics={"val": val}, source=source,
-                  named_export=named_export, summary={"val": val, "dataset": data_rec})
+                  named_export=named_export, summary={"val": val, "dataset": data_rec}, base_dir=base_dir)
 
 
 def report(summary: dict[str, Any]) -> str:

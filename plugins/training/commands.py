@@ -35,7 +35,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     table = load_toml(args.config)
     trainer = trainer_for(table, str(args.config))
     cfg = trainer.parse(table, str(args.config))
-    overrides = {k: str(v) for k, v in (("out", args.out), ("device", args.device), ("export", args.export))
+    # paths in the config are taken from its folder; paths on the command line from the working directory
+    base_dir = args.config.parent
+    cli_paths = {k: v.resolve() for k, v in (("out", args.out), ("export", args.export)) if v is not None}
+    overrides = {k: str(v) for k, v in (*cli_paths.items(), ("device", args.device))
                  if v is not None and k in type(cfg).model_fields}  # the residual mirror has no device: CPU
     if overrides or args.epochs is not None:
         table = {**cfg.model_dump(mode="json"), **overrides}
@@ -43,7 +46,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             table["optim"]["epochs"] = args.epochs
         cfg = trainer.parse(table, f"{args.config} (with command-line overrides)")
     s = trainer.train(cfg, overwrite=args.overwrite, progress=not args.quiet, source=str(args.config),
-                      named_export=args.export is not None)
+                      named_export=args.export is not None, base_dir=base_dir)
     print(f"{trainer.report(s)}; wrote {s['model']}" + (f" and {s['export']}" if s.get("export") else ""))
     if s.get("export_skipped"):
         print(f"note: {s['export_skipped']}", file=sys.stderr)
@@ -60,5 +63,5 @@ def xnlos_check_config(table: dict, path: Path) -> str | None:
     trainer = trainer_for(table, str(path))
     cfg = trainer.parse(table, str(path))
     if trainer.check is not None:
-        trainer.check(cfg, str(path))
+        trainer.check(cfg, str(path), Path(path).parent)
     return f"{path}: valid training config (model {cfg.model.name}, {cfg.optim.epochs} epochs)"

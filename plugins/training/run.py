@@ -121,10 +121,18 @@ def _progress(p: dict) -> dict[str, Any]:
             "bad_epochs": p["bad_epochs"]}
 
 
-def open_run(cfg, *, overwrite: bool, minimise: bool) -> Run:
-    """Claim ``cfg.out`` for this run (module doc), write ``run.json``; the returned :class:`Run`
-    resumes from ``last.pt`` when :meth:`Run.restore` is called, if there is one."""
-    out = Path(cfg.out)
+def config_path(base_dir: str | Path, path: str | Path) -> Path:
+    """``path`` from a training config, resolved against the config file's folder ``base_dir``
+    (absolute paths stay as they are), as every path in every xnlos config is."""
+    path = Path(path)
+    return path if path.is_absolute() else Path(base_dir) / path
+
+
+def open_run(cfg, *, overwrite: bool, minimise: bool, base_dir: str | Path = ".") -> Run:
+    """Claim ``cfg.out`` (relative to ``base_dir``, the config file's folder) for this run (module
+    doc), write ``run.json``; the returned :class:`Run` resumes from ``last.pt`` when
+    :meth:`Run.restore` is called, if there is one."""
+    out = config_path(base_dir, cfg.out)
     ident, digest = run_sha256(cfg), cfg.digest()
     # config_sha256 decides for directories written before run_sha256 existed (epochs included then)
     old = claim(out, "run.json", {"run_sha256": ident, "config_sha256": digest}, overwrite=overwrite,
@@ -163,11 +171,13 @@ def train_epochs(run: Run, net, opt, sched, meta: dict[str, Any], train_epoch: C
             tqdm.write(line(rec))
 
 
-def export_target(export: str | None, named: bool) -> tuple[Path | None, str | None]:
+def export_target(export: str | None, named: bool, base_dir: str | Path = ".") -> tuple[Path | None, str | None]:
     """(where the final model goes besides ``out``, or None; why not, or None). ``named``: the
-    command line named ``export`` (``--export``), the only way to write into the installed package."""
+    command line named ``export`` (``--export``), the only way to write into the installed package.
+    ``base_dir``: the config file's folder, which a relative ``export`` is taken from."""
     if export is None:
         return None, None
+    export = str(config_path(base_dir, export))
     package = package_dir_of(export)
     if package is not None and not named:
         return None, (f"not exported to {export}: it lies inside the installed xnlos package ({package}); "
@@ -177,9 +187,10 @@ def export_target(export: str | None, named: bool) -> tuple[Path | None, str | N
 
 def finish(cfg, run: Run, net, meta: dict[str, Any], *, dataset: dict[str, Any], metrics: dict[str, Any],
            source: str, named_export: bool = False, training: dict[str, Any] | None = None,
-           summary: dict[str, Any] | None = None) -> dict[str, Any]:
+           summary: dict[str, Any] | None = None, base_dir: str | Path = ".") -> dict[str, Any]:
     """Write ``model.pt`` (``net`` with ``meta`` and the training record), the export and
-    ``summary.json``; returns the summary. training / summary: a trainer's further fields."""
+    ``summary.json``; returns the summary. training / summary: a trainer's further fields;
+    base_dir: the config file's folder (a relative ``export`` is taken from it)."""
     import torch
 
     out = run.out
@@ -193,7 +204,7 @@ def finish(cfg, run: Run, net, meta: dict[str, Any], *, dataset: dict[str, Any],
     }
     n_params = sum(p.numel() for p in net.parameters())
     save_checkpoint(out / "model.pt", net, {**meta, "n_parameters": n_params, "training": record})
-    dest, skipped = export_target(cfg.export, named_export)
+    dest, skipped = export_target(cfg.export, named_export, base_dir)
     if dest is not None:
         dest.parent.mkdir(parents=True, exist_ok=True)
         for src, dst in ((out / "model.pt", dest), (out / "model.json", dest.with_suffix(".json"))):

@@ -24,9 +24,10 @@ class Trainer:
 
     parse(table, source): the validated config (ConfigError naming ``source`` and the key); it has
     ``out``, ``export``, ``seed``, ``model.name``, ``optim`` (:class:`.optim.OptimConfig`) and
-    ``digest()``. train(cfg, *, overwrite, progress, source, named_export): run it
-    (:mod:`.run`), returns the summary. report(summary): the result line ``xnlos train`` prints.
-    check(cfg, source): further checks of ``xnlos check`` (None: parsing is the check)."""
+    ``digest()``. train(cfg, *, overwrite, progress, source, named_export, base_dir): run it
+    (:mod:`.run`), returns the summary; base_dir is the config file's folder, which every relative
+    path of the config is taken from. report(summary): the result line ``xnlos train`` prints.
+    check(cfg, source, base_dir): further checks of ``xnlos check`` (None: parsing is the check)."""
 
     parse: Callable[[dict[str, Any], str], Any]
     train: Callable[..., dict[str, Any]]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -160,7 +161,8 @@ def test_train_writes_into_the_installed_package_only_when_the_command_names_the
     target = pkg / "detectors" / "models" / "swin_unet.pt"
     before = {p: _sha(p) for p in (pkg / "detectors" / "models").iterdir()}
     cfg = tmp_path / "tiny_export.toml"
-    cfg.write_text(TINY_TOML.read_text().replace('out = "out/train/tiny"', f'out = "out/train/tiny"\nexport = "{target}"'))
+    cfg.write_text(TINY_TOML.read_text().replace('out = "../../out/train/tiny"',
+                                                 f'out = "out/train/tiny"\nexport = "{target}"'))
 
     assert main(["train", str(cfg), "--out", str(tmp_path / "elsewhere"), "--epochs", "1", "-q"]) == 0
     out, err = capsys.readouterr()
@@ -187,11 +189,13 @@ def test_the_shipped_residual_mirror_config_exports_into_the_package_only_when_n
     from plugins.training.run import export_target
     from xnlos_core.config import load_toml
 
-    monkeypatch.chdir(ROOT)
-    export = load_toml(ROOT / "configs" / "training" / "residual_mirror.toml")["export"]
-    dest, why = export_target(export, named=False)
-    assert dest is None and "inside the installed xnlos package" in why and f"--export {export}" in why
-    assert export_target(export, named=True) == (Path(export), None)
+    monkeypatch.chdir(ROOT / "tests")  # the config's folder decides, not the working directory
+    folder = ROOT / "configs" / "training"
+    export = load_toml(folder / "residual_mirror.toml")["export"]
+    dest, why = export_target(export, named=False, base_dir=folder)
+    assert dest is None and "inside the installed xnlos package" in why and f"--export {folder / export}" in why
+    assert export_target(export, named=True, base_dir=folder) == (folder / export, None)
+    assert (folder / export).resolve() == ROOT / "plugins" / "residual_mirror" / "models" / "residual_mirror.pt"
 
 
 def test_training_config_errors_name_the_key(tmp_path):
@@ -279,6 +283,18 @@ def test_azimuth_flip_mirrors_features_and_targets_and_leaves_other_runs_alone(c
     assert seen == {False, True}
 
 
+def as_written_from(cfg, folder: Path, root: Path):
+    """``cfg`` (a config of ``folder``) with its relative ``data.dataset`` and ``init`` rewritten
+    relative to ``root`` (the paths the digest covers; ``out`` and ``export`` it leaves out)."""
+    import os
+
+    def rebase(p):
+        return p if p is None or Path(p).is_absolute() else os.path.relpath(os.path.normpath(folder / p), root)
+
+    data = cfg.data.model_copy(update={"dataset": rebase(cfg.data.dataset)})
+    return cfg.model_copy(update={"data": data, "init": rebase(cfg.init)})
+
+
 def test_shipped_models_keep_the_digest_of_their_training_config():
     """Each shipped model's training config still hashes to the digest in its metadata, and the
     option added later (data.flip_azimuth, which counts only when set) changes it when toggled."""
@@ -286,8 +302,11 @@ def test_shipped_models_keep_the_digest_of_their_training_config():
 
     for name in ("swin_unet", "unet", "further_than_cfar", "rtn"):
         meta = json.loads((MODELS_DIR / f"{name}.json").read_text())
-        cfg = load_train_config(ROOT / meta["training"]["config_file"])
-        assert cfg.digest() == meta["training"]["config_sha256"], name
+        path = ROOT / meta["training"]["config_file"]
+        cfg = load_train_config(path)
+        # the models were trained when a training config's paths were taken from the working
+        # directory (the project root); the config's paths, re-expressed from the root, hash as then
+        assert as_written_from(cfg, path.parent, ROOT).digest() == meta["training"]["config_sha256"], name
         toggled = cfg.model_copy(update={"data": cfg.data.model_copy(update={"flip_azimuth": not cfg.data.flip_azimuth})})
         assert toggled.digest() != cfg.digest()
         plain = toggled if cfg.data.flip_azimuth else cfg  # without the option: hashed as before it existed
@@ -450,3 +469,32 @@ def test_a_run_directory_of_an_earlier_xnlos_is_recognised_by_its_config_digest(
     assert main(_tiny_run(run)) == 0
     assert json.loads((run / "summary.json").read_text())["epochs_run"] == 3
     assert "run_sha256" in json.loads((run / "run.json").read_text())
+
+
+def test_a_copied_training_config_takes_its_paths_from_its_own_folder(tmp_path, one_thread, monkeypatch, capsys):
+    """Issue 29 #6: every path of a training config (out, init, export, data.generate's scene file)
+    is taken from the config file's folder, so a copied config runs the same from any working
+    directory; paths on the command line stay relative to the working directory."""
+    proj = tmp_path / "proj"
+    (proj / "cfg").mkdir(parents=True)
+    (proj / "cfg" / "scenes").mkdir()  # files the core reads stay inside the config roots
+    shutil.copy(ROOT / "configs" / "scenes" / "corner.toml", proj / "cfg" / "scenes" / "corner.toml")
+    text = (TINY_TOML.read_text().replace('out = "../../out/train/tiny"', 'out = "../runs/a"')
+            .replace('scene = { builtin = "corner" }', 'scene = { file = "scenes/corner.toml" }'))
+    (proj / "cfg" / "a.toml").write_text(text)
+    (proj / "cfg" / "b.toml").write_text(text.replace('out = "../runs/a"', 'out = "../runs/b"\ninit = "../runs/a/model.pt"'
+                                                        '\nexport = "../exported/b.pt"'))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["check", str(proj / "cfg" / "a.toml")]) == 0
+    assert main(["train", str(proj / "cfg" / "a.toml"), "--epochs", "1", "-q"]) == 0
+    assert (proj / "runs" / "a" / "model.pt").is_file() and not any(elsewhere.iterdir())
+    assert main(["train", "../proj/cfg/b.toml", "--epochs", "1", "-q"]) == 0
+    meta = load_checkpoint(proj / "runs" / "b" / "model.pt", "swin_unet")[1]
+    assert meta["training"]["dataset"]["init"]["path"] == "../runs/a/model.pt"  # as written: the digest's form
+    assert _sha(proj / "exported" / "b.pt") == _sha(proj / "runs" / "b" / "model.pt")
+    # --out on the command line: from the working directory
+    assert main(["train", str(proj / "cfg" / "a.toml"), "--epochs", "1", "--out", "mine", "-q"]) == 0
+    assert (elsewhere / "mine" / "model.pt").is_file()
+    capsys.readouterr()
