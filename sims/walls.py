@@ -90,3 +90,27 @@ def backscatter_sigma0(wall, radar: RadarConfig, theta_i) -> np.ndarray:
     return np.asarray(roughness.backscatter_sigma0(eps, wall.roughness, th, radar.wavelength, lobe=wall.lobe,
                                                    alpha_r=int(wall.lobe_exponent), pol=_pol(radar),
                                                    gamma=gamma), dtype=np.float64)
+
+
+def bistatic_sigma0(wall, radar: RadarConfig, to_tx, to_rx, normal) -> np.ndarray:
+    """Diffuse bistatic σ⁰ [m²/m²] of a patch of ``wall``: light arriving from ``to_tx`` and leaving
+    towards ``to_rx`` ((..., 3) directions from the patch; ``normal`` (..., 3) on the lit side).
+
+    σ⁰ = 4π·F(θ_i)·cosθ_i·f(ŝ) with F = (1 − ρ_s)|Γ|² (:func:`sims.roughness.bistatic_sigma0`), Γ the
+    slab or half-space coefficient at θ_i; 0 for walls given by constants (no lobe model) and for smooth
+    walls (σ_h = 0: all reflected power stays in the mirror path).
+    """
+    to_tx = np.asarray(to_tx, dtype=np.float64)
+    shape = np.broadcast_shapes(to_tx.shape, np.shape(to_rx), np.shape(normal))[:-1]
+    if wall.material is None or wall.roughness == 0:
+        return np.zeros(shape)
+    eps = material_at(wall.material, radar.carrier_frequency).permittivity(radar.carrier_frequency)
+    gamma = None
+    if wall.thickness is not None:
+        ui = to_tx / np.linalg.norm(to_tx, axis=-1, keepdims=True)
+        nn = np.asarray(normal, dtype=np.float64)
+        th = np.arccos(np.clip(np.sum(ui * nn / np.linalg.norm(nn, axis=-1, keepdims=True), axis=-1), 0.0, 1.0))
+        gamma, _ = fresnel.slab(eps, wall.thickness, th, radar.carrier_frequency, _pol(radar))
+    return np.asarray(roughness.bistatic_sigma0(eps, wall.roughness, radar.wavelength, to_tx, to_rx, normal,
+                                                lobe=wall.lobe, alpha_r=int(wall.lobe_exponent), pol=_pol(radar),
+                                                gamma=gamma), dtype=np.float64)
