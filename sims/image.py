@@ -17,6 +17,9 @@ Components are added only when the scene or configuration asks for them (``Param
 * ``atmosphere``: ITU-R P.676 gaseous loss over each round trip, when the scene declares an
   atmosphere and the loss over the longest path reaches ``tolerance_db``.
 * ``coupling``: the radar's mutual-coupling matrix mixes the channels (:mod:`xnlos_core.antenna`).
+* ``diffuse_nlos`` (image only): the three-bounce path radar → rough relay wall → object → wall →
+  radar through the diffuse lobe (:mod:`sims.diffuse_nlos`), the power a rough wall takes out of the
+  mirror path; auto: on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < ½).
 
 Simplifications (deliberate, first-order model): only walls occlude (objects do not shadow
 walls or each other); one relay bounce on each side of an object (no wall–wall or multi-wall
@@ -28,7 +31,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pydantic import Field
+from typing import Literal
+
+from pydantic import Field, model_serializer
 
 from xnlos_core.errors import InputError
 from xnlos_core.geometry import cartesian_to_polar, mirror_reflect, ray_segment_intersection, segments_intersect
@@ -36,10 +41,11 @@ from xnlos_core.interfaces import ForwardModel
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
+from . import diffuse_nlos
 from . import walls as wall_em
 from .params import ForwardParams, components_needed
 from .motion_paths import mirror_velocity, object_velocity
-from .paths import LOS, MNLOS, PathList, Paths
+from .paths import LOS, MNLOS, OTHER, PathList, Paths
 from .propagation import received_power
 from .render import render_paths
 
@@ -75,10 +81,27 @@ class ImageForwardModel(ForwardModel):
 
     class Params(ForwardParams):
         mirror_paths: bool = Field(True, description="model relay-wall (mNLOS) mirror paths (Eq. 3, 5)")
+        diffuse_nlos: Literal["auto", "on", "off"] = Field(
+            "auto", description="three-bounce diffuse NLOS path via rough relay walls (sims.diffuse_nlos); auto: "
+                                "on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < 1/2)")
+        diffuse_nlos_cell: float = Field(1.0, ge=0.05, le=10, description="wall cell length [m] of the diffuse "
+                                                                         "NLOS path (pairs of cells: cost ∝ 1/cell²)")
+
+        @model_serializer(mode="wrap")
+        def _omit_doppler_off(self, handler):
+            # doppler, diffuse_nlos and diffuse_nlos_cell arrived after dataset digests existed: left
+            # out at their defaults so those digests stay the same
+            data = handler(self)
+            if isinstance(data, dict):
+                for key, default in (("doppler", False), ("diffuse_nlos", "auto"), ("diffuse_nlos_cell", 1.0)):
+                    if key in data and data[key] == default:
+                        del data[key]
+            return data
 
     def components(self, scene, radar: RadarConfig) -> dict[str, str]:
         """Which optional components this scene and radar need: name → "on" or "off: reason"."""
-        return components_needed(self.params, scene, radar)
+        return {**components_needed(self.params, scene, radar),
+                "diffuse_nlos": diffuse_nlos.decide(self.params.diffuse_nlos, scene, radar)}
 
     def check(self, scene, radar: RadarConfig) -> None:
         """InputError for a scene with meshes (the image method models walls and objects only) or a
@@ -174,7 +197,54 @@ class ImageForwardModel(ForwardModel):
                     power = received_power(radar, r, th, rcs[ok], alpha)
                     emit(img[ok], power, obj_phase[j][ok], MNLOS, hidden=pts[ok], obj=j, centre=np.flatnonzero(ok),
                          velocity=mirror_velocity(vel[j], n))  # the echo's Doppler is the virtual target's
+
+        # --- diffuse NLOS: radar → rough relay wall → object → wall → radar (sims.diffuse_nlos) ---
+        if on.get("diffuse_nlos"):
+            for i, (spec, seg) in enumerate(zip(planar, segs)):
+                if spec.relay and seg.offset > 0 and spec.material is not None and spec.roughness > 0:
+                    _diffuse_nlos(out, spec, seg, segs, i, radar, objs, obj_phase, walls[i], wall_phase[i], vel,
+                                  p.diffuse_nlos_cell)
         return out.paths()
+
+
+def _diffuse_nlos(out: PathList, spec, seg, segs, i: int, radar: RadarConfig, objs, obj_phase, fine, fine_phase,
+                  vel, cell_length: float) -> None:
+    """Append the three-bounce diffuse paths (:mod:`sims.diffuse_nlos`) of relay wall ``i`` for every
+    object centre on its radar side; cell phases are those of the nearest LOS wall cell (no new draws)."""
+    n, b = seg.normal, seg.offset
+    a, ds = diffuse_nlos.cells(spec, cell_length)
+    phase_a = fine_phase[np.argmin(np.linalg.norm(fine[0][None, :, :] - a[:, None, :], axis=2), axis=1)]
+    r_a, az_a = cartesian_to_polar(a)
+    lit = ((-a @ n) > 0) & ~_blocked(_ORIGIN, a, segs, skip=i)
+    a, ds_phase, r_a, az_a = a[lit], phase_a[lit], r_a[lit], az_a[lit]
+    if len(a) == 0:
+        return
+    n3 = np.append(n, 0.0)
+    area = ds * spec.height
+    to_radar = np.column_stack([-a, np.zeros(len(a))])
+    for j, (pts, nrm, rcs) in enumerate(objs):
+        near = pts @ n + b > 0
+        for o in np.flatnonzero(near):
+            po = pts[o]
+            to_obj = np.column_stack([po - a, np.zeros(len(a))])
+            d = np.linalg.norm(po - a, axis=1)
+            sees = _faces(np.repeat(nrm[o][None], len(a), 0), np.repeat(po[None], len(a), 0), a)
+            sees &= (d > 1e-6) & ~_blocked(a, np.repeat(po[None], len(a), 0), segs, skip=i)
+            if not sees.any():
+                continue
+            s_out = wall_em.bistatic_sigma0(spec, radar, to_radar, to_obj, n3) * area  # radar → a → o
+            s_back = wall_em.bistatic_sigma0(spec, radar, to_obj, to_radar, n3) * area  # o → b → radar
+            ia, ib = np.meshgrid(np.flatnonzero(sees), np.flatnonzero(sees), indexing="ij")
+            ia, ib = ia.ravel(), ib.ravel()
+            power = diffuse_nlos.three_bounce_power(radar, r_a[ia], az_a[ia], r_a[ib], az_a[ib], d[ia], d[ib],
+                                                    s_out[ia], s_back[ib], rcs[o])
+            length = r_a[ia] + d[ia] + d[ib] + r_a[ib]
+            u = np.column_stack([np.cos(az_a[ib]), np.sin(az_a[ib])])
+            v = np.asarray(vel[j], dtype=np.float64)
+            rate = ((po - a[ia]) @ v / d[ia] + (po - a[ib]) @ v / d[ib]) / 2  # d(length/2)/dt [m/s]
+            out.add(length=length, azimuth=az_a[ib], power=power, phase=ds_phase[ia] + obj_phase[j][o] + ds_phase[ib],
+                    kind=OTHER, order=1, pos=u * (length / 2)[:, None], hidden=np.repeat(po[None], len(ia), 0),
+                    obj=j, centre=o, velocity=u * rate[:, None])
 
 
 def _through_walls(planar, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:

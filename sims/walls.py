@@ -1,7 +1,9 @@
 """Wall electromagnetics for the forward models: specular α, slab transmission and diffuse σ⁰.
 
 One place that turns a :class:`xnlos_core.scene.WallSpec` and the radar into the three numbers
-the image method needs at an incidence angle θ_i [rad] (from the wall normal):
+the image method needs at an incidence angle θ_i [rad] (from the wall normal). Materials are
+evaluated at the radar carrier through :func:`sims.material_fallback.material_at` (P.2040 where it
+covers the carrier, a documented fallback with a warning where not, e.g. brick at 77 GHz):
 
 * α(θ_i): specular amplitude reflectivity per bounce (Eq. 2), the coherent part only:
   Γ_slab(θ_i) · √ρ_s(θ_i) with ρ_s = exp(−(4πσ_h cos θ_i/λ)²) the specular POWER factor, so its
@@ -22,6 +24,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.radar import RadarConfig
 
 from . import fdtd, fresnel, roughness
+from .material_fallback import material_at
 from .materials import get_material
 
 
@@ -54,7 +57,7 @@ def specular_alpha(wall, radar: RadarConfig, theta_i, method: str = "analytic") 
     th = np.abs(np.asarray(theta_i, dtype=np.float64))
     if wall.material is None:
         return np.full(th.shape, wall.alpha, dtype=np.complex128)
-    mat, f, pol = get_material(wall.material), radar.carrier_frequency, _pol(radar)
+    mat, f, pol = material_at(wall.material, radar.carrier_frequency), radar.carrier_frequency, _pol(radar)
     gamma = fdtd.wall_reflection(mat, wall.thickness, th, f, method="analytic", pol=pol)
     if method == "fdtd":
         grid = fdtd.wall_reflection(mat, wall.thickness, FDTD_ANGLES, f, method="fdtd", pol=pol)
@@ -70,7 +73,7 @@ def transmission(wall, radar: RadarConfig, theta_i) -> np.ndarray:
     th = np.abs(np.asarray(theta_i, dtype=np.float64))
     if wall.material is None or wall.thickness is None:
         return np.zeros(th.shape, dtype=np.complex128)
-    eps = get_material(wall.material).permittivity(radar.carrier_frequency)
+    eps = material_at(wall.material, radar.carrier_frequency).permittivity(radar.carrier_frequency)
     _, t = fresnel.slab(eps, wall.thickness, th, radar.carrier_frequency, _pol(radar))
     return np.asarray(t, dtype=np.complex128)
 
@@ -80,10 +83,34 @@ def backscatter_sigma0(wall, radar: RadarConfig, theta_i) -> np.ndarray:
     th = np.abs(np.asarray(theta_i, dtype=np.float64))
     if wall.material is None:
         return 10 ** (wall.sigma0_db / 10) * np.cos(th) ** 2
-    eps = get_material(wall.material).permittivity(radar.carrier_frequency)
+    eps = material_at(wall.material, radar.carrier_frequency).permittivity(radar.carrier_frequency)
     gamma = None  # half-space Fresnel inside the lobe model
     if wall.thickness is not None:
         gamma, _ = fresnel.slab(eps, wall.thickness, th, radar.carrier_frequency, _pol(radar))
     return np.asarray(roughness.backscatter_sigma0(eps, wall.roughness, th, radar.wavelength, lobe=wall.lobe,
                                                    alpha_r=int(wall.lobe_exponent), pol=_pol(radar),
                                                    gamma=gamma), dtype=np.float64)
+
+
+def bistatic_sigma0(wall, radar: RadarConfig, to_tx, to_rx, normal) -> np.ndarray:
+    """Diffuse bistatic σ⁰ [m²/m²] of a patch of ``wall``: light arriving from ``to_tx`` and leaving
+    towards ``to_rx`` ((..., 3) directions from the patch; ``normal`` (..., 3) on the lit side).
+
+    σ⁰ = 4π·F(θ_i)·cosθ_i·f(ŝ) with F = (1 − ρ_s)|Γ|² (:func:`sims.roughness.bistatic_sigma0`), Γ the
+    slab or half-space coefficient at θ_i; 0 for walls given by constants (no lobe model) and for smooth
+    walls (σ_h = 0: all reflected power stays in the mirror path).
+    """
+    to_tx = np.asarray(to_tx, dtype=np.float64)
+    shape = np.broadcast_shapes(to_tx.shape, np.shape(to_rx), np.shape(normal))[:-1]
+    if wall.material is None or wall.roughness == 0:
+        return np.zeros(shape)
+    eps = material_at(wall.material, radar.carrier_frequency).permittivity(radar.carrier_frequency)
+    gamma = None
+    if wall.thickness is not None:
+        ui = to_tx / np.linalg.norm(to_tx, axis=-1, keepdims=True)
+        nn = np.asarray(normal, dtype=np.float64)
+        th = np.arccos(np.clip(np.sum(ui * nn / np.linalg.norm(nn, axis=-1, keepdims=True), axis=-1), 0.0, 1.0))
+        gamma, _ = fresnel.slab(eps, wall.thickness, th, radar.carrier_frequency, _pol(radar))
+    return np.asarray(roughness.bistatic_sigma0(eps, wall.roughness, radar.wavelength, to_tx, to_rx, normal,
+                                                lobe=wall.lobe, alpha_r=int(wall.lobe_exponent), pol=_pol(radar),
+                                                gamma=gamma), dtype=np.float64)

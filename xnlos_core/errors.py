@@ -57,3 +57,9 @@ class CheckpointWarning(XnlosWarning):
 class LegacyRecordWarning(XnlosWarning):
     """A results.jsonl holds records of schema 1 (no ``schema_version``), which lack what schema 2
     added: per-detection rows, hidden-point covariances, wall extents and arc anchors."""
+
+
+class MaterialFallbackWarning(XnlosWarning):
+    """A wall material is used at a frequency outside its ITU-R P.2040 validity range, through the
+    documented fallback of :mod:`sims.material_fallback` (e.g. brick at 77 GHz): the wall's ε and σ
+    are not P.2040-covered values there. Issued once per material and frequency."""

@@ -67,7 +67,8 @@ class BaseParams(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
 
     carrier_hz: float = Field(10e9, gt=1e8, le=3e11, description="radar carrier [Hz]; every material must "
-                                                                 "be valid (ITU-R P.2040) at it")
+                                                                 "be valid (ITU-R P.2040) at it or have a "
+                                                                 "documented fallback (sims.material_fallback)")
     materials: list[str] = Field(default_factory=lambda: ["concrete", "brick"], min_length=1,
                                  description="facade materials (sims.materials names), one drawn per building")
     roughness: Range(0.0, 0.05, "m") = Field((0.0, 0.001), description="rms facade roughness σ_h [m]")
@@ -107,6 +108,7 @@ class BaseParams(BaseModel):
 
     @model_validator(mode="after")
     def _carrier(self):
+        from sims.material_fallback import has_fallback
         from sims.materials import MATERIALS
 
         f_radar = self.radar.get("carrier_frequency", self.carrier_hz)
@@ -115,7 +117,7 @@ class BaseParams(BaseModel):
                              "Hz; set carrier_hz to the radar's carrier")
         for name in self.materials + self.extra_materials():
             m = MATERIALS[name]
-            if not m.covers(self.carrier_hz):
+            if not m.covers(self.carrier_hz) and not has_fallback(m, self.carrier_hz):
                 raise ValueError(f"material {name!r} is defined by ITU-R P.2040 only for {m.f_min_hz / 1e9:g}–"
                                  f"{m.f_max_hz / 1e9:g} GHz, not at carrier_hz = {self.carrier_hz / 1e9:g} GHz")
         return self

@@ -124,7 +124,7 @@ def test_radar_preset_by_name_from_any_folder(tmp_path, monkeypatch):
     assert "xband_default" in radar_presets()
     assert load_radar({"preset": "xband_default"}, "t", tmp_path) == RadarConfig()
     assert load_radar({"preset": "xband_default", "n_tx": 2}, "t", tmp_path).n_tx == 2
-    with pytest.raises(ConfigError, match=r"\[radar.preset\] unknown preset 'xband'; shipped presets: xband_default"):
+    with pytest.raises(ConfigError, match=r"\[radar.preset\] unknown preset 'xband'; shipped presets: automotive_77ghz, xband_default"):
         load_radar({"preset": "xband"}, "t", tmp_path)
     with pytest.raises(ConfigError, match="unknown preset"):
         load_radar({"preset": "../defaults/radar/xband_default"}, "t", tmp_path)  # a name, never a path

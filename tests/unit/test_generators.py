@@ -164,7 +164,8 @@ def test_unknown_family_lists_families():
     ({"materials": ["concret"]}, r"unknown material 'concret' — did you mean 'concrete'"),
     ({"materials": ["floorboard"]}, r"'floorboard' is defined by ITU-R P.2040 only for 50–100 GHz, not at "
                                     r"carrier_hz = 10 GHz"),
-    ({"carrier_hz": 60e9}, r"'brick' is defined by ITU-R P.2040 only for 1–40 GHz"),
+    ({"carrier_hz": 60e9, "materials": ["concrete", "wet_ground"]},  # brick has a fallback above 40 GHz
+     r"'wet_ground' is defined by ITU-R P.2040 only for 1–10 GHz"),
     ({"object_kinds": ["truck"]}, r"parameter 'object_kinds.0' = 'truck'"),
     ({"radar": {"carrier_frequency": 9e9}}, r"radar.carrier_frequency = 9000000000.0 Hz differs from carrier_hz"),
     ({"radar": {"n_tx": 0}}, r"parameter 'radar.n_tx' = 0"),
