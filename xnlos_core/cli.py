@@ -96,6 +96,10 @@ def check_file(path: str | Path) -> str:
 
     path = Path(path)
     table = load_toml(path)
+    if "modality" in table and "detector" not in table:  # a cross-modality study (xnlos crossmodal)
+        from .crossmodal import check_study
+
+        return check_study(path)
     if "detector" not in table:  # a dataset or training config: its owner checks it (xnlos_check_config)
         from .registry import get_manager
 

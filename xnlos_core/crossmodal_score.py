@@ -23,9 +23,11 @@ What a "report" and the "truth" are per modality and stage (all distances in met
   (Poisson, k = ``n_sigma``), at range ρ = c·t/2 of the window's centre; truth: the interval
   [min, max] of |p − s| over truth points p and scan points s (confocal round trip 2|p − s|),
   widened by ``gate``.
-* SPAD reconstruction: the NLOS volume's peak voxel (x, y, z) in wall coordinates, reported only
-  when the detection above reported something (otherwise the peak is noise); truth: the hidden
-  surface points (wall coordinates); within ``tolerance``.
+* SPAD reconstruction: the NLOS volume's peak voxel (x, y, z) in wall coordinates at depths
+  z ≤ ρ + ``gate`` (:func:`volume_peak`: nothing returns from beyond the detected range; without
+  the cut the solvers' r⁴ fall-off compensation lifts the far-depth photon noise above any real
+  return), reported only when the detection above reported something (otherwise the peak is
+  noise); truth: the hidden surface points (wall coordinates); within ``tolerance``.
 """
 from __future__ import annotations
 
@@ -190,6 +192,21 @@ def spad_detection(peak: TransientPeak, interval: tuple[float, float], gate: flo
     lo, hi = interval
     d = max(lo - peak.range, peak.range - hi, 0.0)
     return outcome(np.array([d]), gate)
+
+
+def volume_peak(albedo: np.ndarray, z: np.ndarray, grid: tuple[np.ndarray, np.ndarray],
+                max_depth: float) -> tuple[float, float, float]:
+    """(z, y, x) [m] of the maximum of ``albedo`` (Z, H, W) over depths z ≤ ``max_depth`` (all depths
+    when none is that shallow); ``grid`` = (x (W,), y (H,)) of the volume."""
+    a = np.asarray(albedo, float)
+    z = np.asarray(z, float)
+    keep = z <= max_depth
+    if not keep.any():
+        keep[:] = True
+    sub = np.where(keep[:, None, None], a, -np.inf)
+    k, i, j = np.unravel_index(int(np.argmax(sub)), a.shape)
+    x, y = grid
+    return float(z[k]), float(y[i]), float(x[j])
 
 
 def spad_reconstruction(peak_xyz, truth_xyz, tolerance: float, reported: bool) -> Outcome:
