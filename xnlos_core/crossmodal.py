@@ -120,8 +120,10 @@ class StudyConfig(BaseModel):
         return self
 
     def digest(self) -> str:
-        """sha256 of the canonical JSON (decides whether saved cells are current)."""
-        return hashlib.sha256(json.dumps(self.model_dump(), sort_keys=True, default=str).encode()).hexdigest()
+        """sha256 of the canonical JSON (decides whether saved cells are current); ``panel_distance``
+        is left out: it changes only the panel."""
+        dump = self.model_dump(exclude={"panel_distance"})
+        return hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def load_study(path: str | Path) -> tuple[StudyConfig, Path]:
@@ -242,7 +244,8 @@ def _spad_cell(cfg: StudyConfig, mod: SpadModality, d: float, seed: int, base_di
                                             "peak_range": peak.range, "excess": peak.excess,
                                             "threshold": peak.threshold, "peak_xyz": [x, y, z]})
             if keep and shown is None:
-                shown = {"volume": vol, "nlos": nv, "truth": truth, "scene": scene, "solver": s}
+                shown = {"volume": vol, "nlos": nv, "truth": truth, "scene": scene, "solver": s,
+                         "peak_xyz": (x, y, z), "detected": peak.detected, "range": peak.range}
     return out, shown
 
 
@@ -348,10 +351,11 @@ def summarise(cfg: StudyConfig, results: dict[str, dict[float, list]]) -> dict:
     if ref in table and base in table:
         a, b = table[ref]["max_range_reconstruction"], table[base]["max_range_reconstruction"]
         lo = min(cfg.distances)
-        if a is not None and b is not None:
-            ratio = {"value": a / b, "bound": "="}
+        top = max(cfg.distances)
+        if a is not None and b is not None:  # in range at the farthest distance: a lower bound
+            ratio = {"value": a / b, "bound": "≥" if a == top else "="}
         elif a is not None:  # the baseline never reached F1 ≥ threshold: its range is below the first distance
-            ratio = {"value": a / lo, "bound": ">"}
+            ratio = {"value": a / lo, "bound": "≥" if a == top else ">"}
         elif b is not None:
             ratio = {"value": lo / b, "bound": "<"}
     return {"name": cfg.name, "digest": cfg.digest(), "seeds": cfg.seeds, "gate_m": cfg.gate,
@@ -375,10 +379,13 @@ def render_markdown(cfg: StudyConfig, res: dict, source: str) -> str:
                      f"{below if rr is None else f'{rr:g} m'} |")
     ratio = res["range_ratio"]
     lines += ["", f"Maximum NLOS range: largest distance with F1 ≥ {cfg.threshold:g}."]
+    top = max(ds)
+    for r, t in res["rows"].items():
+        if t["max_range_reconstruction"] == top:
+            lines.append(f"{r} still reconstructs at the farthest distance ({top:g} m): its range is a lower bound.")
     if ratio is not None:
-        lines.append(f"Reconstruction range ratio {res['reference']} / {res['baseline']}: {ratio['bound'] if ratio['bound'] != '=' else ''}"
-                     f"{ratio['value']:.1f}" + (" (the baseline never reached the threshold; bound from the "
-                                                "shortest distance)" if ratio["bound"] != "=" else ""))
+        bound = "" if ratio["bound"] == "=" else f"{ratio['bound']} "
+        lines.append(f"Reconstruction range ratio {res['reference']} / {res['baseline']}: {bound}{ratio['value']:.1f}")
     return "\n".join(lines) + "\n"
 
 

@@ -48,6 +48,11 @@ def _scene_ax(ax, scene, hidden: str, title: str) -> None:
         fp = np.vstack([fp, fp[:1]])
         ax.fill(*bev(fp), color="gold" if o.name == hidden else "0.7", alpha=0.8)
     ax.plot(0, 0, "r^", ms=6)
+    pts = np.vstack([o.footprint(0.0) for o in scene.objects] + [[w.start, w.end] for w in scene.walls if w.relay]
+                    + [[[0.0, 0.0]]])
+    (x0, y0), (x1, y1) = pts.min(axis=0) - 5, pts.max(axis=0) + 5
+    ax.set_xlim(-y1, -y0)
+    ax.set_ylim(x0, x1)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
 
@@ -66,7 +71,7 @@ def _radar_row(axes, row: str, shown: dict, cfg) -> None:
         m = det.label == lab
         axes[2].plot(np.degrees(det.azimuth[m]), det.range[m], "o", mfc="none", color=c, ms=4, label=name)
     axes[2].legend(fontsize=6)
-    axes[2].set_title("detections (nlos_cfar)", fontsize=8)
+    axes[2].set_title(f"detections ({pipe.config.detector.name})", fontsize=8)
     for ax in axes[1:3]:
         ax.set_xlabel("azimuth [°]", fontsize=7)
         ax.set_ylabel("range [m]", fontsize=7)
@@ -98,10 +103,16 @@ def _spad_row(axes, row: str, shown: dict, cfg) -> None:
     axes[2].set_title(f"intensity: {shown['solver']} albedo (max over rows)", fontsize=8)
     axes[2].set_xlabel("x [m]", fontsize=7)
     axes[2].set_ylabel("depth z [m]", fontsize=7)
-    z, y, xp = nv.peak()
+    xp, _, z = shown["peak_xyz"]
+    top = min(rho[-1], float(np.linalg.norm(truth, axis=1).max()) + 5.0)  # the depths that matter
+    for a in axes[1:3]:
+        a.set_ylim(0, top)
     ax = axes[3]
     ax.plot(truth[:, 0], truth[:, 2], ".", color="gold", ms=2, label="truth")
-    ax.plot([xp], [z], "mx", ms=8, label="peak")
+    if shown["detected"]:
+        ax.plot([xp], [z], "mx", ms=8, label=f"peak (z ≤ {shown['range'] + cfg.gate:.1f} m)")
+    else:
+        ax.text(0.5, 0.9, "no detection: nothing reported", transform=ax.transAxes, ha="center", fontsize=7)
     ax.axvspan(x[0], x[-1], color="0.9", label="scan aperture")
     ax.set_xlabel("x along wall [m]", fontsize=7)
     ax.set_ylabel("z from wall [m]", fontsize=7)
