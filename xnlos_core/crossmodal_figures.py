@@ -93,20 +93,18 @@ def _spad_row(axes, row: str, shown: dict, cfg) -> None:
     x, _ = vol.grid()
     rho = SPEED_OF_LIGHT * vol.times() / 2
     _scene_ax(axes[0], shown["scene"], cfg.hidden_object, f"{row}: scene")
-    raw = vol.data.sum(axis=1)  # (T, W)
-    axes[1].imshow(raw, origin="lower", aspect="auto", extent=[x[0], x[-1], rho[0], rho[-1]], cmap="magma")
+    top = min(rho[-1], float(np.linalg.norm(truth, axis=1).max()) + 5.0)  # the depths that matter
+    raw = vol.data.sum(axis=1)[rho <= top]  # (T', W)
+    axes[1].imshow(raw, origin="lower", aspect="auto", extent=[x[0], x[-1], rho[0], top], cmap="magma")
     axes[1].set_title("raw: counts (Σ rows)", fontsize=8)
     axes[1].set_xlabel("scan x [m]", fontsize=7)
     axes[1].set_ylabel("c·t/2 [m]", fontsize=7)
-    inten = nv.albedo.max(axis=1)  # (Z, W)
-    axes[2].imshow(inten, origin="lower", aspect="auto", extent=[x[0], x[-1], nv.z[0], nv.z[-1]], cmap="magma")
+    inten = nv.albedo.max(axis=1)[nv.z <= top]  # (Z', W)
+    axes[2].imshow(inten, origin="lower", aspect="auto", extent=[x[0], x[-1], nv.z[0], top], cmap="magma")
     axes[2].set_title(f"intensity: {shown['solver']} albedo (max over rows)", fontsize=8)
     axes[2].set_xlabel("x [m]", fontsize=7)
     axes[2].set_ylabel("depth z [m]", fontsize=7)
     xp, _, z = shown["peak_xyz"]
-    top = min(rho[-1], float(np.linalg.norm(truth, axis=1).max()) + 5.0)  # the depths that matter
-    for a in axes[1:3]:
-        a.set_ylim(0, top)
     ax = axes[3]
     ax.plot(truth[:, 0], truth[:, 2], ".", color="gold", ms=2, label="truth")
     if shown["detected"]:
