@@ -1,4 +1,5 @@
-"""Registers the built-in forward models, scene generators and the ``dataset`` backend (entry point
+"""Registers the built-in forward models, scene generators, the ``dataset`` backend and the ``spad``
+transient model (entry point
 ``xnlos-sims`` of group ``xnlos.plugins``)."""
 from xnlos_core import hookimpl
 
@@ -11,10 +12,12 @@ def xnlos_register_components(registry):
     from .generators.components import COMPONENTS
     from .image import ImageForwardModel
     from .raytrace.model import RaytraceForwardModel
+    from .spad.model import SpadTransientModel
 
     registry.add("forward_model", "image", ImageForwardModel)
     registry.add("forward_model", "raytrace", RaytraceForwardModel)
     for name, component in COMPONENTS.items():
         registry.add("scene_generator", name, component)
     registry.add("backend", "dataset", DatasetBackend)
+    registry.add("transient_model", "spad", SpadTransientModel)
 

@@ -2,7 +2,7 @@
 from .errors import ConfigError, InputError, InsufficientDataError, PluginError, XnlosError
 from .hookspecs import hookimpl
 from .interfaces import (KINDS, Backend, Detector, ForwardModel, NLOSSolver, Plugin, Reconstructor,
-                         SceneGenerator, Tracker, WallEstimator)
+                         SceneGenerator, Tracker, TransientModel, WallEstimator)
 from .radar import RadarConfig
 from .types import (CLASS_NAMES, LOS, MNLOS, UNCLASSIFIED, Detections, Frame, GroundTruth,
                     HiddenPoints, RAMap, Tracks, WallPosterior, WallSegment)
@@ -11,7 +11,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "ConfigError", "InputError", "InsufficientDataError", "PluginError", "XnlosError", "hookimpl",
-    "KINDS", "Backend", "Detector", "ForwardModel", "NLOSSolver", "Plugin", "Reconstructor", "SceneGenerator", "Tracker",
+    "KINDS", "Backend", "Detector", "ForwardModel", "NLOSSolver", "Plugin", "Reconstructor", "SceneGenerator", "Tracker", "TransientModel",
     "WallEstimator", "RadarConfig", "CLASS_NAMES", "LOS", "MNLOS", "UNCLASSIFIED", "Detections",
     "Frame", "GroundTruth", "HiddenPoints", "RAMap", "Tracks", "WallPosterior", "WallSegment",
 ]

@@ -1,4 +1,4 @@
-"""Command line: ``xnlos run | sweep | eval | demo | plugins | check`` (also ``python -m xnlos_core``).
+"""Command line: ``xnlos run | sweep | eval | demo | plugins | check | crossmodal`` (also ``python -m xnlos_core``).
 
 Every other command (``simulate``, ``train``, ``emulate``, …) is added by the package that owns it
 through the ``xnlos_add_commands`` hook; ``check`` asks the ``xnlos_check_config`` hook about configs
@@ -96,6 +96,10 @@ def check_file(path: str | Path) -> str:
 
     path = Path(path)
     table = load_toml(path)
+    if "modality" in table and "detector" not in table:  # a cross-modality study (xnlos crossmodal)
+        from .crossmodal import check_study
+
+        return check_study(path)
     if "detector" not in table:  # a dataset or training config: its owner checks it (xnlos_check_config)
         from .registry import get_manager
 
@@ -211,6 +215,10 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=_cmd_plugins)
+
+    from .crossmodal import add_command as add_crossmodal
+
+    add_crossmodal(sub)
     try:  # simulate, train, emulate, …: added by the packages that own them
         manager.pm.hook.xnlos_add_commands(subparsers=sub)
     except argparse.ArgumentError as exc:

@@ -263,9 +263,32 @@ class NLOSSolver(Plugin, abc.ABC):
         invert (all-zero counts, a non-square scan grid, too few time bins)."""
 
 
+class TransientModel(Plugin, abc.ABC):
+    """Scene → TransientVolume: a forward model of the optical (SPAD) modality for the
+    cross-modality comparison (Sec. 5.1.2; issue 30) — a confocal scan of a patch of the scene's
+    relay wall. Not a pipeline stage: the study (:mod:`xnlos_core.crossmodal`) calls it, so that
+    the core composes the SPAD simulator of ``sims`` through the registry.
+    """
+
+    kind: ClassVar[str] = "transient_model"
+    stage: ClassVar[bool] = False
+
+    @abc.abstractmethod
+    def simulate(self, scene: "Scene", seed: int) -> "TransientVolume":
+        """Photon counts (T, H, W) of a scan of ``scene`` drawn from ``numpy.random.default_rng(seed)``
+        only (same scene and seed: same counts)."""
+
+    @abc.abstractmethod
+    def truth(self, scene: "Scene") -> np.ndarray:
+        """Points (P, 3) [m] on the hidden objects' surfaces in the scan's wall coordinates (x along
+        the wall, y up, z in front of it: the frame of :meth:`TransientVolume.grid` and of an
+        :class:`~xnlos_core.nlos_volume.NLOSVolume`'s (x, y, z)); (0, 3) for a scene without objects."""
+
+
 # The one list of kinds, in the order ``xnlos plugins`` lists them: the registry, the config's
 # stage tables, the conformance kit and the tests all derive from it.
 BASES: dict[str, type[Plugin]] = {base.kind: base for base in (
-    ForwardModel, Backend, Detector, WallEstimator, Reconstructor, Tracker, SceneGenerator, NLOSSolver)}
+    ForwardModel, Backend, Detector, WallEstimator, Reconstructor, Tracker, SceneGenerator, NLOSSolver,
+    TransientModel)}
 KINDS: tuple[str, ...] = tuple(BASES)
 STAGE_KINDS: tuple[str, ...] = tuple(kind for kind, base in BASES.items() if base.stage)

@@ -324,6 +324,24 @@ def check_nlos_solver(solver: NLOSSolver) -> None:
         _assert(False, solver, "an all-zero volume must raise InputError")
 
 
+def check_transient_model(model) -> None:
+    """Scans a scene with one box in front of its relay wall: a TransientVolume with counts, the same
+    for one seed, hidden-surface truth points (P, 3) with z > 0 (in front of the wall)."""
+    from .interfaces import TransientModel
+    from .scene import ObjectSpec, Scene, WallSpec
+    from .transient import TransientVolume
+
+    _assert(isinstance(model, TransientModel), model, "is not a xnlos_core.interfaces.TransientModel")
+    scene = Scene(name="kit", walls=[WallSpec(name="relay", start=(5.0, 5.0), end=(5.0, -5.0))],
+                  objects=[ObjectSpec(name="box", shape="box", center=(4.0, 0.0), size=(0.5, 0.5))])
+    vol = model.simulate(scene, 3)
+    _assert(isinstance(vol, TransientVolume), model, f"simulate() must return a TransientVolume, got {type(vol).__name__}")
+    _assert(np.array_equal(model.simulate(scene, 3).data, vol.data), model, "two scans with one seed differ")
+    pts = np.asarray(model.truth(scene))
+    _assert(pts.ndim == 2 and pts.shape[1] == 3 and len(pts) > 0, model, f"truth() must be (P, 3), got {pts.shape}")
+    _assert(bool(np.all(pts[:, 2] > 0)), model, "truth points of an object in front of the wall must have z > 0")
+
+
 def _same_state(a, b) -> bool:
     return a[0] == b[0] and np.array_equal(a[1], b[1]) and tuple(a[2:]) == tuple(b[2:])
 

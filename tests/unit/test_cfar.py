@@ -205,6 +205,7 @@ def test_detect_requires_frame():
     ("hardware.plugin", "backend", ["adc", "can", "npz", "replay"]),
     ("sims.plugin", "forward_model", ["image", "raytrace"]),
     ("sims.plugin", "backend", ["dataset"]),
+    ("sims.plugin", "transient_model", ["spad"]),
 ])
 def test_plugin_modules_register(module, kind, names):
     pm = PluginManager(autoload=False)

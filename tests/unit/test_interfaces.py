@@ -13,7 +13,7 @@ from xnlos_core.testing import CHECKS, small_radar, synthetic_frame
 
 def test_one_list_of_kinds():
     assert KINDS == tuple(BASES) and all(BASES[k].kind == k for k in KINDS)
-    assert STAGE_KINDS == tuple(k for k in KINDS if k not in ("scene_generator", "nlos_solver"))
+    assert STAGE_KINDS == tuple(k for k in KINDS if k not in ("scene_generator", "nlos_solver", "transient_model"))
     assert tuple(CHECKS) == KINDS
     stage_tables = {name for name, f in PipelineConfig.model_fields.items()
                     if StageConfig in (f.annotation, *getattr(f.annotation, "__args__", ()))}

@@ -1,0 +1,27 @@
+"""The SPAD simulator as a registered ``transient_model`` ("spad"): :func:`.scene.simulate` with the
+seed given per call, and the hidden surfaces in the scan's wall coordinates as ground truth, so
+that the cross-modality study (:mod:`xnlos_core.crossmodal`) composes it through the registry."""
+from __future__ import annotations
+
+import numpy as np
+
+from xnlos_core.interfaces import TransientModel
+from xnlos_core.scene import Scene
+from xnlos_core.transient import TransientVolume
+
+from .scene import SpadParams, hidden_patches, simulate
+
+
+class SpadTransientModel(TransientModel):
+    """Confocal SPAD scan of a Scene's relay wall (850 nm, 1.6 mW by default; :class:`SpadParams`,
+    whose ``seed`` is replaced by the ``seed`` of each :meth:`simulate` call)."""
+
+    Params = SpadParams
+
+    def simulate(self, scene: Scene, seed: int) -> TransientVolume:
+        """Photon counts (T, H, W) from ``numpy.random.default_rng(seed)``."""
+        return simulate(scene, self.params.model_copy(update={"seed": int(seed)}))
+
+    def truth(self, scene: Scene) -> np.ndarray:
+        """Centres (P, 3) [m] of the hidden-surface patches in wall coordinates (x, y, z)."""
+        return np.asarray(hidden_patches(scene, self.params).centers, float).reshape(-1, 3)

@@ -1,0 +1,170 @@
+"""Cross-modality study (issue 30 item 4): F1 scoring on hand-made inputs, the tiny study end to
+end, typed errors for bad config keys."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from xnlos_core import crossmodal_score as cs
+from xnlos_core.crossmodal import load_study, run_study, scene_table
+from xnlos_core.errors import ConfigError, InputError
+from xnlos_core.transient import SPEED_OF_LIGHT
+
+CONFIG = Path(__file__).resolve().parents[2] / "configs" / "ablations" / "crossmodal.toml"
+
+BOX = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0]])
+
+
+def test_f1_rate_closed_forms():
+    hit = cs.Outcome(True, False, False)
+    miss = cs.Outcome(False, False, True)
+    wrong = cs.Outcome(False, True, True)
+    assert cs.f1_rate([hit, hit]) == 1.0
+    assert cs.f1_rate([hit, miss]) == pytest.approx(2 / 3)  # 2·1 / (2·1 + 0 + 1)
+    assert cs.f1_rate([hit, wrong]) == pytest.approx(0.5)  # 2 / (2 + 1 + 1)
+    assert cs.f1_rate([miss, wrong]) == 0.0
+    assert cs.f1_rate([]) is None
+    assert cs.f1_rate([{"tp": True, "fp": True, "fn": False}]) == pytest.approx(2 / 3)
+
+
+def test_outcome_and_max_range():
+    o = cs.outcome(np.array([0.5, 3.0]), 1.0)
+    assert (o.tp, o.fp, o.fn, o.n_reports) == (True, True, False, 2)
+    assert cs.outcome(np.zeros(0), 1.0) == cs.Outcome(False, False, True, 0)
+    assert cs.max_range([1, 2, 5, 10], [1.0, 0.6, 0.4, 0.5]) == 10
+    assert cs.max_range([1, 2], [0.2, None]) is None
+    with pytest.raises(InputError, match="NaN"):
+        cs.outcome(np.array([np.nan]), 1.0)
+
+
+def test_distance_to_footprint_and_mirror():
+    d = cs.distance_to_footprint([[1.0, 0.5], [3.0, 0.5], [1.0, -2.0], [3.0, 4.0]], BOX)
+    np.testing.assert_allclose(d, [0.0, 1.0, 2.0, math.hypot(1.0, 3.0)])
+    # mirror across the line x + y = 25 (wall (15, 10) → (35, −10)): (22, −14) ↦ (39, 3)
+    np.testing.assert_allclose(cs.mirror_points([[22.0, -14.0]], (15, 10), (35, -10)), [[39.0, 3.0]])
+    img = cs.outline_points(BOX, 0.5)
+    assert len(img) == 2 * (4 + 2) and np.all(cs.distance_to_footprint(img, BOX) < 1e-12)
+
+
+def test_radar_trials():
+    fp = BOX + [10.0, -5.0]
+    assert cs.radar_reconstruction([[11.0, -4.5]], fp, 1.0).as_dict() == {"tp": True, "fp": False, "fn": False,
+                                                                         "n_reports": 1}
+    o = cs.radar_reconstruction([[11.0, -4.5], [30.0, 0.0]], fp, 1.0)
+    assert o.tp and o.fp and not o.fn
+    o = cs.radar_detection(np.zeros((0, 2)), cs.outline_points(fp), 2.0)
+    assert (o.tp, o.fp, o.fn) == (False, False, True)
+
+
+def test_spad_detection_on_a_handmade_histogram():
+    t, bw = 200, 1e-9
+    data = np.full((t, 2, 2), 4.0)  # background 16 counts per bin over the 4 scan points
+    data[100:103] += 30.0  # 360 excess counts around bin 101
+    p = cs.transient_peak(data, bw, window=5, n_sigma=5.0)
+    assert p.detected and p.background == 16.0
+    assert p.excess == pytest.approx(360.0) and p.threshold == pytest.approx(5 * math.sqrt(5 * 16))
+    rho = SPEED_OF_LIGHT * 101.5 * bw / 2
+    assert abs(p.range - rho) <= SPEED_OF_LIGHT * bw  # within a bin either side of the pulse centre
+    assert cs.spad_detection(p, (rho - 0.1, rho + 0.1), 1.0).tp
+    assert cs.spad_detection(p, (rho + 5.0, rho + 6.0), 1.0).fp
+    flat = cs.transient_peak(np.full((t, 2, 2), 4.0), bw)
+    assert not flat.detected and cs.spad_detection(flat, (0, 1), 1.0).fn
+    lo, hi = cs.range_interval([[0.0, 0.0, 3.0]], [-4.0, 4.0], [0.0])
+    assert (lo, hi) == pytest.approx((5.0, 5.0))
+
+
+def test_spad_reconstruction_and_volume_peak():
+    a = np.zeros((4, 2, 2))
+    a[3, 0, 0] = 10.0  # far-depth noise
+    a[1, 1, 0] = 1.0  # the return
+    z = np.array([0.0, 1.0, 2.0, 3.0])
+    grid = (np.array([-0.5, 0.5]), np.array([-0.5, 0.5]))
+    assert cs.volume_peak(a, z, grid, 1.5) == (1.0, 0.5, -0.5)
+    assert cs.volume_peak(a, z, grid, 10.0) == (3.0, -0.5, -0.5)
+    truth = [[-0.5, 0.5, 1.2]]
+    assert cs.spad_reconstruction((-0.5, 0.5, 1.0), truth, 0.5, True).tp
+    assert cs.spad_reconstruction((-0.5, 0.5, 1.0), truth, 0.5, False).fn
+
+
+def _tiny(tmp_path: Path) -> Path:
+    text = CONFIG.read_text()
+    text = text.replace("distances = [1, 1.5, 2, 3, 4, 6, 8, 10, 15, 20, 30, 40, 50, 60]", "distances = [1, 20]")
+    text = text.replace("seeds = 4", "seeds = 1")
+    text = text.replace("grid_points = [16, 16]", "grid_points = [8, 8]").replace("n_bins = 1024", "n_bins = 512")
+    text = text.replace("patch_size = 0.15", "patch_size = 0.4")
+    text = text[:text.index("# Extra row")]  # the learned row is left out of the tiny study (speed)
+    assert "distances = [1, 20]" in text and "n_bins = 512" in text
+    path = tmp_path / "tiny.toml"
+    path.write_text(text)
+    return path
+
+
+def test_tiny_study_end_to_end(tmp_path):
+    cfg = _tiny(tmp_path)
+    out = tmp_path / "out"
+    res = run_study(cfg, out, progress=False)
+    for name in ("crossmodal.json", "crossmodal.md", "range_curve.png", "panel.png"):
+        assert (out / name).stat().st_size > 0, name
+    assert set(res["rows"]) == {"spad/lct", "spad/fk", "radar77", "xband"}
+    for row in res["rows"].values():
+        assert row["distances"] == [1.0, 20.0]
+        assert all(f is None or 0 <= f <= 1 for f in row["detection_f1"] + row["reconstruction_f1"])
+    assert json.loads((out / "crossmodal.json").read_text())["rows"] == json.loads(json.dumps(res["rows"]))
+    cells = sorted((out / "cells").glob("*.json"))
+    assert len(cells) == 3 * 2
+    # resumed: the same summary from the saved cells, nothing recomputed (cells untouched)
+    stamps = [c.stat().st_mtime_ns for c in cells]
+    again = run_study(cfg, out, progress=False, figures=False)
+    assert again["rows"] == res["rows"] and [c.stat().st_mtime_ns for c in cells] == stamps
+
+
+def test_object_placed_behind_the_corner():
+    cfg, _ = load_study(CONFIG)
+    for d in (1.0, 7.5):
+        car = next(o for o in scene_table(cfg, d)["objects"] if o["name"] == "car")
+        # heading π/2: the 4.5 m length lies along the street (−y); nearest point d below y = −1
+        assert car["center"] == pytest.approx([24.0, -1.0 - d - 2.25])
+
+
+@pytest.mark.parametrize("edit, match", [
+    (("seeds = 4", "seeds = 4\nseedz = 3"), "seedz"),
+    (("gate = 2.0", "gate = -1.0"), "gate"),
+    (('label = "xband"', 'label = "xband"\nsolvers = ["lct"]'), "solvers"),
+    (('type = "spad"', 'type = "lidar"'), "type"),
+])
+def test_bad_config_keys_are_typed_errors(tmp_path, edit, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(CONFIG.read_text().replace(*edit, 1))
+    with pytest.raises(ConfigError, match=match):
+        load_study(path)
+
+
+def test_unknown_hidden_object_is_a_config_error(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(CONFIG.read_text().replace('hidden_object = "car"', 'hidden_object = "bus"'))
+    cfg, _ = load_study(path)
+    with pytest.raises(ConfigError, match="bus"):
+        scene_table(cfg, 1.0)
+
+
+def test_check_and_conformance():
+    from xnlos_core.cli import check_file
+    from xnlos_core.testing import check_component
+
+    assert "valid (cross-modality study: 5 row(s) × 14 distance(s))" in check_file(CONFIG)
+    check_component("transient_model", "spad", {"grid_points": (8, 8), "n_bins": 256, "bin_width": 1e-10})
+
+
+def test_unknown_solver_is_an_error_naming_it(tmp_path):
+    from xnlos_core.errors import XnlosError
+
+    path = tmp_path / "bad.toml"
+    path.write_text(CONFIG.read_text().replace('solvers = ["lct", "fk"]', 'solvers = ["lct", "phasor"]'))
+    from xnlos_core.cli import check_file
+
+    with pytest.raises(XnlosError, match="phasor"):
+        check_file(path)
