@@ -11,7 +11,7 @@ Each interface declares everything its callers use. Optional capabilities have a
 says "not available": :attr:`Backend.n_frames` (None), :meth:`Detector.heatmap` (None),
 :meth:`ForwardModel.simulate_adc` (PluginError; :attr:`ForwardModel.supports_adc` asks first),
 :meth:`Tracker.state` / :meth:`Tracker.load_state` (PluginError; :attr:`Tracker.supports_state`),
-:meth:`WallEstimator.warm_up` (builds nothing). Input checks every implementation needs live
+:meth:`WallEstimator.warm_up` and :meth:`Detector.warm_up` (build nothing). Input checks every implementation needs live
 here once (:meth:`Backend.check_max_frames`, :meth:`Detector.check_frame`).
 """
 from __future__ import annotations
@@ -162,6 +162,14 @@ class Detector(Plugin, abc.ABC):
         detectors; H × W the RA map's grid or the network head's), drawn in the per-frame figure.
         The default, None, means the detector has none."""
         return None
+
+    def warm_up(self, radar: RadarConfig | None = None) -> int:
+        """Optional: load and prepare what :meth:`detect` would otherwise prepare on the first frame
+        (a learned detector: the network, one forward on an empty map of ``radar``'s grid, compilation),
+        so that the first frame runs at the steady-state speed. :class:`xnlos_core.pipeline.Pipeline`
+        calls it before its first frame. Returns how many warm-up passes were made; the default
+        prepares nothing: 0."""
+        return 0
 
     def check_frame(self, frame: Frame) -> None:
         """InputError unless ``frame`` is a :class:`xnlos_core.types.Frame` (every :meth:`detect` checks it)."""

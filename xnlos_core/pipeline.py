@@ -134,6 +134,7 @@ class Pipeline:
                 self.stages[kind].check_radar(self.radar)
             except ConfigError as exc:
                 raise ConfigError(f"{source}: [{kind}] {stage.name}: {exc}") from None
+        self._warm = False  # detector warmed up (warm_up)
         self.scene = None
         if "forward_model" in self.stages:
             self.scene = load_scene(config.scene, source, config.base_dir, registry=registry)
@@ -215,9 +216,24 @@ class Pipeline:
             finally:
                 backend.close()
 
+    def warm_up(self) -> int:
+        """Prepare the detector before the first frame (:meth:`xnlos_core.interfaces.Detector.warm_up`:
+        a learned detector loads its network and runs it once on an empty map of the radar's grid), so
+        that no frame's timings include model loading or compilation. Once per pipeline (later calls do
+        nothing); :meth:`run` and :meth:`process` call it. Returns the detector's warm-up passes (0 when
+        already warm)."""
+        if self._warm:
+            return 0
+        with blas_limit(self.config.run.blas_threads):
+            n = self.stages["detector"].warm_up(self.radar)
+        self._warm = True
+        return n
+
     def process(self, frame: Frame) -> FrameResult:
         """Run detection, wall estimation, reconstruction and tracking on one frame (and score it),
-        with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`)."""
+        with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`).
+        The first call warms the detector up first (:meth:`warm_up`, outside the stage timings)."""
+        self.warm_up()
         with blas_limit(self.config.run.blas_threads):
             return self._process(frame)
 
@@ -304,6 +320,7 @@ class Pipeline:
         skip = frozenset(skip)
         if "forward_model" in self.stages and skip.issuperset(range(start, self.config.run.frames)):
             return
+        self.warm_up()  # before the first frame is drawn: not in the source's or the detector's time
         replay = "tracker" in self.stages and not restored
         if replay:
             self.stages["tracker"].reset()

@@ -13,8 +13,12 @@ Standard deviations: the refinement residuals measured on the validation
 split when the model was trained (checkpoint metadata ``decode.calibration``, in cells; 1/√12
 cell without one), times the local bin spacing.
 
-The network is built from the checkpoint on the first ``detect`` and cached (``__init__`` only
-stores parameters). ``checkpoint = "default"`` loads the model shipped in
+The network is built from the checkpoint on the first ``detect`` — or before the first frame by
+:meth:`LearnedDetector.warm_up`, which the pipeline calls, with one forward on an empty map of the
+radar's grid — and cached (``__init__`` only stores parameters). Inference runs through
+:class:`~plugins.detectors.inference.InferenceRunner`: ``torch.inference_mode`` and channels-last
+(float32 outputs equal to the plain network's within 1e-5), with opt-in ``precision = "bf16"``
+and ``compile = true`` and the torch thread count ``threads`` (see that module). ``checkpoint = "default"`` loads the model shipped in
 ``plugins/detectors/models/<name>.pt``; ``"none"`` builds an untrained network with default
 hyper-parameters from ``seed`` (deterministic, but it detects nothing meaningful: for tests of the
 plumbing only).
@@ -34,13 +38,16 @@ from typing import Annotated, Any, ClassVar, Literal
 import warnings
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
 
 from xnlos_core.detection_doppler import nearest_cells, with_cell_velocity
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
+from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Detections, Frame, RAMap
 from xnlos_core.param_paths import config_path
+
+from .inference import InferenceRunner
 
 MODELS_DIR = Path(__file__).with_name("models")
 UNIFORM_STD = 1.0 / np.sqrt(12.0)  # cells: the error of a position uniform within one cell
@@ -65,8 +72,17 @@ class LearnedParams(BaseModel):
     class_nms: bool = Field(True, description="suppress a weaker peak of the other class within the window")
     max_detections: int = Field(1000, ge=1, le=100_000, description="keep at most this many peaks")
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
-    threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads during inference, restored "
-                                                                 "afterwards (None: leave torch's setting)")
+    threads: int | None = Field(None, ge=1, le=1024, description="torch intra-op CPU threads during inference, "
+                                "restored afterwards; None: torch's setting (one per physical core), which the "
+                                "thread policy leaves to torch (BLAS runs 1 thread during the stages, "
+                                "xnlos_core.threads)")
+    precision: Literal["fp32", "bf16"] = Field(
+        "fp32", description="'fp32': float32 inference (default); 'bf16': autocast to bfloat16 on cpu / cuda, "
+                            "~2× faster on CPUs with bf16 units, detections within the F1 stated in "
+                            "benchmarks/detector_speed.md")
+    compile: StrictBool = Field(False, description="torch.compile the network (compiled during warm-up); "
+                                                   "where compile is unavailable: a CompileFallbackWarning "
+                                                   "and the eager network")
     tta: Literal["none", "flip"] = Field("none", description="test-time augmentation: 'flip' averages the logits "
                                          "of the map and of its azimuth mirror (twice the network time; "
                                          "dense heads only)")
@@ -104,7 +120,10 @@ def resolve_device(name: str):
 
 
 def run_network(net, features: np.ndarray, device, threads: int | None = None) -> np.ndarray:
-    """Raw network output for features (4, H, W) (padded, not cropped back: see the head) as float32.
+    """Raw network output for features (4, H, W) (padded, not cropped back: see the head) as float32,
+    the plain way: contiguous (NCHW) tensors in float32. The detectors run the faster
+    :class:`~plugins.detectors.inference.InferenceRunner` (channels-last, optional bf16 / compile);
+    this is its float32 reference (equal within 1e-5).
 
     threads: torch CPU threads for this call (restored afterwards); on a busy machine with few
     cores one thread avoids OpenMP threads waiting for each other."""
@@ -212,7 +231,31 @@ class LearnedDetector(Detector):
         self._grid_warned = False
         self._head = make_head(meta["head"])
         self._device = device
-        self._net = net.to(device).eval()
+        self._runner = InferenceRunner(net, device, p.precision, p.compile, p.threads, name=type(self).__name__)
+        self._net = self._runner.net  # eval mode, channels-last
+        self._warm_shapes: set[tuple[int, int]] = set()
+
+    def warm_up(self, radar: RadarConfig | None = None) -> int:
+        """Load the network and run it once on an all-zero map of ``radar``'s grid (n_range_bins ×
+        n_azimuth_bins), so that loading, kernel set-up and (``compile = true``) compilation are not
+        paid by the first frame; the pipeline calls it before its first frame
+        (:meth:`xnlos_core.pipeline.Pipeline.warm_up`). Once per grid shape: returns the number of
+        network forwards made now (1, or 0 when already warm for that shape or ``radar`` is None)."""
+        self._load()
+        if radar is None:
+            return 0
+        shape = (radar.n_range_bins, radar.n_azimuth_bins)
+        if shape in self._warm_shapes:
+            return 0
+        n = self._runner.warm_up(shape)
+        self._warm_shapes.add(shape)
+        return n
+
+    @property
+    def forwards(self) -> int:
+        """Network forwards made so far (warm-up included; 0 before the network is loaded)."""
+        runner = getattr(self, "_runner", None)
+        return runner.forwards if runner is not None else 0
 
     @property
     def metadata(self) -> dict[str, Any]:
@@ -265,14 +308,14 @@ class LearnedDetector(Detector):
         self.check_grid(frame.ra_map, f"frame {frame.index}")
         feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
                             name=f"frame {frame.index}: RAMap.data")
-        out = run_network(self._net, feats, self._device, self.params.threads)
+        out = self._runner(feats)
         if self.params.tta == "flip":
             kind = self._head.describe()["kind"]
             if kind != "dense":
                 raise ConfigError(f"{type(self).__name__}: tta = 'flip' needs a dense head; this checkpoint's "
                                   f"head is {kind!r}")
             w = feats.shape[-1]
-            back = run_network(self._net, feats[..., ::-1], self._device, self.params.threads)[..., :w][..., ::-1]
+            back = self._runner(feats[..., ::-1])[..., :w][..., ::-1]
             out[..., :w] = 0.5 * (out[..., :w] + back)
         if not np.all(np.isfinite(out)):
             raise InputError(f"{type(self).__name__}: the network produced non-finite outputs on frame "

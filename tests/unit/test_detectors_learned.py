@@ -122,7 +122,9 @@ def test_checkpoint_round_trip(tmp_path, name, tiny_checkpoint):
     out = det.output(frame)
     from plugins.detectors.learned import run_network
     net.eval()
-    np.testing.assert_array_equal(out, run_network(net, ra_features(frame.ra_map.data), torch.device("cpu")))
+    # the detector runs channels-last (plugins/detectors/inference.py): equal within 1e-5, not bitwise
+    np.testing.assert_allclose(out, run_network(net, ra_features(frame.ra_map.data), torch.device("cpu")),
+                               rtol=0, atol=1e-5)
     assert isinstance(det.detect(frame), Detections)
 
 
