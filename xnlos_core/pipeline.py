@@ -134,7 +134,7 @@ class Pipeline:
                 self.stages[kind].check_radar(self.radar)
             except ConfigError as exc:
                 raise ConfigError(f"{source}: [{kind}] {stage.name}: {exc}") from None
-        self._warm = False  # detector warmed up (warm_up)
+        self._warm = False  # detector and wall estimator warmed up (warm_up)
         self.scene = None
         if "forward_model" in self.stages:
             self.scene = load_scene(config.scene, source, config.base_dir, registry=registry)
@@ -217,15 +217,19 @@ class Pipeline:
                 backend.close()
 
     def warm_up(self) -> int:
-        """Prepare the detector before the first frame (:meth:`xnlos_core.interfaces.Detector.warm_up`:
-        a learned detector loads its network and runs it once on an empty map of the radar's grid), so
-        that no frame's timings include model loading or compilation. Once per pipeline (later calls do
-        nothing); :meth:`run` and :meth:`process` call it. Returns the detector's warm-up passes (0 when
-        already warm)."""
+        """Prepare the stages before the first frame: the detector
+        (:meth:`xnlos_core.interfaces.Detector.warm_up`: a learned detector loads its network and runs
+        it once on an empty map of the radar's grid) and the wall estimator
+        (:meth:`xnlos_core.interfaces.WallEstimator.warm_up`: casadi problems built per size), so that
+        no frame's timings include model loading, compilation or problem building. Once per pipeline
+        (later calls do nothing); :meth:`run` and :meth:`process` call it. Returns the warm-up passes
+        and problems built (0 when already warm)."""
         if self._warm:
             return 0
         with blas_limit(self.config.run.blas_threads):
             n = self.stages["detector"].warm_up(self.radar)
+            if self.stages.get("wall_estimator") is not None:
+                n += self.stages["wall_estimator"].warm_up()
         self._warm = True
         return n
 

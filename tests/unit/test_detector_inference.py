@@ -167,3 +167,18 @@ def test_pipeline_warms_the_detector_up_before_the_first_frame(monkeypatch):
     results = list(pipe.run())
     assert at_detect == [1, 2] and det.forwards == 3 and len(results) == 2
     assert pipe.warm_up() == 0  # once per pipeline
+
+
+def test_pipeline_warm_up_builds_the_wall_estimators_problems_too():
+    """The wall estimator's casadi problems are built in the warm-up, not in the first frame."""
+    from xnlos_core.config import parse_pipeline
+    from xnlos_core.pipeline import Pipeline
+
+    table = {"name": "warm", "seed": 0, "scene": {"builtin": "corner"}, "forward_model": {"name": "image"},
+             "detector": {"name": "nlos_cfar"}, "wall_estimator": {"name": "casadi_map"},
+             "reconstructor": {"name": "mirror"}, "run": {"frames": 1, "figure": False}}
+    pipe = Pipeline(parse_pipeline(table, "test"), source="test")
+    built = pipe.stages["wall_estimator"].warm_up()  # what the estimator builds for itself
+    assert built > 0
+    fresh = Pipeline(parse_pipeline(table, "test"), source="test")
+    assert fresh.warm_up() == built and fresh.warm_up() == 0
