@@ -144,7 +144,7 @@ class _DopplerPlan:
     """Everything :func:`doppler_ra_maps` needs that depends only on (radar, window), computed once.
 
     taper (n_chirps,): Doppler window / Σw times the fftshift modulation; boxcar (n_chirps,): the same
-    for the unwindowed spectrum (1/N times the modulation); comp64 (n_chirps, n_channels) complex64:
+    for the unwindowed spectrum (1/N times the modulation); comp (n_chirps, n_channels) complex128:
     :func:`tdm_compensation`; weights64 (n_channels, n_azimuth) complex64: :func:`beam_weights`;
     comp_tx (n_chirps, n_tdm) complex128: the compensation of each TX (the same on all its channels);
     weights_t (n_azimuth, n_tdm, n_rx) complex128: :func:`beam_weights` by azimuth, TX, RX; enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W].
@@ -152,7 +152,7 @@ class _DopplerPlan:
 
     taper: np.ndarray
     boxcar: np.ndarray
-    comp64: np.ndarray
+    comp: np.ndarray
     weights64: np.ndarray
     comp_tx: np.ndarray
     weights_t: np.ndarray
@@ -167,7 +167,7 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
     mod = _shift_modulation(d)
     comp = tdm_compensation(radar)
     weights = beam_weights(radar)
-    arrays = dict(taper=mod * (w / w.sum()), boxcar=mod / d, comp64=comp.astype(np.complex64),
+    arrays = dict(taper=mod * (w / w.sum()), boxcar=mod / d, comp=comp,
                   weights64=weights.astype(np.complex64),
                   comp_tx=np.ascontiguousarray(comp[:, :: radar.n_channels // radar.n_tdm]),
                   weights_t=np.ascontiguousarray(weights.T).reshape(weights.shape[1], radar.n_tdm, -1))
@@ -249,15 +249,14 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     r, d, k = prof.shape
     # The beamforming of every Doppler bin dominates the cost (n_range·n_chirps·n_channels·n_azimuth
     # complex MACs); it runs in single precision (relative error ~1e-7, far below the noise of any
-    # map with < 120 dB dynamic range), as does the windowed Doppler FFT that feeds it. Power, peak
+    # map with < 120 dB dynamic range), as in the first version. Power, peak
     # and velocity are then formed in double precision. The fftshift is a modulation folded into the
     # window, and the spectrum is laid out Doppler-bin-major (n_chirps, n_range, ·) so that the sum and
     # the maximum over the Doppler bins run over contiguous slabs.
-    tapered = np.empty((d, r, k), dtype=np.complex64)
-    np.multiply(prof.transpose(1, 0, 2), plan.taper[:, None, None], out=tapered, casting="same_kind")
+    tapered = np.multiply(prof.transpose(1, 0, 2), plan.taper[:, None, None], order="C")  # (d, r, k)
     rd_w = scipy.fft.fft(tapered, axis=0, overwrite_x=True, workers=workers)
-    rd_w *= plan.comp64[:, None, :]
-    bf = (rd_w.reshape(d * r, k) @ plan.weights64).reshape(d, r, -1)
+    rd_w *= plan.comp[:, None, :]
+    bf = (rd_w.astype(np.complex64).reshape(d * r, k) @ plan.weights64).reshape(d, r, -1)
     del rd_w, tapered
     pw = np.square(bf.real)
     pw += np.square(bf.imag)
