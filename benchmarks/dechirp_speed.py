@@ -8,12 +8,16 @@ layout, a (range, azimuth, channel) gather with the compensation applied per cel
 back with the library's in one process, alternating old and new on identical inputs, median of
 ``--repeats`` after a warm-up. The machine is shared, so the ratio (old / new, each a median) is the
 figure; absolute ms move with the load (printed). Max relative differences (max |new − old| / max |old|)
-are printed beside each row.
+are printed beside each row. Default BLAS threads for rows 1–2.
 
 1. dechirp of P random paths (lengths to 1.2 × the unambiguous range, random azimuths and complex
    amplitudes) at the default radar (512 samples × 32 channels);
 2. chirp_sequence_cube of 20 moving paths (64 loops × 4 TX slots of dechirps);
-3. doppler_ra_maps of one noisy (512, 64, 32) cube → (401, 121) maps, scipy.fft workers 1 and 2.
+3. doppler_ra_maps of one noisy (512, 64, 32) cube → (401, 121) maps with BLAS limited to 1 and to 2
+   threads (threadpoolctl) and the new path's scipy.fft workers equal to that; its max rel. diff is
+   cell by cell over power and peak power (velocity: tests/unit/test_dechirp_fast.py).
+
+Max rel. diff of rows 1–2: max |new − old| / max |old| over the cube.
 """
 from __future__ import annotations
 
@@ -25,6 +29,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the working tree's packages, not an installed copy
@@ -117,20 +122,27 @@ def old_doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann") -> Do
                          noise_floor=sigma_cell, peak_noise_floor=sigma_cell * enbw / d, radar=radar)
 
 
-def _pair(old, new, repeats: int) -> tuple[float, float]:
-    """Median seconds of old() and new(), alternated call by call after one warm-up each."""
+def _pair(old, new, repeats: int) -> tuple[float, float, float, float]:
+    """Median wall seconds of old() and new(), then median CPU seconds (process time, all threads) of
+    each, alternated call by call after one warm-up each. CPU time is the steadier figure on a loaded
+    machine (it does not count time waiting for a core)."""
     old(), new()
-    to, tn = [], []
+    to, tn, co, cn = [], [], [], []
     for _ in range(repeats):
-        for f, ts in ((old, to), (new, tn)):
-            t = time.perf_counter()
+        for f, ts, cs in ((old, to, co), (new, tn, cn)):
+            t, c = time.perf_counter(), time.process_time()
             f()
             ts.append(time.perf_counter() - t)
-    return float(np.median(to)), float(np.median(tn))
+            cs.append(time.process_time() - c)
+    return float(np.median(to)), float(np.median(tn)), float(np.median(co)), float(np.median(cn))
 
 
 def _rel(new: np.ndarray, old: np.ndarray) -> float:
     return float(np.abs(new - old).max() / np.abs(old).max())
+
+
+def _cellwise(new: np.ndarray, old: np.ndarray) -> float:
+    return float(np.max(np.abs(new - old) / np.abs(old)))
 
 
 def main(argv=None) -> list[str]:
@@ -147,29 +159,29 @@ def main(argv=None) -> list[str]:
     a = rng.standard_normal(p) + 1j * rng.standard_normal(p)
     rows = []
 
-    to, tn = _pair(lambda: old_dechirp(radar, L, th, a), lambda: dechirp(radar, L, th, a), args.repeats)
-    rows.append((f"dechirp, {p} paths → ({radar.n_samples}, {radar.n_channels})", to, tn,
+    t4 = _pair(lambda: old_dechirp(radar, L, th, a), lambda: dechirp(radar, L, th, a), args.repeats)
+    rows.append((f"dechirp, {p} paths → ({radar.n_samples}, {radar.n_channels})", *t4,
                  _rel(dechirp(radar, L, th, a), old_dechirp(radar, L, th, a))))
 
     q = 20
     r0, th0 = rng.uniform(3.0, 60.0, q), rng.uniform(-1.0, 1.0, q)
     a0, v0 = rng.standard_normal(q) + 1j * rng.standard_normal(q), rng.uniform(-12.0, 12.0, q)
-    to, tn = _pair(lambda: old_chirp_sequence_cube(radar, r0, th0, a0, v0),
-                   lambda: chirp_sequence_cube(radar, r0, th0, a0, v0), max(3, args.repeats // 3))
+    t4 = _pair(lambda: old_chirp_sequence_cube(radar, r0, th0, a0, v0),
+               lambda: chirp_sequence_cube(radar, r0, th0, a0, v0), max(3, args.repeats // 3))
     cube = chirp_sequence_cube(radar, r0, th0, a0, v0)
-    rows.append((f"chirp_sequence_cube, {q} moving paths → {cube.shape}", to, tn,
+    rows.append((f"chirp_sequence_cube, {q} moving paths → {cube.shape}", *t4,
                  _rel(cube, old_chirp_sequence_cube(radar, r0, th0, a0, v0))))
 
     cube = add_chirp_noise(chirp_sequence_cube(radar, [20.0, 35.0], [0.3, -0.2], [1e-4, 3e-5], [5.0, -1.3]),
                            radar, np.random.default_rng(0))
     old = old_doppler_ra_maps(cube, radar)
-    for workers in (1, 2):
-        new = doppler_ra_maps(cube, radar, workers=workers)
-        rel = max(_rel(new.power, old.power), _rel(new.peak_power, old.peak_power),
-                  _rel(new.velocity, old.velocity), _rel(new.velocity_std, old.velocity_std))
-        to, tn = _pair(lambda: old_doppler_ra_maps(cube, radar), lambda: doppler_ra_maps(cube, radar, workers=workers),
-                       args.repeats)
-        rows.append((f"doppler_ra_maps {cube.shape} → {old.power.shape}, workers={workers}", to, tn, rel))
+    for threads in (1, 2):  # FFT workers and BLAS threads of the new path; the old one had BLAS's only
+        new = doppler_ra_maps(cube, radar, workers=threads)
+        rel = max(_cellwise(new.power, old.power), _cellwise(new.peak_power, old.peak_power))
+        with threadpool_limits(threads):
+            t4 = _pair(lambda: old_doppler_ra_maps(cube, radar),
+                       lambda: doppler_ra_maps(cube, radar, workers=threads), args.repeats)
+        rows.append((f"doppler_ra_maps {cube.shape} → {old.power.shape}, {threads} thread(s)", *t4, rel))
 
     load = os.getloadavg()
     lines = ["# Dechirp and Doppler-chain speed (issue 31 item 3, issue 28)", "",
@@ -178,8 +190,10 @@ def main(argv=None) -> list[str]:
              f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "
              f"{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (1 / 5 / 15 min) at the end of the run; "
              f"old and new alternated, median of {args.repeats}", "",
-             "| what | old ms | new ms | old / new | max rel. diff |", "|---|---|---|---|---|"]
-    lines += [f"| {n} | {1e3 * o:.1f} | {1e3 * w:.1f} | {o / w:.2f}× | {d:.1e} |" for n, o, w, d in rows]
+             "| what | old ms | new ms | old / new | old CPU ms | new CPU ms | CPU old / new | max rel. diff |",
+             "|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {n} | {1e3 * o:.1f} | {1e3 * w:.1f} | {o / w:.2f}× | {1e3 * co:.1f} | {1e3 * cn:.1f} | "
+              f"{co / cn:.2f}× | {d:.1e} |" for n, o, w, co, cn, d in rows]
     lines.append("")
     if args.out:
         args.out.write_text("\n".join(lines) + "\n")
