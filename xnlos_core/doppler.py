@@ -289,8 +289,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
         pk = peak[lo:hi]
         wc = (plan.comp_tx[pk][..., None] * plan.weights_t).reshape(hi - lo, n_az, k)  # (block, n_az, k)
         idx = (np.arange(lo, hi) * d)[None, :, None] + (pk[None] + offsets) % d  # rows of flat, (3, block, n_az)
-        g = np.take(flat, idx.ravel(), axis=0).reshape(3, hi - lo, n_az, k)
-        x3[:, lo:hi] = np.einsum("orak,rak->ora", g, wc)
+        g = np.take(flat, idx.ravel(), axis=0).reshape(3, -1, k).transpose(1, 0, 2)  # (cells, 3, k)
+        x3[:, lo:hi] = np.matmul(g, wc.reshape(-1, k, 1))[..., 0].T.reshape(3, hi - lo, n_az)
     xm, x0, xp = x3
     den = 2 * x0 - xm - xp
     safe = np.abs(den) > 0
