@@ -147,7 +147,8 @@ class _DopplerPlan:
     for the unwindowed spectrum (1/N times the modulation); comp (n_chirps, n_channels) complex128:
     :func:`tdm_compensation`; weights64 (n_channels, n_azimuth) complex64: :func:`beam_weights`;
     comp_tx (n_chirps, n_tdm) complex128: the compensation of each TX (the same on all its channels);
-    weights_t (n_azimuth, n_tdm, n_rx) complex128: :func:`beam_weights` by azimuth, TX, RX; enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W].
+    weights_t (n_azimuth, n_tdm, n_rx) complex128: :func:`beam_weights` by azimuth, TX, RX;
+    enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]. Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
@@ -255,10 +256,10 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     r, d, k = prof.shape
     # The beamforming of every Doppler bin dominates the cost (n_range·n_chirps·n_channels·n_azimuth
     # complex MACs); it runs in single precision (relative error ~1e-7, far below the noise of any
-    # map with < 120 dB dynamic range), as in the first version. Power, peak
-    # and velocity are then formed in double precision. The fftshift is a modulation folded into the
-    # window, and the spectrum is laid out Doppler-bin-major (n_chirps, n_range, ·) so that the sum and
-    # the maximum over the Doppler bins run over contiguous slabs.
+    # map with < 120 dB dynamic range) on the double-precision compensated spectrum, as in the first
+    # version. Power, peak and velocity are then formed in double precision. The fftshift is a
+    # modulation folded into the window, and the spectrum is laid out Doppler-bin-major
+    # (n_chirps, n_range, ·) so that the sum and the maximum over the Doppler bins run over contiguous slabs.
     tapered = np.multiply(prof.transpose(1, 0, 2), plan.taper[:, None, None], order="C")  # (d, r, k)
     rd_w = scipy.fft.fft(tapered, axis=0, overwrite_x=True, workers=workers)
     rd_w *= plan.comp[:, None, :]

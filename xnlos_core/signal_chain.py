@@ -66,7 +66,8 @@ def dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=None)
     as the hardware would: s ← s·Cᵀ (x = C·x₀ per sample).
 
     with τ = L/c, S = B/T, f_b = S·τ (conjugate product g·g*(t−τ), so f_b > 0). The sum is
-    separable, so it is a matrix product (N, P) @ (P, M), done in chunks of paths. The IF
+    separable, so it is a matrix product (N, P) @ (P, M), done in chunks of paths, with the tones
+    evaluated without a complex exponential per sample (:func:`_dechirp_paths`). The IF
     anti-aliasing low-pass is ideal: paths with f_b ≥ f_s (beyond the unambiguous range) are
     not sampled, instead of aliasing to short range.
     """
