@@ -262,9 +262,11 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     # (n_chirps, n_range, ·) so that the sum and the maximum over the Doppler bins run over contiguous slabs.
     tapered = np.multiply(prof.transpose(1, 0, 2), plan.taper[:, None, None], order="C")  # (d, r, k)
     rd_w = scipy.fft.fft(tapered, axis=0, overwrite_x=True, workers=workers)
-    rd_w *= plan.comp[:, None, :]
-    bf = (rd_w.astype(np.complex64).reshape(d * r, k) @ plan.weights64).reshape(d, r, -1)
+    rd64 = np.empty((d, r, k), dtype=np.complex64)  # compensated in double precision, rounded once
+    np.multiply(rd_w, plan.comp[:, None, :], out=rd64, casting="same_kind")
     del rd_w, tapered
+    bf = (rd64.reshape(d * r, k) @ plan.weights64).reshape(d, r, -1)
+    del rd64
     pw = np.square(bf.real)
     pw += np.square(bf.imag)
     del bf
