@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import platform
 import time
 from pathlib import Path
@@ -52,7 +53,9 @@ def timing(repeats: int) -> list[str]:
     ra = _median_ms(lambda: ra_map_from_cube(canonical_cube(cube, AdcLayout(), radar), radar), repeats)
     return ["## Doppler processing time per frame (default radar size)", "",
             f"cube {cube.shape} → maps ({len(radar.range_axis)}, {radar.n_azimuth_bins}); "
-            f"{platform.processor() or platform.machine()}, median of {repeats}", "",
+            f"{platform.processor() or platform.machine()}, median of {repeats}, load average "
+            f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (a shared machine inflates both rows alike; "
+            f"old vs new back to back: benchmarks/dechirp_speed.md)", "",
             "| path | median ms |", "|---|---|",
             f"| doppler_ra_maps (range–Doppler, beamforming per Doppler bin, velocity per cell) | {dop:.1f} |",
             f"| coherent chirp mean → ra_map_from_cube (no Doppler) | {ra:.1f} |", ""]

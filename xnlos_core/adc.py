@@ -91,7 +91,10 @@ def chirp_cube(raw, layout: AdcLayout, radar: RadarConfig) -> np.ndarray:
                              f"{want[name]} (n_samples={radar.n_samples}, n_channels={radar.n_channels})")
     if arr.shape[1] < 1:
         raise InputError("adc cube: the 'chirp' axis is empty")
-    cube = arr.astype(np.complex128) * layout.scale
+    # a new array (the I/Q path built one already), so it is scaled in place
+    cube = arr.astype(np.complex128, copy=layout.sample_format != "iq")
+    if layout.scale != 1:
+        cube *= layout.scale
     if not np.all(np.isfinite(cube)):
         raise InputError("adc cube: contains NaN or infinite samples")
     perm = _channel_permutation(radar, layout.channel_order)
@@ -113,18 +116,19 @@ def adc_cube_to_ra_map(raw, layout: AdcLayout, radar: RadarConfig) -> RAMap:
 
 
 def adc_cube_to_doppler_maps(raw, layout: AdcLayout, radar: RadarConfig, *, window: str = "hann",
-                             remove_static: bool = False) -> DopplerRAMaps:
+                             remove_static: bool = False, workers: int | None = None) -> DopplerRAMaps:
     """Raw ADC cube of one frame's chirp sequence → :class:`xnlos_core.doppler.DopplerRAMaps` (range–Doppler,
     beamforming per Doppler bin, velocity per cell) through the chain the simulator's Doppler model uses.
 
     The recording must hold ``radar.n_chirps`` chirp loops (one chirp per TX each, TDM order as the
-    radar's timing fields describe); raises InputError otherwise.
+    radar's timing fields describe); raises InputError otherwise. workers: FFT threads
+    (:func:`xnlos_core.doppler.doppler_ra_maps`).
     """
     cube = chirp_cube(raw, layout, radar)
     if cube.shape[1] != radar.n_chirps:
         raise InputError(f"adc cube: Doppler processing needs the radar's n_chirps={radar.n_chirps} chirp loops "
                          f"on the 'chirp' axis, the recording has {cube.shape[1]}")
-    return doppler_ra_maps(cube, radar, window=window, remove_static=remove_static)
+    return doppler_ra_maps(cube, radar, window=window, remove_static=remove_static, workers=workers)
 
 
 def encode_adc_cube(cube, layout: AdcLayout, radar: RadarConfig, n_chirps: int = 1,

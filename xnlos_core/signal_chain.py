@@ -17,7 +17,10 @@ Scaling (documented once, used everywhere):
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+import scipy.fft
 from scipy.signal import get_window
 
 from .antenna import azimuth_weights, coupling_matrix, steering_vector
@@ -27,6 +30,7 @@ from .types import RAMap
 from .validation import as_array
 
 _CHUNK = 2048  # paths per dechirp chunk: bounds the (n_samples, chunk) complex128 temporary
+_FFT_BLOCK_BYTES = 1 << 18  # columns per block of the range FFT: n_samples × block complex128 ≈ 256 KiB
 
 
 def chirp(radar: RadarConfig, t) -> np.ndarray:
@@ -62,7 +66,8 @@ def dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=None)
     as the hardware would: s ← s·Cᵀ (x = C·x₀ per sample).
 
     with τ = L/c, S = B/T, f_b = S·τ (conjugate product g·g*(t−τ), so f_b > 0). The sum is
-    separable, so it is a matrix product (N, P) @ (P, M), done in chunks of paths. The IF
+    separable, so it is a matrix product (N, P) @ (P, M), done in chunks of paths, with the tones
+    evaluated without a complex exponential per sample (:func:`_dechirp_paths`). The IF
     anti-aliasing low-pass is ideal: paths with f_b ≥ f_s (beyond the unambiguous range) are
     not sampled, instead of aliasing to short range.
     """
@@ -73,20 +78,63 @@ def dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=None)
     if not (L.shape == th.shape == a.shape == el.shape and L.ndim == 1):
         raise InputError(f"dechirp: path_length, azimuth, amplitude, elevation must be 1-D of equal length, "
                          f"got {L.shape}, {th.shape}, {a.shape}, {el.shape}")
+    return _dechirp_paths(radar, L, th, a, el)
+
+
+def _dechirp_paths(radar: RadarConfig, L: np.ndarray, th: np.ndarray, a: np.ndarray, el: np.ndarray,
+                   channels: slice | None = None) -> np.ndarray:
+    """:func:`dechirp` of validated float64/complex128 path arrays, for the virtual channels ``channels``
+    (None: all). th, el (P,); L, a (P,) → (n_samples, n_selected) complex128, or (G, P) → (G, n_samples,
+    n_selected): G cubes of the same P arrival directions (the chirps of a chirp sequence), at once.
+
+    Coupling is folded into the steering matrix (s·Cᵀ = tones·(A·Cᵀ)), so a channel subset costs
+    only its columns. The tones exp(j2π(f_b·n/f_s + φ₀)) are never evaluated per sample: with
+    n = K·q + r (block length K = ⌈√N⌉), exp(j2π f_b n/f_s) = exp(j2π f_b K q/f_s) · exp(j2π f_b r/f_s)
+    (the outer-product factorisation exp(j(x+y)) = e^{jx}·e^{jy}), so each path needs K + N/K complex
+    exponentials instead of N, and each tone is one product of two directly evaluated factors
+    (no recurrence, so no accumulated rounding: a few ulp per sample, relative ~1e-13 to the old
+    per-sample evaluation at the default size, tests/unit/test_dechirp_fast.py).
+    """
+    single = L.ndim == 1
+    L, a = np.atleast_2d(L), np.atleast_2d(a)
     tau = L / SPEED_OF_LIGHT
     fb = radar.chirp_slope * tau
     keep = (fb >= 0) & (fb < radar.sample_rate) & (a != 0)
-    L, th, a, tau, fb, el = L[keep], th[keep], a[keep], tau[keep], fb[keep], el[keep]
-    t = sample_times(radar)
+    if single:  # drop the unsampled paths; in a batch they keep their column with amplitude 0
+        k1 = keep[0]
+        L, a, tau, fb, th, el, keep = L[:, k1], a[:, k1], tau[:, k1], fb[:, k1], th[k1], el[k1], keep[:, k1]
+    a = np.where(keep, a, 0.0)
+    g, p = L.shape
+    n = radar.n_samples
     # constant phase in cycles: f_c τ = L/λ (mod 1 first, float64), minus the residual video phase S τ²/2
     phase0 = np.mod(L / radar.wavelength, 1.0) - 0.5 * radar.chirp_slope * tau**2
-    cube = np.zeros((radar.n_samples, radar.n_channels), dtype=np.complex128)
-    for i in range(0, len(L), _CHUNK):
-        sl = slice(i, i + _CHUNK)
-        tones = np.exp(2j * np.pi * (np.outer(t, fb[sl]) + phase0[sl]))  # (N, P)
-        cube += (tones * a[sl]) @ steering_vector(radar, th[sl], el[sl]).T  # (P, M)
+    x = fb / radar.sample_rate  # beat frequency in cycles per sample, [0, 1) where kept
+    kb = max(1, int(np.ceil(np.sqrt(n))))  # inner block length K; ⌈N/K⌉ outer blocks
+    q_blocks = -(-n // kb)
+    r_idx = np.arange(kb, dtype=np.float64)[:, None]
+    q_idx = np.arange(q_blocks, dtype=np.float64)[:, None] * kb
+    steer = steering_vector(radar, th, el).T  # (P, M)
     c = coupling_matrix(radar)
-    return cube if c is None else cube @ c.T
+    if c is not None:
+        steer = steer @ c.T
+    if channels is not None:
+        steer = steer[:, channels]
+    steer = np.ascontiguousarray(steer)  # a transposed view would send the stacked matmul below off BLAS (~1000× slower)
+    nq = q_blocks * kb  # ≥ N rows: the few padding samples are computed and cropped at the end
+    cube = np.zeros((g, nq, steer.shape[1]), dtype=np.complex128)
+    pc = max(1, min(p, _CHUNK))  # paths per chunk, and cubes per chunk: the (G', N, P') temporary ≤ N·_CHUNK
+    gc = max(1, _CHUNK // pc)
+    for j in range(0, g, gc):
+        gs = slice(j, j + gc)
+        for i in range(0, p, pc):
+            sl = slice(i, i + pc)
+            xs = x[gs, sl][:, None, :]  # (G', 1, P')
+            inner = np.exp(2j * np.pi * (r_idx * xs + phase0[gs, sl][:, None, :])) * a[gs, sl][:, None, :]
+            outer = np.exp(2j * np.pi * np.mod(q_idx * xs, 1.0))  # (G', N/K, P'): e^{j2π x K q}
+            tones = (outer[:, :, None, :] * inner[:, None, :, :]).reshape(-1, xs.shape[2])  # (G'·N, P')
+            cube[gs] += (tones @ steer[sl]).reshape(len(xs), nq, -1)  # one gemm (P', M'), not G' small ones
+    cube = cube[:, :n] if nq > n else cube
+    return np.ascontiguousarray(cube[0] if single else cube)
 
 
 def add_noise(cube: np.ndarray, radar: RadarConfig, rng: np.random.Generator) -> np.ndarray:
@@ -101,6 +149,15 @@ def _window(name: str, n: int) -> np.ndarray:
     return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
 
 
+@functools.lru_cache(maxsize=32)
+def _range_taper(name: str, n: int) -> np.ndarray:
+    """Range window over its coherent gain, w / Σw, (n,) float64, read-only (cached per name and size)."""
+    w = _window(name, n)
+    w = w / w.sum()
+    w.flags.writeable = False
+    return w
+
+
 def processing_gain(radar: RadarConfig) -> float:
     """G_p = N·M / (ENBW_r·ENBW_a) (linear): RA-map SNR of a grid-centred point over per-sample SNR."""
     wr = _window(radar.range_window, radar.n_samples)
@@ -113,15 +170,27 @@ def noise_floor(radar: RadarConfig) -> float:
     return radar.noise_power / processing_gain(radar)
 
 
-def range_fft(cube: np.ndarray, radar: RadarConfig) -> np.ndarray:
+def range_fft(cube: np.ndarray, radar: RadarConfig, *, workers: int | None = None) -> np.ndarray:
     """Windowed range FFT along axis 0, cropped to radar.n_range_bins → (n_range_bins, n_channels) complex128.
 
     Normalised by the window's coherent gain Σw_r, so a tone of complex amplitude A at the
-    centre of bin k gives exactly A in bin k (bin k ↔ range k·ΔR, f_b = k/T).
+    centre of bin k gives exactly A in bin k (bin k ↔ range k·ΔR, f_b = k/T). cube: (n_samples, ...)
+    complex (any trailing axes). workers: threads of :func:`scipy.fft.fft` (None: one).
+
+    The columns are windowed and transformed in blocks of ~256 KiB (:data:`_FFT_BLOCK_BYTES`) that stay
+    in cache: the same numbers as one call over all columns (the transform of each column does not
+    depend on the others), ~1.8× faster for the (512, 2048) chirp-sequence cube.
     """
-    w = _window(radar.range_window, radar.n_samples)
-    spec = np.fft.fft(cube * (w / w.sum())[:, None], axis=0)
-    return spec[: radar.n_range_bins]
+    w = _range_taper(radar.range_window, radar.n_samples)
+    arr = np.asarray(cube)
+    cols = arr.reshape(arr.shape[0], -1)
+    n_out = radar.n_range_bins
+    out = np.empty((n_out, cols.shape[1]), dtype=np.result_type(cols.dtype, np.complex128))
+    step = max(8, _FFT_BLOCK_BYTES // (16 * max(1, arr.shape[0]))) * max(1, workers or 1)
+    for j in range(0, cols.shape[1], step):
+        tapered = cols[:, j:j + step] * w[:, None]  # a new array: the FFT may overwrite it
+        out[:, j:j + step] = scipy.fft.fft(tapered, axis=0, overwrite_x=True, workers=workers)[:n_out]
+    return out.reshape((n_out,) + arr.shape[1:])
 
 
 def beamform(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
