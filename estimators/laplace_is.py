@@ -13,7 +13,8 @@ log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_p
 4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (``fallback_n_walkers``
    × ``fallback_n_steps`` = 128 × 200, 60 burn-in: ESS 2031–2659 per wall at ≈ 100 ms on the
    calibration frames against 16 × 2000's 1045–2095 at ≈ 740 ms (2 shared cores); τ ≈ 8–11
-   steps, so the chain-length warning is set to 10·τ; :class:`estimators.emcee_wall.EmceeWallEstimator`)
+   steps; it warns below ``fallback_min_ess``; emcee's own defaults since issue 31;
+   :class:`estimators.emcee_wall.EmceeWallEstimator`)
    runs in-process on the same cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
    k̂ and ESS (``is_pareto_k``, ``is_ess``);
 5. otherwise the WallPosterior's mean and cov are the weighted moments (φ averaged on the
@@ -59,8 +60,8 @@ class LaplaceISParams(RobustWallParams):
     fallback_n_steps: int = Field(200, ge=20, le=10_000_000, description="emcee steps of the fallback, "
                                   "burn-in included")
     fallback_burn: int = Field(60, ge=0, le=10_000_000, description="emcee burn-in steps of the fallback")
-    fallback_min_tau_multiple: float = Field(10.0, ge=0, le=1e4, description="the fallback warns when its "
-                                             "chain after burn-in is shorter than this many τ")
+    fallback_min_ess: float = Field(400.0, ge=0, le=1e9, description="the fallback warns when its "
+                                    "effective sample size is below this (EmceeParams.min_ess)")
     max_samples: int = Field(4000, ge=10, le=10_000_000, description="resampled draws kept in "
                              "WallPosterior.samples")
 
@@ -108,7 +109,7 @@ class LaplaceISWallEstimator(WallEstimator):
                                               n_walkers=self.params.fallback_n_walkers,
                                               n_steps=self.params.fallback_n_steps, burn=self.params.fallback_burn,
                                               max_samples=self.params.max_samples,
-                                              min_tau_multiple=self.params.fallback_min_tau_multiple))
+                                              min_ess=self.params.fallback_min_ess))
 
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""
