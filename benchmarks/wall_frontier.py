@@ -1,6 +1,9 @@
 """Speed–accuracy frontier of the wall estimators (not a test).
 
-    .venv/bin/python benchmarks/wall_frontier.py [--frames 100] [--out benchmarks/out] [--quick]
+    PYTHONPATH=. .venv/bin/python benchmarks/wall_frontier.py [--frames 200] [--out benchmarks/out] [--quick]
+
+(PYTHONPATH=.: a script run puts benchmarks/ first on sys.path, so without it a worktree would
+benchmark the editable install's estimators instead of its own.)
 
 Every setting (lsq; casadi_map; casadi_map line-only; laplace_is — Laplace + Student-t importance
 sampling with its emcee fallback —; emcee at several (walkers, steps)) runs on

@@ -117,3 +117,17 @@ def test_student_t_draws_and_weighted_moments():
     assert np.allclose(m, mean, atol=0.003) and np.allclose(c, cov * nu / (nu - 2), rtol=0.05, atol=5e-4)
     m2 = np.einsum("ni,ij,nj->n", x - mean, np.linalg.inv(cov), x - mean)
     assert np.allclose(logq, -0.5 * (nu + 2) * np.log1p(m2 / nu))
+
+
+def test_a_wide_proposal_draws_more_batches_until_the_target_ess():
+    """A proposal 4× too wide: k̂ passes but 4000 draws give ESS < 1000, so further batches of the
+    same proposal join until ESS ≥ target_ess; with target_ess = 0 one batch is kept."""
+    det = _clean_wall()
+    (one,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "target_ess": 0, "seed": 3}).estimate(det)
+    assert one.info["n_draws"] == 4000 and one.info["ess"] < 1000 and one.info["pareto_k"] < 0.7, one.info
+    (w,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "seed": 3}).estimate(det)
+    assert w.info["fallback"] is None and w.info["ess"] >= 1000 and w.info["n_draws"] > 4000, w.info
+    assert w.info["n_draws"] % 4000 == 0 and w.info["n_draws"] <= 32_000
+    (good,) = LaplaceISWallEstimator({"seed": 3}).estimate(det)
+    assert good.info["n_draws"] == 4000  # the default proposal reaches the target in one batch
+    assert np.all(np.abs(w.mean - good.mean) < 0.2 * np.sqrt(np.diag(good.cov)))
