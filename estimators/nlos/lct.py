@@ -79,9 +79,9 @@ KERNEL_CHUNK_BYTES = 4 << 20  # v-frequency rows per kernel chunk: about this mu
 def lct_kernel_fft(m: int, n: int, dx: float, dy: float, bin_length: float, snr: float, dtype,
                    workers: int) -> np.ndarray:
     """Wiener inverse conj(K̂)/(|K̂|² + 1/snr) of the shell kernel on the (2m, 2n, 2n) padded grid,
-    as rfft along v (axis 0, m + 1 bins) and fft along y, x — returned as its quadrant
-    ky, kx = 0 … n, shape (m + 1, n + 1, n + 1); the full grid is even in ky and kx
-    (K̂[f, 2n − ky, kx] = K̂[f, ky, kx]), see :func:`apply_kernel`.
+    as rfft along v (axis 0, m + 1 bins) and fft along y, x — returned as its half ky = 0 … n,
+    shape (m + 1, n + 1, 2n); the full grid is even in ky (K̂[f, 2n − ky, kx] = K̂[f, ky, kx]),
+    see :func:`apply_kernel`.
 
     K(Δy, Δx, Δv) = 1 where Δv = m·(Δx² + Δy²)/(m·bin_length/2)² (in v bins, nearest) — the shell
     of O'Toole's ``definePsf`` written with the physical scan spacing dx, dy [m] — normalised to unit
@@ -107,7 +107,7 @@ def lct_kernel_fft(m: int, n: int, dx: float, dy: float, bin_length: float, snr:
     cdtype = np.result_type(dtype, np.complex64)
     rdtype = np.finfo(cdtype).dtype
     q = n + 1
-    out = np.empty((m + 1, q, q), dtype=cdtype)
+    out = np.empty((m + 1, q, 2 * n), dtype=cdtype)
     step = max(1, KERNEL_CHUNK_BYTES // (q * q * np.dtype(cdtype).itemsize))
     buf = np.zeros((step, q * q), dtype=cdtype)
     for f0 in range(0, m + 1, step):
@@ -121,27 +121,24 @@ def lct_kernel_fft(m: int, n: int, dx: float, dy: float, bin_length: float, snr:
         den += np.square(k.imag)
         den += rdtype.type(1.0 / snr)
         np.conjugate(k, out=k)
-        np.divide(k, den, out=out[f0:f1])
+        np.divide(k, den, out=out[f0:f1, :, :q])
+        out[f0:f1, :, q:] = out[f0:f1, :, n - 1:0:-1]  # kx = 2n − k ↔ k (even in kx)
     return out
 
 
-def apply_kernel(f: np.ndarray, quad: np.ndarray) -> None:
-    """f (F, 2n, 2n) *= the full even kernel whose quadrant (F, n + 1, n + 1) is ``quad``, in place
-    (four blocks: the mirrored rows/columns 2n − k, k = 1 … n − 1, reuse quadrant entries k)."""
-    q = quad.shape[1]
-    n = q - 1
-    mir = slice(n - 1, 0, -1)
-    f[:, :q, :q] *= quad
-    f[:, :q, q:] *= quad[:, :, mir]
-    f[:, q:, :q] *= quad[:, mir, :]
-    f[:, q:, q:] *= quad[:, mir, mir]
+def apply_kernel(f: np.ndarray, half: np.ndarray) -> None:
+    """f (F, 2n, 2n) *= the full even kernel whose half ky = 0 … n (F, n + 1, 2n) is ``half``, in
+    place (rows 2n − k, k = 1 … n − 1, reuse half's rows k)."""
+    q = half.shape[1]
+    f[:, :q] *= half
+    f[:, q:] *= half[:, q - 2:0:-1]
 
 
 class LCTSolver(NLOSSolver):
     """Light-cone transform (O'Toole 2018) on a (T, N, N) confocal volume; depth z = c·t/2.
 
-    Cost: FFTs of a (2T, 2N, 2N) volume; the kernel's Wiener inverse (its even quadrant,
-    (T + 1, N + 1, N + 1)) is cached for the last geometry (so a second volume of the same shape
+    Cost: FFTs of a (2T, 2N, 2N) volume; the kernel's Wiener inverse (its even half,
+    (T + 1, N + 1, 2N)) is cached for the last geometry (so a second volume of the same shape
     reuses it)."""
 
     Params = LCTParams

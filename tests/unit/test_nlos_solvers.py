@@ -232,7 +232,7 @@ def test_lct_kernel_quadrant_expands_to_the_full_grid_kernel(dtype, tol):
     m, n, dx, dy, bl = 96, 12, 0.07, 0.05, 0.02
     ref = _direct_kernel(m, n, dx, dy, bl, 0.8)
     quad = lct_kernel_fft(m, n, dx, dy, bl, 0.8, np.dtype(dtype), 1)
-    assert quad.shape == (m + 1, n + 1, n + 1)
+    assert quad.shape == (m + 1, n + 1, 2 * n)
     full = np.ones(ref.shape, dtype=quad.dtype)
     apply_kernel(full, quad)
     assert np.abs(full - ref).max() <= tol * np.abs(ref).max()
