@@ -2,7 +2,7 @@
 
 Alternates fresh processes running the LCT solver of ``--old`` (a git revision; its
 estimators/nlos/lct.py is loaded from ``git show``) and of the working tree on the volume of
-benchmarks/nlos_solvers.py, ``--repeats`` times each; prints per-stage-free totals (cold: first
+benchmarks/nlos_solvers.py, ``--repeats`` times each; prints the totals (cold: first
 call, FFT plans and kernel included; warm: median of 3 later calls), peak RSS, the medians and the
 old/new ratio, and the largest difference of the two outputs relative to their peak.
 
