@@ -26,8 +26,8 @@ the noise scale log s is sampled and marginalised):
 
 Defaults (issue 31 item 2): 128 walkers × 200 steps, 60 burn-in — many walkers and few steps,
 because emcee's per-step overhead (not the vectorised log-probability) dominated 16 × 2000: on
-the 200 frontier frames τ ≈ 8–12 steps, ESS 1342–… (median 2586) per wall at 144 ms, against
-16 × 2000's ESS 296–… (median 2128) at 601 ms, with the same coverage (90 % total 0.859 vs
+the 200 frontier frames τ ≈ 7–12 steps, ESS ≥ 1342 (median 2586) per wall at 144 ms, against
+16 × 2000's ESS ≥ 296 (median 2128) at 601 ms, with the same coverage (90 % total 0.859 vs
 0.855; benchmarks/wall_frontier.md, 2 loaded cores). The WallPosterior's
 mean and cov are the sample moments after burn-in; ``samples`` keeps up to ``max_samples`` evenly
 thinned draws of the wall parameters for propagation (Eq. 7) and plots.
