@@ -1,18 +1,22 @@
 """Speed–accuracy frontier of the wall estimators (not a test).
 
-    .venv/bin/python benchmarks/wall_frontier.py [--frames 100] [--out benchmarks/out] [--quick]
+    PYTHONPATH=. .venv/bin/python benchmarks/wall_frontier.py [--frames 200] [--out benchmarks/out] [--quick]
+
+(PYTHONPATH=.: a script run puts benchmarks/ first on sys.path, so without it a worktree would
+benchmark the editable install's estimators instead of its own.)
 
 Every setting (lsq; casadi_map; casadi_map line-only; laplace_is — Laplace + Student-t importance
 sampling with its emcee fallback —; emcee at several (walkers, steps)) runs on
 the same simulated frames (:func:`estimators.calibration.simulate_wall_scene`: one relay wall per
 frame, a line or — with probability ``--arc-fraction`` — an arc, 8–24 LOS detections of which
-``--outlier-fraction`` are clutter, 6 hidden points). Per setting: estimator time per frame [ms]
+``--outlier-fraction`` are clutter, 6 hidden points). Per setting: estimator time per wall [ms] (one wall per frame)
 (after ``warm_up``, which builds casadi's Functions for every cluster size once, and one untimed
 frame), wall-angle error
 [deg] and offset error [m] (median and mean), hidden-point Chamfer distance [m²] (median), the
 fraction of true hidden points inside their 50 % / 90 % credible ellipses (total: detection +
 wall uncertainty; wall-only: the true virtual points mirrored through the wall posterior), the
-number of frames whose wall was chosen as an arc, and how many emcee chains warned as too short;
+number of frames whose wall was chosen as an arc, the effective sample size per wall (median, min;
+lsq and casadi_map have none), how many walls warned ESS < min_ess, and laplace_is's emcee fallbacks;
 a second table splits the calibration by the true wall type (flat / curved).
 Writes wall_frontier.md, wall_frontier.csv and wall_frontier.png under --out and prints the table.
 """
@@ -40,15 +44,24 @@ SETTINGS = [
     ("casadi_map", "casadi_map", {}),
     ("casadi_map line-only", "casadi_map", {"models": ["line"]}),
     ("laplace_is", "laplace_is", {}),
-    ("emcee 16×300", "emcee", {"n_walkers": 16, "n_steps": 300, "burn": 100}),
-    ("emcee 16×600", "emcee", {"n_walkers": 16, "n_steps": 600, "burn": 150}),
+    ("emcee 128×200 (default)", "emcee", {}),
     ("emcee 64×300", "emcee", {"n_walkers": 64, "n_steps": 300, "burn": 100}),
-    ("emcee 128×200", "emcee", {"n_walkers": 128, "n_steps": 200, "burn": 60}),
-    ("emcee 16×2000 (default)", "emcee", {}),
-    ("emcee 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300}),
-    ("emcee stretch 32×2000", "emcee", {"n_walkers": 32, "n_steps": 2000, "burn": 300, "moves": "stretch"}),
+    ("emcee 16×300", "emcee", {"n_walkers": 16, "n_steps": 300, "burn": 100}),
+    ("emcee 16×2000 (old default)", "emcee", {"n_walkers": 16, "n_steps": 2000, "burn": 250}),
 ]
-QUICK = {"lsq", "casadi_map", "laplace_is", "emcee 16×300", "emcee 16×2000 (default)"}
+QUICK = {"lsq", "casadi_map", "laplace_is", "emcee 128×200 (default)"}
+
+
+class Recorder:
+    """Passes ``estimate`` through to a wall estimator and keeps every wall's info (ESS, fallback)."""
+
+    def __init__(self, est):
+        self.est, self.infos = est, []
+
+    def estimate(self, detections):
+        walls = self.est.estimate(detections)
+        self.infos.extend(w.info for w in walls)
+        return walls
 
 
 def make_frames(n: int, seed: int, arc_fraction: float, outlier_fraction: float):
@@ -70,8 +83,11 @@ def run_setting(name: str, kind: str, params: dict, frames) -> dict:
         warnings.simplefilter("always", RuntimeWarning)
         evaluate(est, rec, frames[0])  # warm-up of everything else
         n0 = len(caught)
+        est = Recorder(est)
         evals = [evaluate(est, rec, f) for f in frames]
-        n_warn = sum("chain after burn-in" in str(w.message) for w in caught[n0:])
+        n_warn = sum("effective sample size" in str(w.message) for w in caught[n0:])
+    ess = np.array([i.get("ess", np.nan) for i in est.infos], dtype=float)
+    n_fallback = sum(i.get("fallback") == "emcee" for i in est.infos)
     ang = np.array([e.angle_deg for e in evals])
     off = np.array([e.offset_m for e in evals])
     cd = np.array([e.cd for e in evals])
@@ -87,24 +103,32 @@ def run_setting(name: str, kind: str, params: dict, frames) -> dict:
         by_type.update({f"{label}_cov50_total": t_[0.5], f"{label}_cov90_total": t_[0.9],
                         f"{label}_cov50_wall": w_[0.5], f"{label}_cov90_wall": w_[0.9]})
     return {**by_type,
-        "setting": name, "ms_per_frame": 1e3 * float(np.mean([e.time_s for e in evals])),
+        "setting": name,
+        "ms_per_wall": 1e3 * float(np.sum([e.time_s for e in evals])) / max(len(est.infos), 1),
+        "ms_per_wall_med": 1e3 * float(np.median([e.time_s for e in evals])),
+        "ess_min": float(np.nanmin(ess)) if np.isfinite(ess).any() else float("nan"),
+        "ess_med": float(np.nanmedian(ess)) if np.isfinite(ess).any() else float("nan"),
+        "fallbacks": n_fallback,
         "angle_med_deg": float(np.median(ang)), "angle_mean_deg": float(np.mean(ang)),
         "offset_med_m": float(np.median(off)), "offset_mean_m": float(np.mean(off)),
         "cd_med_m2": float(np.median(cd)), "cov50_total": tot[0.5], "cov90_total": tot[0.9],
         "cov50_wall": wal[0.5], "cov90_wall": wal[0.9],
         "arc_chosen": f"{int(np.sum(chose_arc & truth_arc))}/{int(truth_arc.sum())} arcs, "
                       f"{int(np.sum(chose_arc & ~truth_arc))}/{int((~truth_arc).sum())} lines",
-        "short_chain_warnings": n_warn,
+        "low_ess_warnings": n_warn,
     }
 
 
-COLUMNS = [("setting", "setting", "{}"), ("ms_per_frame", "ms/frame", "{:.1f}"),
+COLUMNS = [("setting", "setting", "{}"), ("ms_per_wall", "ms/wall (mean)", "{:.1f}"),
+           ("ms_per_wall_med", "median", "{:.1f}"), ("ess_med", "ESS med", "{:.0f}"),
+           ("ess_min", "ESS min", "{:.0f}"),
            ("angle_med_deg", "angle err med [deg]", "{:.3f}"), ("angle_mean_deg", "mean", "{:.3f}"),
            ("offset_med_m", "offset err med [m]", "{:.3f}"), ("offset_mean_m", "mean", "{:.3f}"),
            ("cd_med_m2", "hidden CD med [m²]", "{:.3f}"),
            ("cov50_total", "in 50 % (total)", "{:.3f}"), ("cov90_total", "in 90 % (total)", "{:.3f}"),
            ("cov50_wall", "in 50 % (wall)", "{:.3f}"), ("cov90_wall", "in 90 % (wall)", "{:.3f}"),
-           ("arc_chosen", "arc chosen", "{}"), ("short_chain_warnings", "short-chain warnings", "{}")]
+           ("arc_chosen", "arc chosen", "{}"), ("low_ess_warnings", "ESS < min_ess warnings", "{}"),
+           ("fallbacks", "emcee fallbacks", "{}")]
 
 
 CAL_COLUMNS = [("setting", "setting", "{}")] + [
@@ -125,7 +149,7 @@ def frontier_png(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t = np.array([r["ms_per_frame"] for r in rows])
+    t = np.array([r["ms_per_wall"] for r in rows])
     panels = [("angle_med_deg", "median wall-angle error [deg]"), ("offset_med_m", "median offset error [m]"),
               ("cd_med_m2", "median hidden-point CD [m²]"), ("cov90_total", "coverage of 90 % ellipses")]
     fig, axes = plt.subplots(1, 4, figsize=(18, 4.4))
@@ -151,7 +175,7 @@ def frontier_png(rows: list[dict], path: Path) -> None:
             ax.plot(t[front], y[front], color="tab:red", lw=1, label="frontier")
             ax.legend(fontsize=7)
         ax.set_xscale("log")
-        ax.set_xlabel("time per frame [ms] (log)")
+        ax.set_xlabel("time per wall [ms] (log)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     fig.suptitle("wall estimators: speed vs accuracy on the same simulated frames")

@@ -15,17 +15,22 @@ the noise scale log s is sampled and marginalised):
 * every draw comes from ``seed``: the sampler's RandomState is set from the wall's generator
   (``sampler.random_state``), never from numpy's global state;
 * diagnostics in ``info``: integrated autocorrelation time τ per parameter
-  (``get_autocorr_time(quiet=True)`` after burn-in), effective sample size
-  ESS = n_walkers·(n_steps − burn)/max τ, mean acceptance fraction; a RuntimeWarning when the
-  chain after burn-in is shorter than ``min_tau_multiple``·max τ (moments then unreliable).
+  (``get_autocorr_time(tol=0)`` after burn-in — no emcee log line: the ESS check below replaces
+  emcee's 50·τ rule; emcee averages the autocorrelation over the
+  walkers, so 128 walkers estimate τ from a chain of ≈ 14 τ), effective sample size
+  ESS = n_walkers·(n_steps − burn)/max τ, mean acceptance fraction, ``ess_too_low``; a
+  RuntimeWarning when ESS < ``min_ess`` (default 400: the Monte-Carlo error of a posterior mean is
+  then ≤ σ/√400 = 5 % of its posterior σ, and of a 90 % region's coverage
+  √(0.9·0.1/400) ≈ 1.5 points). This replaces the earlier "chain ≥ 50·τ" rule, which the short
+  chains of many walkers below fail although their ESS is in the thousands.
 
-Defaults (16 walkers × 2000 steps, 250 burn-in): τ of the wall parameters reaches 25–28 steps on
-the simulated scenes, so the 1750 kept steps pass the 50·τ check with room; 1500 steps (the
-earlier default) kept 1250 and warned on both frames of the pipeline's default scene.
-benchmarks/wall_frontier.py (30 frames, 2 cores): 817 ms per wall (607 ms at 1500 steps), median
-angle error 0.86° (0.91°), 1 of 30 chains warned either way. The WallPosterior's mean
-and cov are the sample moments after burn-in; ``samples`` keeps up to
-``max_samples`` evenly thinned draws of the wall parameters for propagation (Eq. 7) and plots.
+Defaults (issue 31 item 2): 128 walkers × 200 steps, 60 burn-in — many walkers and few steps,
+because emcee's per-step overhead (not the vectorised log-probability) dominated 16 × 2000: on
+the 200 frontier frames τ ≈ 7–12 steps, ESS ≥ 1342 (median 2586) per wall at 144 ms, against
+16 × 2000's ESS ≥ 296 (median 2128) at 601 ms, with the same coverage (90 % total 0.859 vs
+0.855; benchmarks/wall_frontier.md, 2 loaded cores). The WallPosterior's
+mean and cov are the sample moments after burn-in; ``samples`` keeps up to ``max_samples`` evenly
+thinned draws of the wall parameters for propagation (Eq. 7) and plots.
 """
 from __future__ import annotations
 
@@ -48,16 +53,16 @@ from .robust import ClusterFit, RobustWallParams, estimate_walls, fit_cluster, p
 class EmceeParams(RobustWallParams):
     """Parameters of the emcee wall estimator (sampler settings + RobustWallParams)."""
 
-    n_walkers: int = Field(16, ge=8, le=4096, description="ensemble size (≥ 2× the parameter count)")
-    n_steps: int = Field(2000, ge=20, le=10_000_000, description="steps per walker, burn-in included")
-    burn: int = Field(250, ge=0, le=10_000_000, description="steps discarded as burn-in")
+    n_walkers: int = Field(128, ge=8, le=4096, description="ensemble size (≥ 2× the parameter count)")
+    n_steps: int = Field(200, ge=20, le=10_000_000, description="steps per walker, burn-in included")
+    burn: int = Field(60, ge=0, le=10_000_000, description="steps discarded as burn-in")
     moves: Literal["de", "stretch"] = Field("de", description="proposal: differential evolution (DEMove) "
                                             "or the stretch move")
     init_scale: float = Field(0.1, gt=0, le=10, description="radius of the initial ball in Laplace σ")
     max_samples: int = Field(4000, ge=10, le=10_000_000, description="posterior draws kept in "
                              "WallPosterior.samples")
-    min_tau_multiple: float = Field(50.0, ge=0, le=1e4, description="warn when the chain after burn-in is "
-                                    "shorter than this many autocorrelation times")
+    min_ess: float = Field(400.0, ge=0, le=1e9, description="warn when the effective sample size "
+                           "n_walkers·(n_steps − burn)/max τ is below this (0: never)")
 
     @model_validator(mode="after")
     def _burn_below_steps(self):
@@ -91,7 +96,8 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
     """Run emcee on ``lik`` from around ``fit`` (module doc).
 
     Returns (chain after burn-in (n_walkers·(n_steps − burn), P), thinned samples (≤ max_samples,
-    P), diagnostics {tau, ess, acceptance_fraction, n_walkers, n_steps, burn, moves, sample_time_s}).
+    P), diagnostics {tau, ess, acceptance_fraction, n_walkers, n_steps, burn, moves, ess_too_low, min_ess,
+    sample_time_s}).
     Raises InsufficientDataError when the MAP lies outside the sampler's support or no independent
     initial ensemble fits inside it (points that do not determine a wall direction).
     """
@@ -122,21 +128,21 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
     sampler.run_mcmc(start, params.n_steps, progress=False)
     chain = sampler.get_chain(discard=params.burn, flat=True)
     n_kept = params.n_steps - params.burn
-    tau = np.asarray(sampler.get_autocorr_time(discard=params.burn, quiet=True), dtype=np.float64)
+    tau = np.asarray(sampler.get_autocorr_time(discard=params.burn, quiet=True, tol=0), dtype=np.float64)
     tau_max = float(np.nanmax(tau)) if np.isfinite(tau).any() else float("inf")
     ess = float(n_walkers * n_kept / tau_max) if tau_max > 0 else float(len(chain))
     acc = float(np.mean(sampler.acceptance_fraction))
-    short = not (n_kept >= params.min_tau_multiple * tau_max)
-    if short:
+    low = not (ess >= params.min_ess)
+    if low:
         warnings.warn(
-            f"emcee wall posterior ({lik.model}): the chain after burn-in has {n_kept} steps, fewer than "
-            f"{params.min_tau_multiple:g}·τ = {params.min_tau_multiple * tau_max:.0f} (τ = "
-            f"{np.round(tau, 1).tolist()} steps, ESS ≈ {ess:.0f}); posterior moments and credible regions "
-            "are unreliable — raise n_steps (or use moves='de')", RuntimeWarning, stacklevel=3)
+            f"emcee wall posterior ({lik.model}): effective sample size {ess:.0f} < min_ess = "
+            f"{params.min_ess:g} ({n_walkers} walkers × {n_kept} steps after burn-in, τ = "
+            f"{np.round(tau, 1).tolist()} steps); posterior moments and credible regions are unreliable — "
+            "raise n_walkers or n_steps", RuntimeWarning, stacklevel=3)
     stride = max(1, int(np.ceil(len(chain) / params.max_samples)))
     diag = {"tau": tau.tolist(), "ess": ess, "acceptance_fraction": acc, "n_walkers": n_walkers,
             "n_steps": params.n_steps, "burn": params.burn, "moves": params.moves,
-            "chain_too_short": bool(short), "sample_time_s": time.perf_counter() - t0}
+            "ess_too_low": bool(low), "min_ess": params.min_ess, "sample_time_s": time.perf_counter() - t0}
     return chain, chain[::stride], diag
 
 

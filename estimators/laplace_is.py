@@ -8,12 +8,16 @@ log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_p
 1. proposal q = t_ν(θ̂, c²·H⁻¹): a Student-t (``proposal_dof`` ν, default 5) around the MAP θ̂
    with the Laplace covariance H⁻¹ scaled by ``proposal_scale`` c (heavy tails cover the t the
    unknown noise scale leaves in the wall parameters, :func:`estimators.map_solver.student_t_cov`);
-2. ``n_draws`` draws, self-normalised weights w ∝ p/q (:mod:`estimators.importance`);
+2. ``n_draws`` draws, self-normalised weights w ∝ p/q (:mod:`estimators.importance`); while the
+   ESS is below ``target_ess`` (1000) and k̂ passes, another batch of ``n_draws`` from the same
+   proposal joins them (pooled weights), up to ``max_draws`` — a wide but valid proposal (an arc's
+   curvature, a noise scale the data barely fix) then still reaches the target ESS;
 3. diagnostics: ESS = (Σw)²/Σw² and the PSIS Pareto k̂ of the largest weights;
 4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (``fallback_n_walkers``
    × ``fallback_n_steps`` = 128 × 200, 60 burn-in: ESS 2031–2659 per wall at ≈ 100 ms on the
    calibration frames against 16 × 2000's 1045–2095 at ≈ 740 ms (2 shared cores); τ ≈ 8–11
-   steps, so the chain-length warning is set to 10·τ; :class:`estimators.emcee_wall.EmceeWallEstimator`)
+   steps; it warns below ``fallback_min_ess``; emcee's own defaults since issue 31;
+   :class:`estimators.emcee_wall.EmceeWallEstimator`)
    runs in-process on the same cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
    k̂ and ESS (``is_pareto_k``, ``is_ess``);
 5. otherwise the WallPosterior's mean and cov are the weighted moments (φ averaged on the
@@ -44,7 +48,10 @@ from .robust import ClusterFit, RobustWallParams, estimate_walls, fit_cluster, p
 class LaplaceISParams(RobustWallParams):
     """Parameters of laplace_is (proposal, diagnostics thresholds, plus RobustWallParams)."""
 
-    n_draws: int = Field(4000, ge=100, le=10_000_000, description="importance draws per wall")
+    n_draws: int = Field(4000, ge=100, le=10_000_000, description="importance draws per wall (first batch)")
+    target_ess: float = Field(1000.0, ge=0, le=1e9, description="draw further batches of n_draws while the "
+                              "importance ESS is below this (and k̂ passes), up to max_draws")
+    max_draws: int = Field(32_000, ge=100, le=100_000_000, description="most importance draws per wall")
     proposal_dof: float = Field(5.0, gt=2, le=1e6, description="degrees of freedom ν of the Student-t "
                                 "proposal (large: Gaussian)")
     proposal_scale: float = Field(1.2, gt=0, le=100, description="factor c on the Laplace standard "
@@ -59,8 +66,8 @@ class LaplaceISParams(RobustWallParams):
     fallback_n_steps: int = Field(200, ge=20, le=10_000_000, description="emcee steps of the fallback, "
                                   "burn-in included")
     fallback_burn: int = Field(60, ge=0, le=10_000_000, description="emcee burn-in steps of the fallback")
-    fallback_min_tau_multiple: float = Field(10.0, ge=0, le=1e4, description="the fallback warns when its "
-                                             "chain after burn-in is shorter than this many τ")
+    fallback_min_ess: float = Field(400.0, ge=0, le=1e9, description="the fallback warns when its "
+                                    "effective sample size is below this (EmceeParams.min_ess)")
     max_samples: int = Field(4000, ge=10, le=10_000_000, description="resampled draws kept in "
                              "WallPosterior.samples")
 
@@ -79,19 +86,28 @@ def importance_posterior(fit: ClusterFit, params: LaplaceISParams, rng: np.rando
     t0 = time.perf_counter()
     lik = fit.likelihoods[fit.chosen]
     mf = fit.best
-    draws, log_q = student_t_draws(mf.theta, params.proposal_scale**2 * mf.cov, params.proposal_dof,
-                                   params.n_draws, rng)
-    try:
-        w = normalised_weights(lik.log_prob(draws), log_q)
-    except InputError as exc:
-        raise InsufficientDataError(
-            f"laplace_is wall posterior ({lik.model}): none of {params.n_draws} draws around the MAP "
-            f"θ = {np.round(mf.theta, 6).tolist()} lies inside the posterior's support") from exc
+    scale = params.proposal_scale**2 * mf.cov
+    draws, log_q = student_t_draws(mf.theta, scale, params.proposal_dof, params.n_draws, rng)
+    log_p = lik.log_prob(draws)
+    while True:
+        try:
+            w = normalised_weights(log_p, log_q)
+        except InputError as exc:
+            raise InsufficientDataError(
+                f"laplace_is wall posterior ({lik.model}): none of {len(draws)} draws around the MAP "
+                f"θ = {np.round(mf.theta, 6).tolist()} lies inside the posterior's support") from exc
+        if (effective_sample_size(w) >= params.target_ess or len(draws) + params.n_draws > params.max_draws
+                or pareto_k(w) > params.max_pareto_k):
+            break
+        # a valid but wide proposal: ESS grows in proportion to the draws (same proposal, pooled weights)
+        more, more_q = student_t_draws(mf.theta, scale, params.proposal_dof, params.n_draws, rng)
+        draws, log_q = np.concatenate([draws, more]), np.concatenate([log_q, more_q])
+        log_p = np.concatenate([log_p, lik.log_prob(more)])
     ess = effective_sample_size(w)
     k_hat = pareto_k(w)
     mean, cov = weighted_moments(draws, w, mf.theta)
     kept = draws[resample(w, params.max_samples, rng)]
-    diag = {"ess": ess, "pareto_k": k_hat, "is_ess": ess, "is_pareto_k": k_hat, "n_draws": params.n_draws,
+    diag = {"ess": ess, "pareto_k": k_hat, "is_ess": ess, "is_pareto_k": k_hat, "n_draws": len(draws),
             "proposal_dof": params.proposal_dof, "proposal_scale": params.proposal_scale,
             "sample_time_s": time.perf_counter() - t0}
     return mean, cov, kept, diag
@@ -108,7 +124,7 @@ class LaplaceISWallEstimator(WallEstimator):
                                               n_walkers=self.params.fallback_n_walkers,
                                               n_steps=self.params.fallback_n_steps, burn=self.params.fallback_burn,
                                               max_samples=self.params.max_samples,
-                                              min_tau_multiple=self.params.fallback_min_tau_multiple))
+                                              min_ess=self.params.fallback_min_ess))
 
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""

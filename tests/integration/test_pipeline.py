@@ -47,7 +47,7 @@ def _params_for(kind, name, tmp_path, request):
     if (kind, name) == ("backend", "dataset"):  # a tiny simulated dataset (its default path needs `make dataset`)
         return {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
     if (kind, name) == ("wall_estimator", "emcee"):  # a short chain: that it runs is the point here
-        return {"n_steps": 200, "burn": 50, "min_tau_multiple": 0.0}
+        return {"n_steps": 200, "burn": 50, "min_ess": 0.0}
     return {}
 
 

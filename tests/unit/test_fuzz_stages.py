@@ -235,7 +235,7 @@ def random_points(rng: np.random.Generator) -> Detections:
     return Detections.from_points(pts, label=label, range_std=rs, azimuth_std=az)
 
 
-ESTIMATOR_PARAMS = {"emcee": {"n_walkers": 8, "n_steps": 40, "burn": 10, "min_tau_multiple": 0.0}}
+ESTIMATOR_PARAMS = {"emcee": {"n_walkers": 8, "n_steps": 40, "burn": 10, "min_ess": 0.0}}
 
 
 @pytest.mark.parametrize("name", ESTIMATORS)

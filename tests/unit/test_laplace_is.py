@@ -12,7 +12,7 @@ from estimators.laplace_is import LaplaceISWallEstimator
 from xnlos_core import ConfigError
 from xnlos_core.testing import check_component
 
-from .test_wall_estimators import isotropic_detections, wall_points
+from .test_wall_estimators import EXACT, exact_line_posterior, isotropic_detections, wall_points
 
 
 def _clean_wall():
@@ -34,6 +34,24 @@ def test_posterior_agrees_with_emcee_on_a_clean_wall():
     assert abs(corr(a.cov) - corr(b.cov)) < 0.05
     assert a.samples.shape == (4000, 2)
     assert np.allclose(a.samples.mean(0), a.mean, atol=0.05 * sd)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_posterior_matches_the_exact_gaussian_line_posterior(seed):
+    """Issue 31 acceptance: on the exact Gaussian line model (the points of emcee's exact test) the
+    importance-weighted moments equal the quadrature posterior within Monte-Carlo error (ESS)."""
+    sigma = 0.15
+    pts = wall_points(np.random.default_rng(11), sigma=sigma)
+    (w,) = LaplaceISWallEstimator({**EXACT, "seed": seed}).estimate(isotropic_detections(pts, sigma))
+    assert w.info["fallback"] is None and w.info["pareto_k"] < 0.7
+    mean, cov = exact_line_posterior(pts, sigma, w.mean[0] + np.linspace(-0.2, 0.2, 40001))
+    sd = np.sqrt(np.diag(cov))
+    ess = w.info["ess"]
+    assert ess >= 1000, w.info
+    assert np.all(np.abs(w.mean - mean) < 5 * sd / np.sqrt(ess)), (w.mean, mean, sd)
+    assert np.allclose(np.diag(w.cov), np.diag(cov), rtol=6 * np.sqrt(2 / ess))
+    corr_is = w.cov[0, 1] / np.sqrt(w.cov[0, 0] * w.cov[1, 1])
+    assert abs(corr_is - cov[0, 1] / np.prod(sd)) < 0.06
 
 
 def test_reports_ess_and_pareto_k_and_is_seeded():
@@ -99,3 +117,17 @@ def test_student_t_draws_and_weighted_moments():
     assert np.allclose(m, mean, atol=0.003) and np.allclose(c, cov * nu / (nu - 2), rtol=0.05, atol=5e-4)
     m2 = np.einsum("ni,ij,nj->n", x - mean, np.linalg.inv(cov), x - mean)
     assert np.allclose(logq, -0.5 * (nu + 2) * np.log1p(m2 / nu))
+
+
+def test_a_wide_proposal_draws_more_batches_until_the_target_ess():
+    """A proposal 4× too wide: k̂ passes but 4000 draws give ESS < 1000, so further batches of the
+    same proposal join until ESS ≥ target_ess; with target_ess = 0 one batch is kept."""
+    det = _clean_wall()
+    (one,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "target_ess": 0, "seed": 3}).estimate(det)
+    assert one.info["n_draws"] == 4000 and one.info["ess"] < 1000 and one.info["pareto_k"] < 0.7, one.info
+    (w,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "seed": 3}).estimate(det)
+    assert w.info["fallback"] is None and w.info["ess"] >= 1000 and w.info["n_draws"] > 4000, w.info
+    assert w.info["n_draws"] % 4000 == 0 and w.info["n_draws"] <= 32_000
+    (good,) = LaplaceISWallEstimator({"seed": 3}).estimate(det)
+    assert good.info["n_draws"] == 4000  # the default proposal reaches the target in one batch
+    assert np.all(np.abs(w.mean - good.mean) < 0.2 * np.sqrt(np.diag(good.cov)))

@@ -50,11 +50,14 @@ def exact_line_posterior(points, sigma, phi_grid):
     return np.array([e_phi, e_b]), np.array([[var_phi, cov_pb], [cov_pb, var_b]])
 
 
-def test_emcee_matches_the_exact_gaussian_line_posterior():
+@pytest.mark.parametrize("chain", [{"n_walkers": 16, "n_steps": 2200, "burn": 200}, {}],
+                         ids=["16x2200", "defaults"])
+def test_emcee_matches_the_exact_gaussian_line_posterior(chain):
+    """Issue 31 #2: the many-walkers, few-steps defaults (128 × 200) as well as a long 16-walker chain."""
     rng = np.random.default_rng(11)
     sigma = 0.15
     pts = wall_points(rng, sigma=sigma)
-    est = EmceeWallEstimator({**EXACT, "n_walkers": 16, "n_steps": 2200, "burn": 200, "seed": 3})
+    est = EmceeWallEstimator({**EXACT, **chain, "seed": 3})
     (w,) = est.estimate(isotropic_detections(pts, sigma))
     phi0 = w.mean[0]
     mean, cov = exact_line_posterior(pts, sigma, phi0 + np.linspace(-0.2, 0.2, 40001))
@@ -67,7 +70,9 @@ def test_emcee_matches_the_exact_gaussian_line_posterior():
     corr_mc = w.cov[0, 1] / np.sqrt(w.cov[0, 0] * w.cov[1, 1])
     corr = cov[0, 1] / np.prod(sd)
     assert abs(corr_mc - corr) < 0.06
-    assert 0.1 < w.info["acceptance_fraction"] < 0.9 and not w.info["chain_too_short"]
+    assert 0.1 < w.info["acceptance_fraction"] < 0.9 and not w.info["ess_too_low"]
+    if not chain:
+        assert w.info["n_walkers"] == 128 and w.info["n_steps"] == 200 and ess >= 1000, w.info
     assert w.samples is not None and w.samples.shape[1] == 2
 
 
@@ -185,11 +190,17 @@ def test_emcee_is_reproducible_and_reports_diagnostics():
     assert len(a.info["tau"]) == 3  # φ, b, log s
 
 
-def test_emcee_warns_when_chains_are_too_short():
+def test_emcee_warns_when_the_effective_sample_size_is_too_low():
+    """16 walkers × 50 kept steps: ESS = 16·50/τ ≪ 400 (τ ≥ 4 here), so the ESS check warns; the
+    defaults on the same wall pass it silently."""
     det = isotropic_detections(wall_points(np.random.default_rng(0)), 0.15)
-    with pytest.warns(RuntimeWarning, match=r"shorter than|fewer than 50"):
-        (w,) = EmceeWallEstimator({"n_steps": 60, "burn": 10}).estimate(det)
-    assert w.info["chain_too_short"]
+    with pytest.warns(RuntimeWarning, match=r"effective sample size \d+ < min_ess = 400"):
+        (w,) = EmceeWallEstimator({"n_walkers": 16, "n_steps": 60, "burn": 10}).estimate(det)
+    assert w.info["ess_too_low"] and w.info["ess"] < 400 and w.info["min_ess"] == 400
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        (ok,) = EmceeWallEstimator({"seed": 4}).estimate(det)
+    assert not ok.info["ess_too_low"] and ok.info["ess"] >= 1000, ok.info
 
 
 def test_sampler_params_are_validated():

@@ -242,6 +242,6 @@ def test_emcee_on_a_blob_whose_map_leaves_the_support_is_a_clear_error():
           2.0599552802074648e-10]
     r, a = cartesian_to_polar(pts)
     det = Detections(r, a, np.zeros(9, np.int8), np.ones(9), np.full(9, 0.05), az)
-    est = EmceeWallEstimator({"n_walkers": 8, "n_steps": 40, "burn": 10, "min_tau_multiple": 0.0})
+    est = EmceeWallEstimator({"n_walkers": 8, "n_steps": 40, "burn": 10, "min_ess": 0.0})
     with pytest.raises(InsufficientDataError, match="outside the sampler's support.*do not determine a wall direction"):
         run(est, det)

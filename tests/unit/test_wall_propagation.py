@@ -106,7 +106,7 @@ def _calibration(est, n_frames, seed):
 def test_emcee_credible_regions_roughly_calibrated_fast():
     # 200 steps (τ ≈ 10, so ~15 τ after burn-in) give these 30 frames the coverage 400 steps give
     # (total 0.583 / 0.906 at 50 / 90 %) in under half the time; the slow test runs the default chain.
-    total, wall = _calibration(EmceeWallEstimator({"n_steps": 200, "burn": 50}), 30, seed=21)
+    total, wall = _calibration(EmceeWallEstimator({"n_walkers": 16, "n_steps": 200, "burn": 50}), 30, seed=21)
     # 30 frames: the wall-only fractions move together within a frame, so only coarse bounds here
     assert abs(total[0.5] - 0.5) < 0.15 and abs(total[0.9] - 0.9) < 0.1, total
     assert abs(wall[0.9] - 0.9) < 0.2, wall
@@ -158,12 +158,12 @@ def test_corner_plot_and_frame_figure(tmp_path):
     sc = simulate_wall_scene(np.random.default_rng(4), "arc", n_los=24, length=(16.0, 20.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        (w,) = EmceeWallEstimator({"n_steps": 300, "burn": 50}).estimate(sc.detections)
+        (w,) = EmceeWallEstimator({"n_walkers": 16, "n_steps": 300, "burn": 50}).estimate(sc.detections)
     p = plot_wall_corner(w, tmp_path / "corner.png")
     assert p.stat().st_size > 10_000
     lap = CasadiMapWallEstimator().estimate(sc.detections)[0]
     assert plot_wall_corner(lap, tmp_path / "corner_laplace.png").stat().st_size > 10_000
-    t = small_pipeline_table(wall_estimator={"name": "emcee", "params": {"n_steps": 200, "burn": 50}})
+    t = small_pipeline_table(wall_estimator={"name": "emcee", "params": {"n_walkers": 16, "n_steps": 200, "burn": 50}})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         (res,) = list(Pipeline(parse_pipeline(t, "t")).run())
