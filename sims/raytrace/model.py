@@ -32,7 +32,7 @@ from sims.paths import OTHER, PathList
 from sims.propagation import received_power
 from sims.render import render_paths
 
-from .tracer import Trace, bistatic_power, image_paths, shoot
+from .tracer import Trace, bistatic_power, image_paths_chains, shoot
 from .world import build_world, check_radar_outside
 
 
@@ -96,14 +96,17 @@ class RaytraceForwardModel(ForwardModel):
                       timestamp: float) -> None:
         p = self.params
         chains = {(): None, **tr.chains}
-        for j, (pts2, nrm2, rcs) in enumerate(centres):
-            z = min(p.radar_height, scene.objects[j].height)
-            pts = np.column_stack([pts2, np.full(len(pts2), z)])
-            nrm = np.column_stack([nrm2, np.zeros(len(nrm2))])
+        points = [np.column_stack([pts2, np.full(len(pts2), min(p.radar_height, scene.objects[j].height))])
+                  for j, (pts2, _, _) in enumerate(centres)]
+        normals = [np.column_stack([nrm2, np.zeros(len(nrm2))]) for _, nrm2, _ in centres]
+        # every centre through every chain, one cast per leg and chain length (not per object and chain)
+        images = image_paths_chains(world, origin, points, normals, chains, p.az_step)
+        for j, (_, _, rcs) in enumerate(centres):
+            pts = points[j]
             v3 = np.append(object_velocity(scene.objects[j], timestamp), 0.0)
             found = []  # (order, mask, one-way length, departure azimuth, complex α, one-way range rate)
-            for planes, sector in chains.items():
-                ok, virt, _, th = image_paths(world, origin, pts, nrm, planes, sector, p.az_step)
+            for planes in chains:
+                ok, virt, th = images[j, planes]
                 if not ok.any():
                     continue
                 rel = virt - origin
