@@ -101,21 +101,19 @@ class RaytraceForwardModel(ForwardModel):
         normals = [np.column_stack([nrm2, np.zeros(len(nrm2))]) for _, nrm2, _ in centres]
         # every centre through every chain, one cast per leg and chain length (not per object and chain)
         images = image_paths_chains(world, origin, points, normals, chains, p.az_step)
+        alphas = self._chain_alphas(world, radar, chains, images, [len(x) for x in points])
         for j, (_, _, rcs) in enumerate(centres):
             pts = points[j]
             v3 = np.append(object_velocity(scene.objects[j], timestamp), 0.0)
             found = []  # (order, mask, one-way length, departure azimuth, complex α, one-way range rate)
             for planes in chains:
-                ok, virt, th = images[j, planes]
+                ok, virt, _ = images[j, planes]
                 if not ok.any():
                     continue
                 rel = virt - origin
                 L = np.linalg.norm(rel, axis=1)
                 az = np.arctan2(rel[:, 1], rel[:, 0])
-                alpha = np.ones(len(pts), dtype=np.complex128)
-                for k, pl in enumerate(planes):
-                    spec = world.surfaces[world.plane_surface[pl]]
-                    alpha *= wall_em.specular_alpha(spec, radar, th[:, k], p.reflection)
+                alpha = alphas[j, planes]
                 # the virtual point moves at the velocity reflected like the point (image_paths' order)
                 vv = mirror_velocity(v3, [world.plane_n[pl] for pl in reversed(planes)]) if planes else v3
                 rate = rel @ vv / np.maximum(L, 1e-12)
@@ -144,6 +142,23 @@ class RaytraceForwardModel(ForwardModel):
                                   pos=u * (Lr / 2)[:, None], hidden=pts[both, :2], obj=j,
                                   centre=np.flatnonzero(both),
                                   velocity=u * ((ra[both] + rb[both]) / 2)[:, None])  # d(Lr/2)/dt along pos
+
+    def _chain_alphas(self, world, radar, chains, images, sizes) -> dict:
+        """{(j, planes): α (K_j,) complex}: the chain reflectivity Π_k α(θ_k) of object j's centres,
+        one α evaluation per chain and plane over every object's centres (element-wise, so the
+        same numbers as per object); chains no centre takes are left out."""
+        out = {}
+        for planes in chains:
+            if not any(images[j, planes][0].any() for j in range(len(sizes))):
+                continue
+            th = np.concatenate([images[j, planes][2] for j in range(len(sizes))])
+            alpha = np.ones(len(th), dtype=np.complex128)
+            for k, pl in enumerate(planes):
+                spec = world.surfaces[world.plane_surface[pl]]
+                alpha *= wall_em.specular_alpha(spec, radar, th[:, k], self.params.reflection)
+            for j, part in enumerate(np.split(alpha, np.cumsum(sizes)[:-1])):
+                out[j, planes] = part
+        return out
 
     def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                      index: int = 0) -> tuple[np.ndarray, Frame]:

@@ -25,7 +25,7 @@ h_r, and a wall hit stands for the wall's whole vertical extent (as in the image
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,6 +55,17 @@ class Trace:
 def _angle(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Incidence angle [rad] between directions d (N, 3) and plane normals n (N, 3)."""
     return np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, n)), 0.0, 1.0))
+
+
+def em_groups(world: World) -> np.ndarray:
+    """(n_surfaces,) int: surfaces with the same electromagnetic description (every
+    :class:`~sims.raytrace.world.Surface` field but name and relay) share a group number, so
+    α(θ) and σ⁰(θ), evaluated element by element, are computed once per group and bounce."""
+    if world.em_group is None:
+        keys: dict = {}
+        world.em_group = np.array([keys.setdefault(replace(s, name="", relay=False), len(keys))
+                                   for s in world.surfaces], dtype=np.int64)
+    return world.em_group
 
 
 def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndarray, *, az_step: float,
@@ -100,12 +111,13 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
         th_i = _angle(dirs[idx], n_tri)
         a_i = np.empty(len(idx), dtype=np.complex128)
         s0 = np.zeros(len(idx))
-        for s in np.unique(surf):
-            m = surf == s
-            spec = world.surfaces[s]
+        em = em_groups(world)[surf]  # surfaces of equal electromagnetics share one evaluation
+        for g in np.unique(em):
+            m = em == g
+            spec = world.surfaces[surf[m][0]]
             a_i[m] = wall_em.specular_alpha(spec, radar, th_i[m], reflection)
             if diffuse or spec.material is None:
-                s0[m] = wall_em.backscatter_sigma0(spec, radar, th_i[m]) * heights[s]
+                s0[m] = wall_em.backscatter_sigma0(spec, radar, th_i[m]) * heights[surf[m]]
         cos_i = np.maximum(np.cos(th_i), 1e-3)
         sigma = s0 * L * az_step / cos_i
         live = sigma > 0
