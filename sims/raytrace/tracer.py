@@ -142,14 +142,26 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
         length[idx] = L
         alpha[idx] *= a_i
         chain[idx, k] = world.tri_plane[tri]
-        for r in idx:
-            key = tuple(chain[r, :k + 1])
-            lo_hi = chains.setdefault(key, [az0[r], az0[r]])
-            lo_hi[0], lo_hi[1] = min(lo_hi[0], az0[r]), max(lo_hi[1], az0[r])
+        _add_chains(chains, chain[idx, :k + 1], az0[idx])
         alive = idx
     segs = np.concatenate([s for _, s in segments]) if segments else np.zeros((0, 2, 3))
     seg_order = np.concatenate([np.full(len(s), k) for k, s in segments]) if segments else np.zeros(0, dtype=int)
     return Trace(segs, seg_order, {k: tuple(v) for k, v in chains.items()}, world.caster.rays_cast, deepest)
+
+
+def _add_chains(chains: dict, keys: np.ndarray, az: np.ndarray) -> None:
+    """Record the chains (rows of keys (R, k) int, all of one length k, new to ``chains``) with the
+    azimuth range [min, max] [rad] of the rays az (R,) that took each, in order of first appearance
+    (the dict's order is the order image paths, hence rendered paths, are summed)."""
+    if not len(keys):
+        return
+    uniq, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    lo, hi = np.full(len(uniq), np.inf), np.full(len(uniq), -np.inf)
+    np.minimum.at(lo, inv, az)
+    np.maximum.at(hi, inv, az)
+    for g in np.argsort(first, kind="stable"):
+        chains[tuple(uniq[g])] = [lo[g], hi[g]]
 
 
 def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: np.ndarray,
