@@ -32,7 +32,7 @@ from sims.paths import OTHER, PathList
 from sims.propagation import received_power
 from sims.render import render_paths
 
-from .tracer import Trace, bistatic_power, image_paths_chains, shoot
+from .tracer import Trace, bistatic_power, em_groups, image_paths_chains, shoot
 from .world import build_world, check_radar_outside
 
 
@@ -145,19 +145,28 @@ class RaytraceForwardModel(ForwardModel):
 
     def _chain_alphas(self, world, radar, chains, images, sizes) -> dict:
         """{(j, planes): α (K_j,) complex}: the chain reflectivity Π_k α(θ_k) of object j's centres,
-        one α evaluation per chain and plane over every object's centres (element-wise, so the
-        same numbers as per object); chains no centre takes are left out."""
+        one α evaluation per group of electromagnetically equal surfaces over every object's
+        centres, chains and bounces (element-wise, so the same numbers as per object and chain);
+        chains no centre takes are left out."""
+        used = [c for c in chains if any(images[j, c][0].any() for j in range(len(sizes)))]
+        th = {c: np.concatenate([images[j, c][2] for j in range(len(sizes))]) for c in used}
+        # α(θ) of every (chain, bounce) column, one evaluation per group of equal surfaces
+        group = em_groups(world)
+        cols = [(c, k, int(world.plane_surface[pl])) for c in used for k, pl in enumerate(c)]
+        one = {}
+        for g in sorted({group[s] for _, _, s in cols}):
+            mine = [(c, k, s) for c, k, s in cols if group[s] == g]
+            a = wall_em.specular_alpha(world.surfaces[mine[0][2]], radar,
+                                       np.concatenate([th[c][:, k] for c, k, _ in mine]), self.params.reflection)
+            for (c, k, _), part in zip(mine, np.split(a, np.cumsum([len(th[c]) for c, _, _ in mine])[:-1])):
+                one[c, k] = part
         out = {}
-        for planes in chains:
-            if not any(images[j, planes][0].any() for j in range(len(sizes))):
-                continue
-            th = np.concatenate([images[j, planes][2] for j in range(len(sizes))])
-            alpha = np.ones(len(th), dtype=np.complex128)
-            for k, pl in enumerate(planes):
-                spec = world.surfaces[world.plane_surface[pl]]
-                alpha *= wall_em.specular_alpha(spec, radar, th[:, k], self.params.reflection)
+        for c in used:
+            alpha = np.ones(len(th[c]), dtype=np.complex128)
+            for k in range(len(c)):
+                alpha *= one[c, k]
             for j, part in enumerate(np.split(alpha, np.cumsum(sizes)[:-1])):
-                out[j, planes] = part
+                out[j, c] = part
         return out
 
     def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
