@@ -3,8 +3,9 @@
     .venv/bin/python benchmarks/dataset_speed.py [--maps 200] [--workers 2] [--config PATH] [--keep DIR]
 
 Prints maps/s, s/map, the projected time for the full 2,160-map dataset at the same rate, the
-bytes per map, and which forward model and scene generators (registered components named in
-``families``) were used. When the config's forward model is not registered, the ``image`` model
+bytes per map, the peak resident memory of this (writing) process and of the largest worker
+(``resource.getrusage``: run two sizes to see whether memory grows with the dataset), and which
+forward model and scene generators (registered components named in ``families``) were used. When the config's forward model is not registered, the ``image`` model
 stands in — the output says so.
 """
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -61,6 +63,10 @@ def main() -> None:
           f"{wall / n:.3f} s/map, {size / n / 1e6:.2f} MB/map on disk")
     print(f"projected for 2,160 maps at this rate: {2160 * wall / n / 60:.1f} min "
           f"(target < 10 min on 2 cores)")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+    child = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(f"peak RSS: writer process {peak:.0f} MiB, largest worker {child:.0f} MiB "
+          f"({n} maps, {size / 2**20:.0f} MiB of shards)")
     print(f"worker CPU time: {cpu / n:.3f} s/map (scene generation, forward model, encoding), so "
           f"{2160 * cpu / n / args.workers / 60:.1f} min of pure work for 2,160 maps on {args.workers} "
           f"idle cores; load average during the run: {os.getloadavg()[0]:.1f}")

@@ -7,7 +7,12 @@ how cost grows with scene size and bounce depth.
 2. Rays/s of the tracer's own casting (rays cast during a trace / trace time) against raw embreex
    first-hit casting of a big random batch on the same mesh, and the speed-up of embree over
    the pure-numpy trimesh backend on the same trace.
-3. Cost versus faces (a scene with N extra box obstacles) and versus the bounce cap.
+3. Batching (issue 31 item 5): on the dataset families' meshes, the image-path stage as it was
+   (one ``image_paths`` per object and chain: one cast per leg, ~16 rays a call) against the
+   batched ``image_paths_chains`` (one cast per leg and chain length), back to back in this
+   process, median of ``--repeats``: rays per call, casting Mrays/s (rays / time inside
+   ``Caster.first_hit``) and stage time; raw embreex on the same meshes for reference.
+4. Cost versus faces (a scene with N extra box obstacles) and versus the bounce cap.
 """
 from __future__ import annotations
 
@@ -56,6 +61,83 @@ def obstacle_scene(n_boxes: int, seed: int = 0) -> Scene:
     return base.model_copy(update={"walls": base.walls + stubs})
 
 
+def batching(scenes, radar: RadarConfig, repeats: int) -> None:
+    """Section 3 of the module doc: per-chain-and-object casts against batched casts."""
+    from sims.raytrace.caster import Caster
+    from sims.raytrace.tracer import image_paths, image_paths_chains
+
+    model = RaytraceForwardModel({"backend": "embree"})
+    h = model.params.radar_height
+    origin = np.array([0.0, 0.0, h])
+    cast_time = [0.0]
+    plain = Caster.first_hit
+
+    def timed(self, o, d):
+        t0 = time.perf_counter()
+        try:
+            return plain(self, o, d)
+        finally:
+            cast_time[0] += time.perf_counter() - t0
+
+    cases = []
+    for sc in scenes:
+        world, _, tr, _ = model.trace(sc, radar)
+        pts, nrm = [], []
+        for o in sc.objects:
+            p2, n2, _ = o.scatterers(0.0)
+            pts.append(np.column_stack([p2, np.full(len(p2), min(h, o.height))]))
+            nrm.append(np.column_stack([n2, np.zeros(len(n2))]))
+        cases.append((world, {(): None, **tr.chains}, pts, nrm))
+
+    def per_chain():
+        for world, chains, pts, nrm in cases:
+            for j in range(len(pts)):
+                for c, sector in chains.items():
+                    image_paths(world, origin, pts[j], nrm[j], c, sector, model.params.az_step)
+
+    def batched():
+        for world, chains, pts, nrm in cases:
+            image_paths_chains(world, origin, pts, nrm, chains, model.params.az_step)
+
+    Caster.first_hit = timed
+    try:
+        rows = {}
+        for name, fn in (("per object and chain (before)", per_chain), ("batched (after)", batched)):
+            rows[name] = []
+        for _ in range(repeats):  # alternate, so both see the same load
+            for name, fn in (("per object and chain (before)", per_chain), ("batched (after)", batched)):
+                for w, *_ in cases:
+                    w.caster.rays_cast = w.caster.casts = 0
+                cast_time[0] = 0.0
+                t0 = time.perf_counter()
+                fn()
+                rows[name].append((time.perf_counter() - t0, cast_time[0], sum(w.caster.rays_cast for w, *_ in cases),
+                                   sum(w.caster.casts for w, *_ in cases)))
+    finally:
+        Caster.first_hit = plain
+    # raw embreex on the same meshes: a big batch of random horizontal-ish rays from the radar
+    rng = np.random.default_rng(2)
+    n = 100_000
+    d = rng.standard_normal((n, 3))
+    d[:, 2] *= 0.05
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.tile(origin, (n, 1))
+    raw = statistics.median(n / _median_time(lambda: w.caster._ray.intersects_first(o, d), repeats)
+                            for w, *_ in cases)
+    print(f"\nimage-path stage on {len(cases)} dataset maps (median of {repeats}, alternating):")
+    print(f"{'':>30} {'rays':>7} {'calls':>6} {'rays/call':>9} {'cast Mrays/s':>12} {'stage ms/map':>12}")
+    for name, rs in rows.items():
+        t = statistics.median(r[0] for r in rs)
+        tc = statistics.median(r[1] for r in rs)
+        rays, calls = rs[0][2], rs[0][3]
+        print(f"{name:>30} {rays:>7} {calls:>6} {rays / max(calls, 1):>9.1f} {rays / tc / 1e6:>12.3f} "
+              f"{1e3 * t / len(cases):>12.2f}")
+    before = statistics.median(r[0] for r in rows["per object and chain (before)"])
+    after = statistics.median(r[0] for r in rows["batched (after)"])
+    print(f"raw embreex first-hit on the same meshes (100k rays, median over maps): {raw / 1e6:.2f} Mrays/s; "
+          f"stage speed-up {before / after:.2f}x")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--maps", type=int, default=24)
@@ -101,6 +183,9 @@ def main(argv=None) -> int:
         print(f"pure-numpy backend: {1e3 * t_t:.1f} ms per trace → embree speed-up {t_t / t_e:.1f}×")
     else:
         print("embreex not installed: throughput comparison skipped")
+
+    if embree_available():
+        batching(scenes, radar, args.repeats)
 
     print(f"\n{'extra boxes':>11} {'faces':>6} {'trace ms':>9}")
     for nb in (0, 50, 200, 800):

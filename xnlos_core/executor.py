@@ -2,6 +2,10 @@
 
 ``map_unordered`` yields ``(i, result)`` as jobs finish. A scheduler address (e.g.
 ``tcp://127.0.0.1:8786``) sends the jobs to a Dask distributed cluster; nothing home-made.
+
+The executor keeps no reference to a result once it is yielded (its future is dropped, on
+Dask released), so a consumer that writes and forgets each result runs in flat memory however
+many jobs there are (``xnlos simulate``: one shard's bytes at a time, not the whole dataset's).
 """
 from __future__ import annotations
 
@@ -34,7 +38,11 @@ def map_unordered(fn: Callable, items: Sequence[Any], *, scheduler: str | None =
     try:
         futures = {pool.submit(fn, item): i for i, item in enumerate(items)}
         for fut in as_completed(futures):
-            yield futures[fut], fut.result()
+            # as_completed drops its reference as it yields; ours goes now and the result is handed
+            # over through a box, so a suspended generator frame holds neither
+            i, box = futures.pop(fut), [fut.result()]
+            del fut
+            yield i, box.pop()
     finally:
         # a consumer that stops early (an error, a closed generator) must not wait for the rest
         pool.shutdown(wait=True, cancel_futures=True)
@@ -54,7 +62,12 @@ def _dask(fn, items, address: str):
         with client.as_current():  # as_completed looks the client up; it is not the global default
             futures = client.map(fn, list(items), pure=False)
             index = {f.key: i for i, f in enumerate(futures)}
-            for fut in dask_completed(futures):
-                yield index[fut.key], fut.result()
+            pending = dask_completed(futures)
+            del futures  # as_completed holds each future until it is yielded; then it is released
+            for fut in pending:
+                i, box = index.pop(fut.key), [fut.result()]
+                fut.release()
+                del fut
+                yield i, box.pop()
     finally:
         client.close()

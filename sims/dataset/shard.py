@@ -43,7 +43,10 @@ truth_* , hidden_velocity, mnlos_velocity   only when frames_per_scene > 1: per-
 The optional members are added only when they apply, so a still dataset without Doppler is the same
 bytes as before they existed.
 
-Zip members carry a fixed timestamp, so the same shard is the same bytes on any machine run.
+Zip members carry a fixed timestamp and frame ``meta`` loses its wall-clock entries
+(:data:`TIMING_KEYS`, e.g. the ray tracer's ``trace_s``), so the same config and seed give the same
+shard bytes on every run and machine. Timing lives in ``completed.jsonl`` (``seconds``,
+``cpu_seconds``), which no shard or dataset digest covers.
 """
 from __future__ import annotations
 
@@ -71,6 +74,8 @@ from .truth import meta_from_arrays, object_rows, truth_arrays
 SCHEMA_VERSION = 2
 READABLE_VERSIONS = (1, 2)  # version 1: no per-point SNR (read as NaN)
 _ZIP_TIME = (1980, 1, 1, 0, 0, 0)
+# Frame meta entries that measure wall-clock time: left out of shards (they differ on every run).
+TIMING_KEYS = frozenset({"trace_s"})
 
 
 class DatasetError(XnlosError, ValueError):
@@ -223,7 +228,8 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
         "walls": cat(walls, (0, 2, 2)),
         "wall_names": np.array([s.name for g in gts for s in g.walls], dtype=str),
         "wall_offsets": _offsets([len(g.walls) for g in gts]),
-        "frame_meta_json": np.array(json.dumps([fr.meta for fr in frames], sort_keys=True, default=json_default)),
+        "frame_meta_json": np.array(json.dumps([{k: v for k, v in fr.meta.items() if k not in TIMING_KEYS}
+                                                for fr in frames], sort_keys=True, default=json_default)),
     }
     if frames and all(fr.ra_map.velocity is not None for fr in frames):  # Doppler maps (issue 28)
         out["ra_velocity"] = np.stack([fr.ra_map.velocity for fr in frames]).astype(np.float32)

@@ -26,7 +26,8 @@ class Caster:
     """Casts rays against a fixed ``trimesh.Trimesh`` (faces' unit normals and a vertex per face kept).
 
     backend: "embree" (embreex), "triangle" (trimesh.ray.ray_triangle, numpy + rtree) or "auto"
-    (embree when available). ``rays_cast`` counts every ray for throughput figures.
+    (embree when available). ``rays_cast`` counts every ray and ``casts`` every call that cast at
+least one ray (rays per call: how well the tracer batches), for throughput figures.
     """
 
     def __init__(self, mesh, backend: Backend = "auto"):
@@ -47,6 +48,7 @@ class Caster:
         self.normals = np.asarray(mesh.face_normals, dtype=np.float64) if self.n_faces else np.zeros((0, 3))
         self.anchor = np.asarray(mesh.vertices, dtype=np.float64)[mesh.faces[:, 0]] if self.n_faces else np.zeros((0, 3))
         self.rays_cast = 0
+        self.casts = 0
 
     def first_hit(self, origins, directions) -> tuple[np.ndarray, np.ndarray]:
         """(tri (N,) int, −1 for a miss; dist (N,) float64 [m] along the unit direction, inf for a miss)."""
@@ -55,6 +57,7 @@ class Caster:
         self.rays_cast += len(o)
         if self._ray is None or len(o) == 0:
             return np.full(len(o), -1, dtype=np.int64), np.full(len(o), np.inf)
+        self.casts += 1
         tri = np.asarray(self._ray.intersects_first(o, d), dtype=np.int64)
         dist = np.full(len(o), np.inf)
         hit = tri >= 0

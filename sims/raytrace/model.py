@@ -32,7 +32,7 @@ from sims.paths import OTHER, PathList
 from sims.propagation import received_power
 from sims.render import render_paths
 
-from .tracer import Trace, bistatic_power, image_paths, shoot
+from .tracer import Trace, bistatic_power, em_groups, image_paths_chains, shoot
 from .world import build_world, check_radar_outside
 
 
@@ -96,23 +96,24 @@ class RaytraceForwardModel(ForwardModel):
                       timestamp: float) -> None:
         p = self.params
         chains = {(): None, **tr.chains}
-        for j, (pts2, nrm2, rcs) in enumerate(centres):
-            z = min(p.radar_height, scene.objects[j].height)
-            pts = np.column_stack([pts2, np.full(len(pts2), z)])
-            nrm = np.column_stack([nrm2, np.zeros(len(nrm2))])
+        points = [np.column_stack([pts2, np.full(len(pts2), min(p.radar_height, scene.objects[j].height))])
+                  for j, (pts2, _, _) in enumerate(centres)]
+        normals = [np.column_stack([nrm2, np.zeros(len(nrm2))]) for _, nrm2, _ in centres]
+        # every centre through every chain, one cast per leg and chain length (not per object and chain)
+        images = image_paths_chains(world, origin, points, normals, chains, p.az_step)
+        alphas = self._chain_alphas(world, radar, chains, images, [len(x) for x in points])
+        for j, (_, _, rcs) in enumerate(centres):
+            pts = points[j]
             v3 = np.append(object_velocity(scene.objects[j], timestamp), 0.0)
             found = []  # (order, mask, one-way length, departure azimuth, complex α, one-way range rate)
-            for planes, sector in chains.items():
-                ok, virt, _, th = image_paths(world, origin, pts, nrm, planes, sector, p.az_step)
+            for planes in chains:
+                ok, virt, _ = images[j, planes]
                 if not ok.any():
                     continue
                 rel = virt - origin
                 L = np.linalg.norm(rel, axis=1)
                 az = np.arctan2(rel[:, 1], rel[:, 0])
-                alpha = np.ones(len(pts), dtype=np.complex128)
-                for k, pl in enumerate(planes):
-                    spec = world.surfaces[world.plane_surface[pl]]
-                    alpha *= wall_em.specular_alpha(spec, radar, th[:, k], p.reflection)
+                alpha = alphas[j, planes]
                 # the virtual point moves at the velocity reflected like the point (image_paths' order)
                 vv = mirror_velocity(v3, [world.plane_n[pl] for pl in reversed(planes)]) if planes else v3
                 rate = rel @ vv / np.maximum(L, 1e-12)
@@ -141,6 +142,32 @@ class RaytraceForwardModel(ForwardModel):
                                   pos=u * (Lr / 2)[:, None], hidden=pts[both, :2], obj=j,
                                   centre=np.flatnonzero(both),
                                   velocity=u * ((ra[both] + rb[both]) / 2)[:, None])  # d(Lr/2)/dt along pos
+
+    def _chain_alphas(self, world, radar, chains, images, sizes) -> dict:
+        """{(j, planes): α (K_j,) complex}: the chain reflectivity Π_k α(θ_k) of object j's centres,
+        one α evaluation per group of electromagnetically equal surfaces over every object's
+        centres, chains and bounces (element-wise, so the same numbers as per object and chain);
+        chains no centre takes are left out."""
+        used = [c for c in chains if any(images[j, c][0].any() for j in range(len(sizes)))]
+        th = {c: np.concatenate([images[j, c][2] for j in range(len(sizes))]) for c in used}
+        # α(θ) of every (chain, bounce) column, one evaluation per group of equal surfaces
+        group = em_groups(world)
+        cols = [(c, k, int(world.plane_surface[pl])) for c in used for k, pl in enumerate(c)]
+        one = {}
+        for g in sorted({group[s] for _, _, s in cols}):
+            mine = [(c, k, s) for c, k, s in cols if group[s] == g]
+            a = wall_em.specular_alpha(world.surfaces[mine[0][2]], radar,
+                                       np.concatenate([th[c][:, k] for c, k, _ in mine]), self.params.reflection)
+            for (c, k, _), part in zip(mine, np.split(a, np.cumsum([len(th[c]) for c, _, _ in mine])[:-1])):
+                one[c, k] = part
+        out = {}
+        for c in used:
+            alpha = np.ones(len(th[c]), dtype=np.complex128)
+            for k in range(len(c)):
+                alpha *= one[c, k]
+            for j, part in enumerate(np.split(alpha, np.cumsum(sizes)[:-1])):
+                out[j, c] = part
+        return out
 
     def simulate_adc(self, scene, radar: RadarConfig, rng: np.random.Generator, timestamp: float = 0.0,
                      index: int = 0) -> tuple[np.ndarray, Frame]:

@@ -25,7 +25,7 @@ h_r, and a wall hit stands for the wall's whole vertical extent (as in the image
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,6 +55,17 @@ class Trace:
 def _angle(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Incidence angle [rad] between directions d (N, 3) and plane normals n (N, 3)."""
     return np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", d, n)), 0.0, 1.0))
+
+
+def em_groups(world: World) -> np.ndarray:
+    """(n_surfaces,) int: surfaces with the same electromagnetic description (every
+    :class:`~sims.raytrace.world.Surface` field but name and relay) share a group number, so
+    α(θ) and σ⁰(θ), evaluated element by element, are computed once per group and bounce."""
+    if world.em_group is None:
+        keys: dict = {}
+        world.em_group = np.array([keys.setdefault(replace(s, name="", relay=False), len(keys))
+                                   for s in world.surfaces], dtype=np.int64)
+    return world.em_group
 
 
 def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndarray, *, az_step: float,
@@ -100,12 +111,13 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
         th_i = _angle(dirs[idx], n_tri)
         a_i = np.empty(len(idx), dtype=np.complex128)
         s0 = np.zeros(len(idx))
-        for s in np.unique(surf):
-            m = surf == s
-            spec = world.surfaces[s]
+        em = em_groups(world)[surf]  # surfaces of equal electromagnetics share one evaluation
+        for g in np.unique(em):
+            m = em == g
+            spec = world.surfaces[surf[m][0]]
             a_i[m] = wall_em.specular_alpha(spec, radar, th_i[m], reflection)
             if diffuse or spec.material is None:
-                s0[m] = wall_em.backscatter_sigma0(spec, radar, th_i[m]) * heights[s]
+                s0[m] = wall_em.backscatter_sigma0(spec, radar, th_i[m]) * heights[surf[m]]
         cos_i = np.maximum(np.cos(th_i), 1e-3)
         sigma = s0 * L * az_step / cos_i
         live = sigma > 0
@@ -130,14 +142,26 @@ def shoot(world: World, radar: RadarConfig, origin: np.ndarray, heights: np.ndar
         length[idx] = L
         alpha[idx] *= a_i
         chain[idx, k] = world.tri_plane[tri]
-        for r in idx:
-            key = tuple(chain[r, :k + 1])
-            lo_hi = chains.setdefault(key, [az0[r], az0[r]])
-            lo_hi[0], lo_hi[1] = min(lo_hi[0], az0[r]), max(lo_hi[1], az0[r])
+        _add_chains(chains, chain[idx, :k + 1], az0[idx])
         alive = idx
     segs = np.concatenate([s for _, s in segments]) if segments else np.zeros((0, 2, 3))
     seg_order = np.concatenate([np.full(len(s), k) for k, s in segments]) if segments else np.zeros(0, dtype=int)
     return Trace(segs, seg_order, {k: tuple(v) for k, v in chains.items()}, world.caster.rays_cast, deepest)
+
+
+def _add_chains(chains: dict, keys: np.ndarray, az: np.ndarray) -> None:
+    """Record the chains (rows of keys (R, k) int, all of one length k, new to ``chains``) with the
+    azimuth range [min, max] [rad] of the rays az (R,) that took each, in order of first appearance
+    (the dict's order is the order image paths, hence rendered paths, are summed)."""
+    if not len(keys):
+        return
+    uniq, first, inv = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    inv = inv.reshape(-1)
+    lo, hi = np.full(len(uniq), np.inf), np.full(len(uniq), -np.inf)
+    np.minimum.at(lo, inv, az)
+    np.maximum.at(hi, inv, az)
+    for g in np.argsort(first, kind="stable"):
+        chains[tuple(uniq[g])] = [lo[g], hi[g]]
 
 
 def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: np.ndarray,
@@ -146,26 +170,82 @@ def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: n
 
     Returns (ok (K,) bool, virtual (K, 3) o', reflection points (K, k, 3), incidence angles (K, k)
     [rad]). ``normals`` (K, 3): outward normals of the centres (zeros: omnidirectional).
+    One chain of :func:`image_paths_rows` (every row the same planes and sector).
     """
     K, k = len(points), len(planes)
+    rows = np.broadcast_to(np.asarray(planes, dtype=np.int64).reshape(1, k), (K, k))
+    sec = None if sector is None else np.broadcast_to(np.asarray(sector, dtype=np.float64).reshape(1, 2), (K, 2))
+    return image_paths_rows(world, origin, points, normals, rows, sec, az_step)
+
+
+def image_paths_chains(world: World, origin: np.ndarray, points: list[np.ndarray], normals: list[np.ndarray],
+                       chains: dict[tuple, tuple | None], az_step: float) -> dict[tuple[int, tuple], tuple]:
+    """Step 3 for every object's centres through every chain, batched: all (centre, chain) rows of
+    one chain length go through :func:`image_paths_rows` together (k + 1 casts per length).
+
+    points[j] (K_j, 3), normals[j] (K_j, 3): object j's scattering centres; chains: planes →
+    departure sector (None: no check). Returns {(j, planes): (ok, virtual, incidence angles)} with
+    the arrays of :func:`image_paths` for object j and that chain.
+    """
+    out: dict[tuple[int, tuple], tuple] = {}
+    sizes = [len(x) for x in points]
+    if not sum(sizes):
+        return {(j, c): (np.zeros(0, dtype=bool), np.zeros((0, 3)), np.zeros((0, len(c))))
+                for j in range(len(points)) for c in chains}
+    for k in sorted({len(c) for c in chains}):
+        group = [c for c in chains if len(c) == k]
+        pts = np.concatenate([x for _ in group for x in points])
+        nrm = np.concatenate([x for _ in group for x in normals])
+        rows = np.concatenate([np.broadcast_to(np.asarray(c, dtype=np.int64).reshape(1, k), (sum(sizes), k))
+                               for c in group])
+        sec = None
+        if any(chains[c] is not None for c in group):
+            sec = np.concatenate([np.broadcast_to(np.asarray(chains[c] if chains[c] is not None else (np.nan, np.nan),
+                                                             dtype=np.float64).reshape(1, 2), (sum(sizes), 2))
+                                  for c in group])
+        ok, virt, _, th = image_paths_rows(world, origin, pts, nrm, rows, sec, az_step)
+        at = 0
+        for c in group:
+            for j, n in enumerate(sizes):
+                sl = slice(at, at + n)
+                out[j, c] = (ok[sl], virt[sl], th[sl])
+                at += n
+    return out
+
+
+def image_paths_rows(world: World, origin: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                     planes: np.ndarray, sectors: np.ndarray | None, az_step: float):
+    """Step 3 for K (centre, chain) rows at once, every chain of the same length k.
+
+    points (K, 3), normals (K, 3) as :func:`image_paths`; planes (K, k) int: row r's chain;
+    sectors (K, 2) [rad] or None: row r's departure sector (NaN: no sector check, the direct
+    view). Each leg of all rows is one cast (k + 1 casts, however many centres and chains), the
+    batching that keeps embree busy. Row results equal :func:`image_paths` per chain: the
+    arithmetic is row-wise (the same products and sums per row).
+    """
+    K, k = planes.shape
+    pd = world.plane_d[planes]  # (K, k)
     virt = points.copy()
-    for pl in reversed(planes):
-        virt = reflect_points(virt, world.plane_n[pl], world.plane_d[pl])
+    for j in reversed(range(k)):
+        virt = _reflect_rows(world, virt, planes[:, j])
     rel = virt - origin
     ok = np.ones(K, dtype=bool)
-    if sector is not None:
+    if sectors is not None:
         az = np.arctan2(rel[:, 1], rel[:, 0])
-        ok &= (az >= sector[0] - 2 * az_step) & (az <= sector[1] + 2 * az_step)
+        lo, hi = sectors[:, 0], sectors[:, 1]
+        free = np.isnan(lo)
+        with np.errstate(invalid="ignore"):
+            ok &= free | ((az >= lo - 2 * az_step) & (az <= hi + 2 * az_step))
     q = np.zeros((K, k, 3))
     th = np.zeros((K, k))
     cur = np.repeat(origin[None, :], K, axis=0)
     target = virt.copy()
-    for j, pl in enumerate(planes):
-        n, d = world.plane_n[pl], world.plane_d[pl]
+    for j in range(k):
+        pl, d = planes[:, j], pd[:, j]
         seg = target - cur
-        denom = seg @ n
+        denom = _plane_dot(world, seg, pl)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = -(cur @ n + d) / denom
+            t = -(_plane_dot(world, cur, pl) + d) / denom
         ok &= np.isfinite(t) & (t > 1e-9) & (t < 1 - 1e-9)
         t = np.where(ok, t, 0.5)
         q[:, j] = cur + t[:, None] * seg
@@ -175,12 +255,13 @@ def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: n
         skip = START if j > 0 else 0.0
         tri, hit = world.caster.first_hit(cur[ok] + skip * u[ok], u[ok])
         hit = hit + skip
-        good = (tri >= 0) & (world.tri_plane[np.maximum(tri, 0)] == pl) & (np.abs(hit - dist[ok]) < 1e-4 + 1e-6 * dist[ok])
+        good = ((tri >= 0) & (world.tri_plane[np.maximum(tri, 0)] == planes[ok, j])
+                & (np.abs(hit - dist[ok]) < 1e-4 + 1e-6 * dist[ok]))
         sub = np.flatnonzero(ok)
         ok[sub[~good]] = False
-        th[:, j] = np.arccos(np.clip(np.abs(u @ n), 0.0, 1.0))
+        th[:, j] = np.arccos(np.clip(np.abs(_plane_dot(world, u, pl)), 0.0, 1.0))
         cur = q[:, j]
-        target = reflect_points(target, n, d)
+        target = _reflect_rows(world, target, pl)
     # last leg: from the last reflection point (or the radar) to the centre, unobstructed, facing
     leg = points - cur
     dist = np.linalg.norm(leg, axis=1)
@@ -193,6 +274,23 @@ def image_paths(world: World, origin: np.ndarray, points: np.ndarray, normals: n
         sub = np.flatnonzero(ok)
         ok[sub[hit + skip < dist[ok] - 1e-6]] = False
     return ok, virt, q, th
+
+
+def _plane_dot(world: World, x: np.ndarray, planes: np.ndarray) -> np.ndarray:
+    """n_{planes[r]}ᵀ x_r for x (K, 3): one matvec ``x @ n`` per distinct plane, the product the
+    single-chain code takes (BLAS fuses multiply-adds, so a hand-written row sum would differ in
+    the last bit and the maps would no longer be bit-identical)."""
+    out = np.empty(len(x))
+    for p in np.unique(planes):
+        m = planes == p
+        out[m] = x[m] @ world.plane_n[p]
+    return out
+
+
+def _reflect_rows(world: World, points: np.ndarray, planes: np.ndarray) -> np.ndarray:
+    """Row r of points (K, 3) mirrored across its own plane ``planes[r]`` (Eq. 7 in 3-D, as
+    :func:`sims.raytrace.world.reflect_points`)."""
+    return points - 2.0 * (_plane_dot(world, points, planes) + world.plane_d[planes])[:, None] * world.plane_n[planes]
 
 
 def bistatic_power(radar: RadarConfig, la, lb, az_a, az_b, sigma) -> np.ndarray:

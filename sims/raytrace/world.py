@@ -122,7 +122,8 @@ class World:
 
     tri_surface (F,): surface index, −1 for object faces; tri_object (F,): object index or −1;
     tri_plane (F,): plane index; plane_n (P, 3), plane_d (P,): planes nᵀx + d = 0 with n the
-    outward face normal; plane_surface (P,): owning surface (−1 for objects).
+    outward face normal; plane_surface (P,): owning surface (−1 for objects); em_group: filled
+    on first use by :func:`sims.raytrace.tracer.em_groups`.
     """
 
     caster: Caster
@@ -133,6 +134,7 @@ class World:
     plane_n: np.ndarray
     plane_d: np.ndarray
     plane_surface: np.ndarray
+    em_group: np.ndarray | None = None
 
 
 def build_world(scene, t: float = 0.0, backend: str = "auto") -> World:

@@ -146,6 +146,22 @@ def test_workers_and_order_do_not_change_the_shards(reference_dataset, tmp_path,
     assert m["versions"]["xnlos"] and m["radar"]["n_samples"] == 128
 
 
+def test_two_ray_traced_builds_are_byte_identical(tmp_path, dataset_cfg, simulate_tiny):
+    """Same config and seed → the same shard bytes, with the ray tracer (whose frames time their trace:
+    that wall-clock entry stays out of the shards, in completed.jsonl's seconds instead)."""
+    cfg = dataset_cfg(n_maps=4, forward_model={"name": "raytrace"})
+    for run in ("a", "b"):
+        simulate_tiny(cfg, tmp_path / run, workers=1, progress=False)
+    names = sorted(p.name for p in (tmp_path / "a" / "shards").glob("*.npz"))
+    assert len(names) >= 2
+    for name in names:
+        a, b = ((tmp_path / run / "shards" / name).read_bytes() for run in ("a", "b"))
+        assert a == b, name
+        meta = json.loads(str(decode_npz(a, name)["frame_meta_json"]))
+        assert meta and all(m["forward_model"] == "raytrace" and "trace_s" not in m for m in meta)
+    assert all(r["seconds"] > 0 for r in read_jsonl(tmp_path / "a" / "completed.jsonl"))
+
+
 def test_dask_local_cluster_gives_the_same_shards(reference_dataset, tmp_path, dataset_cfg, shard_hashes,
                                                   simulate_tiny):
     distributed = pytest.importorskip("distributed")

@@ -222,3 +222,63 @@ def test_picture_is_oriented_like_every_bev_and_ra_figure():
         assert leg.y1 <= data.y0  # the legend is below the data area
     finally:
         plt.close(fig)
+
+
+def _generated(family: str, seed: int):
+    from sims.generators import generate_scene
+
+    return generate_scene(family, seed)
+
+
+@pytest.mark.parametrize("backend", ["embree", "triangle"])
+def test_a_batched_cast_hits_what_one_ray_at_a_time_hits(backend):
+    """One call with every ray gives each ray the triangle and distance it gets cast alone."""
+    if backend == "embree" and not embree_available():
+        pytest.skip("embreex not installed")
+    from sims.raytrace.world import build_world
+
+    world = build_world(_generated("crossroads", 3), 0.0, backend)
+    rng = np.random.default_rng(5)
+    n = 60
+    az = rng.uniform(-math.pi / 3, math.pi / 3, n)
+    d = np.column_stack([np.cos(az), np.sin(az), rng.normal(0, 0.02, n)])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.column_stack([rng.uniform(-1, 1, (n, 2)), np.full(n, 0.75)])
+    tri, dist = world.caster.first_hit(o, d)
+    one = [world.caster.first_hit(o[i:i + 1], d[i:i + 1]) for i in range(n)]
+    assert (tri >= 0).sum() > n // 2
+    np.testing.assert_array_equal(tri, np.concatenate([t for t, _ in one]))
+    np.testing.assert_array_equal(dist, np.concatenate([x for _, x in one]))
+
+
+@pytest.mark.parametrize("family, seed", [("crossroads", 1), ("corner_split", 2), ("curved_wall", 0),
+                                          ("parking_lot", 4)])
+def test_batched_image_paths_equal_one_chain_and_object_at_a_time(family, seed):
+    """image_paths_chains (every centre through every chain, one cast per leg and chain length)
+    gives bit for bit what image_paths gives per object and chain (the tracer's earlier loop)."""
+    from sims.raytrace.tracer import image_paths_chains
+
+    scene = _generated(family, seed)
+    model = RaytraceForwardModel()
+    world, _, tr, _ = model.trace(scene, RADAR)
+    chains = {(): None, **tr.chains}
+    origin = np.array([0.0, 0.0, model.params.radar_height])
+    pts, nrm = [], []
+    for o in scene.objects:
+        p2, n2, _ = o.scatterers(0.0)
+        pts.append(np.column_stack([p2, np.full(len(p2), min(model.params.radar_height, o.height))]))
+        nrm.append(np.column_stack([n2, np.zeros(len(n2))]))
+    assert len(pts) >= 1 and any(len(c) >= 2 for c in chains)
+    before = world.caster.rays_cast
+    got = image_paths_chains(world, origin, pts, nrm, chains, model.params.az_step)
+    batched_rays = world.caster.rays_cast - before
+    found = 0
+    for j in range(len(pts)):
+        for c, sector in chains.items():
+            ok, virt, _, th = image_paths(world, origin, pts[j], nrm[j], c, sector, model.params.az_step)
+            g_ok, g_virt, g_th = got[j, c]
+            np.testing.assert_array_equal(g_ok, ok)
+            np.testing.assert_array_equal(g_virt, virt)
+            np.testing.assert_array_equal(g_th, th)
+            found += int(ok.sum())
+    assert found > 0 and world.caster.rays_cast - before == 2 * batched_rays  # the same rays, fewer calls
