@@ -44,13 +44,13 @@ def _commands(parser: argparse.ArgumentParser) -> set[str]:
 
 def test_builtin_packages_add_their_commands():
     cmds = _commands(build_parser(PluginManager()))
-    assert {"run", "demo", "sweep", "eval", "check", "plugins"} <= cmds  # the application's own
+    assert {"run", "demo", "sweep", "eval", "check", "plugins", "crossmodal"} <= cmds  # the application's own
     assert {"simulate", "train", "emulate"} <= cmds  # added by sims, plugins and hardware
 
 
 def test_without_plugins_only_the_application_commands_remain():
     cmds = _commands(build_parser(PluginManager(autoload=False)))
-    assert cmds == {"run", "demo", "sweep", "eval", "check", "plugins"}
+    assert cmds == {"run", "demo", "sweep", "eval", "check", "plugins", "crossmodal"}
 
 
 def test_a_plugin_adds_a_command_and_main_runs_it(manager):
