@@ -323,15 +323,21 @@ def run_study(config: str | Path, out: str | Path, *, progress: bool = True, fig
     atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))
     atomic_write_text(out / "crossmodal.md", render_markdown(cfg, res, str(config)))
     if figures:
-        from .crossmodal_figures import panel_figure, range_curve
+        from .crossmodal_figures import panel_figure, range_curve, row_colours
 
-        range_curve(res, out / "range_curve.png")
+        detectors = {}
+        for mod in cfg.modality:
+            for r in rows(cfg.model_copy(update={"modality": [mod]})):
+                detectors[r] = mod.detector.name if isinstance(mod, RadarModality) else None
+        colours = row_colours(detectors)
+        range_curve(res, out / "range_curve.png", colours)
         _log(f"panel at {cfg.panel_distance:g} m", progress)
         panel = {}
         for mi, mod in enumerate(cfg.modality):
             run = _radar_cell if isinstance(mod, RadarModality) else _spad_cell
             _, shown = run(cfg, mod, cfg.panel_distance, _trial_seed(cfg, mi, 10_000), base_dir, keep=True)
-            panel[mod.label if isinstance(mod, RadarModality) else f"{mod.label}/{shown['solver']}"] = shown
+            label = mod.label if isinstance(mod, RadarModality) else f"{mod.label}/{shown['solver']}"
+            panel[label] = {**shown, "colour": colours[label]}
         panel_figure(cfg, panel, out / "panel.png")
         res["figures"] = ["range_curve.png", "panel.png"]
         atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))
