@@ -82,6 +82,9 @@ class SpadModality(BaseModel):
     n_sigma: float = Field(5.0, gt=0, le=100, description="detection threshold [Poisson σ of the background]")
     background_subtract: bool = Field(True, description="before the solver: subtract each scan point's median "
                                       "count over time (the flat dark + ambient floor), clip at 0")
+    first_bounce_gate: float = Field(0.5, ge=0, le=100, description="reconstruction peak search starts at this "
+                                     "depth z [m] from the relay wall: gates the first bounce (the wall's own "
+                                     "return) and the solvers' artefacts at t = 0 (crossmodal_score)")
 
 
 Modality = Annotated[Union[RadarModality, SpadModality], Field(discriminator="type")]
@@ -238,14 +241,17 @@ def _spad_cell(cfg: StudyConfig, mod: SpadModality, d: float, seed: int, base_di
                 rvol = TransientVolume(clean, vol.bin_width, vol.wall_width, vol.wall_height, vol.t0)
         for s, solver in solvers.items():
             nv = solver.reconstruct(rvol)
-            z, y, x = cs.volume_peak(nv.albedo, nv.z, nv.grid(), peak.range + cfg.gate)
-            rec = cs.spad_reconstruction((x, y, z), truth, cfg.tolerance, peak.detected)
+            top = max(peak.range + cfg.gate, mod.first_bounce_gate)
+            vp = cs.volume_peak(nv.albedo, nv.z, nv.grid(), top, mod.first_bounce_gate)
+            rec = cs.spad_reconstruction(vp, truth, cfg.tolerance, peak.detected)
             out[f"{mod.label}/{s}"].append({"detection": det.as_dict(), "reconstruction": rec.as_dict(),
                                             "peak_range": peak.range, "excess": peak.excess,
-                                            "threshold": peak.threshold, "peak_xyz": [x, y, z]})
+                                            "threshold": peak.threshold, "peak_xyz": list(vp.xyz),
+                                            "peak_interior": vp.interior})
             if keep and shown is None:
                 shown = {"volume": vol, "nlos": nv, "truth": truth, "scene": scene, "solver": s,
-                         "peak_xyz": (x, y, z), "detected": peak.detected, "range": peak.range}
+                         "peak": vp, "search": (mod.first_bounce_gate, top), "hit": rec.tp,
+                         "detected": peak.detected, "range": peak.range}
     return out, shown
 
 
@@ -317,15 +323,21 @@ def run_study(config: str | Path, out: str | Path, *, progress: bool = True, fig
     atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))
     atomic_write_text(out / "crossmodal.md", render_markdown(cfg, res, str(config)))
     if figures:
-        from .crossmodal_figures import panel_figure, range_curve
+        from .crossmodal_figures import panel_figure, range_curve, row_colours
 
-        range_curve(res, out / "range_curve.png")
+        detectors = {}
+        for mod in cfg.modality:
+            for r in rows(cfg.model_copy(update={"modality": [mod]})):
+                detectors[r] = mod.detector.name if isinstance(mod, RadarModality) else None
+        colours = row_colours(detectors)
+        range_curve(res, out / "range_curve.png", colours)
         _log(f"panel at {cfg.panel_distance:g} m", progress)
         panel = {}
         for mi, mod in enumerate(cfg.modality):
             run = _radar_cell if isinstance(mod, RadarModality) else _spad_cell
             _, shown = run(cfg, mod, cfg.panel_distance, _trial_seed(cfg, mi, 10_000), base_dir, keep=True)
-            panel[mod.label if isinstance(mod, RadarModality) else f"{mod.label}/{shown['solver']}"] = shown
+            label = mod.label if isinstance(mod, RadarModality) else f"{mod.label}/{shown['solver']}"
+            panel[label] = {**shown, "colour": colours[label]}
         panel_figure(cfg, panel, out / "panel.png")
         res["figures"] = ["range_curve.png", "panel.png"]
         atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))

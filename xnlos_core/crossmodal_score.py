@@ -23,11 +23,21 @@ What a "report" and the "truth" are per modality and stage (all distances in met
   (Poisson, k = ``n_sigma``), at range ρ = c·t/2 of the window's centre; truth: the interval
   [min, max] of |p − s| over truth points p and scan points s (confocal round trip 2|p − s|),
   widened by ``gate``.
-* SPAD reconstruction: the NLOS volume's peak voxel (x, y, z) in wall coordinates at depths
-  z ≤ ρ + ``gate`` (:func:`volume_peak`: nothing returns from beyond the detected range; without
-  the cut the solvers' r⁴ fall-off compensation lifts the far-depth photon noise above any real
-  return), reported only when the detection above reported something (otherwise the peak is
-  noise); truth: the hidden surface points (wall coordinates); within ``tolerance``.
+* SPAD reconstruction: the NLOS volume's peak voxel (x, y, z) in wall coordinates over the
+  search region ``first_bounce_gate`` ≤ z ≤ ρ + ``gate`` (:func:`volume_peak`). The lower bound
+  gates the first bounce: depths next to the relay wall hold the wall's own return in real data and
+  the solvers' boundary artefacts (the t⁴ / t² fall-off compensation and the Wiener or Stolt
+  filters ring at t = 0); the upper bound, nothing returns from beyond the detected range (the
+  solvers' fall-off compensation lifts far-depth photon noise above any real return). The peak
+  counts only as a reconstruction when it is an INTERIOR maximum of that region: not on its first
+  or last depth slice and not on the scan grid's outer ring of columns and rows (the aperture's
+  edge). A maximum on the region's boundary means the albedo still grows toward the boundary —
+  noise amplified by the compensation, or an edge artefact — and is scored as a wrong report
+  (fp and fn), never as a hit. Reported only when the detection above reported something
+  (otherwise the peak is noise). Truth: the hidden surface patches VISIBLE from the scan aperture
+  (those that return light to at least one scan point, occlusion included: the transient model's
+  ``truth``), not every point of the object — the far side of a car, never seen, cannot confirm a
+  peak; within ``tolerance`` [m] of the nearest visible patch centre (3-D distance).
 """
 from __future__ import annotations
 
@@ -194,25 +204,57 @@ def spad_detection(peak: TransientPeak, interval: tuple[float, float], gate: flo
     return outcome(np.array([d]), gate)
 
 
+@dataclass(frozen=True)
+class VolumePeak:
+    """Peak voxel of an NLOS albedo volume in wall coordinates: x, y, z [m]; ``interior``: the peak
+    is not on the boundary of the search region (:func:`volume_peak`)."""
+
+    x: float
+    y: float
+    z: float
+    interior: bool
+
+    @property
+    def xyz(self) -> tuple[float, float, float]:
+        return (self.x, self.y, self.z)
+
+
 def volume_peak(albedo: np.ndarray, z: np.ndarray, grid: tuple[np.ndarray, np.ndarray],
-                max_depth: float) -> tuple[float, float, float]:
-    """(z, y, x) [m] of the maximum of ``albedo`` (Z, H, W) over depths z ≤ ``max_depth`` (all depths
-    when none is that shallow); ``grid`` = (x (W,), y (H,)) of the volume."""
+                max_depth: float, min_depth: float = 0.0) -> VolumePeak:
+    """Maximum of ``albedo`` (Z, H, W) over depths ``min_depth`` ≤ z ≤ ``max_depth`` [m]; ``grid`` =
+    (x (W,), y (H,)) of the volume, ``z`` (Z,) its depths [m].
+
+    ``interior`` is False when the peak lies on the search region's boundary: the first or last
+    depth slice inside [min_depth, max_depth], or column 0 / W − 1 or row 0 / H − 1 of the scan
+    grid (the aperture's edge; module docstring). Raises InputError for mismatched shapes or an
+    empty depth range (no slice in [min_depth, max_depth])."""
     a = np.asarray(albedo, float)
     z = np.asarray(z, float)
-    keep = z <= max_depth
-    if not keep.any():
-        keep[:] = True
-    sub = np.where(keep[:, None, None], a, -np.inf)
-    k, i, j = np.unravel_index(int(np.argmax(sub)), a.shape)
-    x, y = grid
-    return float(z[k]), float(y[i]), float(x[j])
+    x, y = (np.asarray(v, float) for v in grid)
+    if a.ndim != 3 or a.shape != (len(z), len(y), len(x)):
+        raise InputError(f"volume_peak(albedo): expected shape (len(z), len(y), len(x)) = "
+                         f"{(len(z), len(y), len(x))}, got {a.shape}")
+    keep = np.flatnonzero((z >= min_depth) & (z <= max_depth))
+    if not len(keep):
+        raise InputError(f"volume_peak(min_depth, max_depth): no depth slice in [{min_depth:g}, {max_depth:g}] m; "
+                         f"the volume's depths span [{z[0]:g}, {z[-1]:g}] m")
+    sub = a[keep[0]:keep[-1] + 1]
+    k, i, j = np.unravel_index(int(np.argmax(sub)), sub.shape)
+    h, w = sub.shape[1:]
+    interior = bool(0 < k < len(keep) - 1 and 0 < i < h - 1 and 0 < j < w - 1)
+    return VolumePeak(float(x[j]), float(y[i]), float(z[keep[0] + k]), interior)
 
 
-def spad_reconstruction(peak_xyz, truth_xyz, tolerance: float, reported: bool) -> Outcome:
-    """SPAD reconstruction trial: the volume's peak (x, y, z) [m] against the truth points (P, 3)."""
+def spad_reconstruction(peak: VolumePeak, visible_xyz, tolerance: float, reported: bool) -> Outcome:
+    """SPAD reconstruction trial: the volume's peak against the visible hidden-surface points
+    (P, 3) [m]: a hit when the detection reported, the peak is interior and within ``tolerance``
+    [m] of a visible point; a boundary peak is a wrong report (module docstring)."""
     if not reported:
         return Outcome(False, False, True, 0)
-    t = np.asarray(truth_xyz, float).reshape(-1, 3)
-    d = np.linalg.norm(t - np.asarray(peak_xyz, float).reshape(1, 3), axis=1).min(keepdims=True)
+    if not peak.interior:
+        return Outcome(False, True, True, 1)
+    t = np.asarray(visible_xyz, float).reshape(-1, 3)
+    if not len(t):  # nothing visible: any report is spurious
+        return Outcome(False, True, True, 1)
+    d = np.linalg.norm(t - np.asarray(peak.xyz, float).reshape(1, 3), axis=1).min(keepdims=True)
     return outcome(d, tolerance)

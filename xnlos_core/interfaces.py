@@ -288,8 +288,9 @@ class TransientModel(Plugin, abc.ABC):
 
     @abc.abstractmethod
     def truth(self, scene: "Scene") -> np.ndarray:
-        """Points (P, 3) [m] on the hidden objects' surfaces in the scan's wall coordinates (x along
-        the wall, y up, z in front of it: the frame of :meth:`TransientVolume.grid` and of an
+        """Points (P, 3) [m] on the hidden objects' surfaces VISIBLE from the scan (those that return
+        light to at least one scan point; the cross-modality score measures to them) in the scan's
+        wall coordinates (x along the wall, y up, z in front of it: the frame of :meth:`TransientVolume.grid` and of an
         :class:`~xnlos_core.nlos_volume.NLOSVolume`'s (x, y, z)); (0, 3) for a scene without objects."""
 
 

@@ -9,7 +9,7 @@ from xnlos_core.interfaces import TransientModel
 from xnlos_core.scene import Scene
 from xnlos_core.transient import TransientVolume
 
-from .scene import SpadParams, hidden_patches, simulate
+from .scene import SpadParams, simulate, visible_patches
 
 
 class SpadTransientModel(TransientModel):
@@ -23,5 +23,6 @@ class SpadTransientModel(TransientModel):
         return simulate(scene, self.params.model_copy(update={"seed": int(seed)}))
 
     def truth(self, scene: Scene) -> np.ndarray:
-        """Centres (P, 3) [m] of the hidden-surface patches in wall coordinates (x, y, z)."""
-        return np.asarray(hidden_patches(scene, self.params).centers, float).reshape(-1, 3)
+        """Centres (P, 3) [m] of the hidden-surface patches the scan sees (:func:`.scene.visible_patches`:
+        not occluded, facing the grid) in wall coordinates (x, y, z)."""
+        return np.asarray(visible_patches(scene, self.params).centers, float).reshape(-1, 3)

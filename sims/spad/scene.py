@@ -14,8 +14,12 @@ Mapping (world: x forward, y left, z up, sensor at the origin; DESIGN.md convent
 * hidden surfaces: every face of a box object (four sides, height 0 … ``height``, and the roof)
   cut into square-ish patches of about ``patch_size``; a point object is one patch of
   ``point_area`` facing the grid centre. Albedo ``object_albedo`` for all. Faces turned away from
-  a scan point get no light (cosine clipped), which is exact self-occlusion for a convex box;
-  occlusion between objects and by other walls is not modelled, nor are user meshes.
+  a scan point get no light (cosine clipped), which is exact self-occlusion for a convex box.
+* user meshes (``Scene.meshes``, when ``meshes``): every triangle cut to edges ≤ ``patch_size``
+  (:mod:`.mesh_patches`), albedo ``object_albedo``; loaded with :func:`sims.meshes.load_user_mesh`.
+* occlusion (when ``occlusion``): a patch is dropped when the segment from the scan-grid centre
+  to it is blocked by another wall, another box object or a mesh (:mod:`.occlusion`: 2-D top-view
+  segment test for the vertical walls and boxes, trimesh ray casting for meshes).
 """
 from __future__ import annotations
 
@@ -63,6 +67,10 @@ class SpadParams(BaseModel):
     sensor_height: float = Field(1.0, ge=0, le=100, description="sensor height above ground [m]")
     patch_size: float = Field(0.1, gt=0.001, le=10, description="hidden-surface patch edge [m]")
     point_area: float = Field(0.1, gt=0, le=100, description="area of a point object's patch [m²]")
+    meshes: bool = Field(True, description="include the scene's user meshes as hidden surfaces")
+    occlusion: bool = Field(True, description="drop patches hidden from the scan-grid centre by other walls, "
+                                              "objects or meshes")
+    max_patches: int = Field(200_000, ge=1, le=10_000_000, description="most patches one mesh may be cut into")
     pile_up: bool = Field(False, description="first-photon (TCSPC) pile-up, Coates; else Poisson counting")
     seed: int = Field(0, ge=0, lt=2**63, description="seed of the photon-counting Generator")
 
@@ -109,18 +117,18 @@ def _box_faces(obj: ObjectSpec) -> list[tuple[np.ndarray, np.ndarray, np.ndarray
     return faces
 
 
-def hidden_patches(scene: Scene, params: SpadParams) -> Patches:
-    """Patches (wall coordinates) of every object's surfaces, the module docstring's mapping."""
-    c, u, n = wall_frame(relay_wall(scene, params.wall), params)
-    centre = np.array([*c, 0.0])
-    centers, normals, areas = [], [], []
-    for obj in scene.objects:
+def _world_patches(scene: Scene, params: SpadParams, centre: np.ndarray):
+    """World patches: centres (P, 3), normals (P, 3), areas (P,), owner (P,) int (object index;
+    −1 − k for mesh k), and the meshes placed in the scene."""
+    centers, normals, areas, owner = [], [], [], []
+    for idx, obj in enumerate(scene.objects):
         if obj.shape == "point":
             p = np.array([*obj.center_at(0.0), params.grid_elevation])
             centers.append(p[None])
             to_grid = centre + np.array([0, 0, params.grid_elevation]) - p
             normals.append((to_grid / max(np.linalg.norm(to_grid), 1e-12))[None])
             areas.append(np.array([params.point_area]))
+            owner.append(np.array([idx]))
             continue
         mid = np.array([*obj.center_at(0.0), obj.height / 2])
         for o, e1, e2 in _box_faces(obj):
@@ -135,15 +143,81 @@ def hidden_patches(scene: Scene, params: SpadParams) -> Patches:
             centers.append(pts.reshape(-1, 3))
             normals.append(np.broadcast_to(nrm, (k1 * k2, 3)))
             areas.append(np.full(k1 * k2, l1 * l2 / (k1 * k2)))
+            owner.append(np.full(k1 * k2, idx))
+    placed = []
+    if params.meshes and scene.meshes:
+        from ..meshes import combine, load_user_mesh
+        from .mesh_patches import triangle_patches
+
+        for k, spec in enumerate(scene.meshes):
+            mesh = combine([m for m, _, _ in load_user_mesh(spec, scene.base_dir, require_watertight=False)])
+            placed.append(mesh)
+            c, nr, ar = triangle_patches(mesh, params.patch_size, params.max_patches, spec.name)
+            centers.append(c)
+            normals.append(nr)
+            areas.append(ar)
+            owner.append(np.full(len(ar), -1 - k))
     if not centers:
-        return Patches(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0))
-    P = np.concatenate(centers)
-    N = np.concatenate(normals)
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, int), placed
+    return (np.concatenate(centers), np.concatenate(normals), np.concatenate(areas), np.concatenate(owner),
+            placed)
+
+
+def _visible_from(scene: Scene, params: SpadParams, wall: WallSpec, origin: np.ndarray, P: np.ndarray,
+                  owner: np.ndarray, meshes) -> np.ndarray:
+    """(P,) bool: patches not hidden from ``origin`` (3,) by other walls, box objects or meshes."""
+    from ..raytrace.caster import Caster
+    from .occlusion import blocked_by_mesh, blocked_by_segments
+
+    ok = np.ones(len(P), bool)
+    others = [w for w in scene.planar_walls() if not (w.start == wall.start and w.end == wall.end)]
+    if others:
+        ok &= ~blocked_by_segments(origin, P, np.array([w.start for w in others], float),
+                                   np.array([w.end for w in others], float), np.array([w.height for w in others]))
+    for idx, obj in enumerate(scene.objects):
+        if obj.shape == "point":
+            continue
+        fp = obj.footprint(0.0)
+        sel = ok & (owner != idx)
+        ok[sel] &= ~blocked_by_segments(origin, P[sel], fp, np.roll(fp, -1, axis=0), np.full(len(fp), obj.height))
+    for k, mesh in enumerate(meshes):
+        sel = np.flatnonzero(ok & (owner != -1 - k))
+        ok[sel] &= ~blocked_by_mesh(origin, P[sel], Caster(mesh))
+    return ok
+
+
+def hidden_patches(scene: Scene, params: SpadParams) -> Patches:
+    """Patches (wall coordinates) of every object's and mesh's surfaces, the module docstring's
+    mapping, without those occluded from the scan-grid centre (when ``params.occlusion``)."""
+    wall = relay_wall(scene, params.wall)
+    c, u, n = wall_frame(wall, params)
+    centre = np.array([*c, 0.0])
+    P, N, a, owner, meshes = _world_patches(scene, params, centre)
+    if params.occlusion and len(P):
+        keep = _visible_from(scene, params, wall, centre + np.array([0, 0, params.grid_elevation]), P, owner, meshes)
+        P, N, a = P[keep], N[keep], a[keep]
     rot = np.stack([np.array([u[0], u[1], 0.0]), np.array([0.0, 0.0, 1.0]), np.array([n[0], n[1], 0.0])])
     wc = (P - centre - np.array([0, 0, params.grid_elevation])) @ rot.T
     wn = N @ rot.T
-    a = np.concatenate(areas)
     return Patches(wc, wn, a, np.full(len(a), params.object_albedo))
+
+
+def visible_patches(scene: Scene, params: SpadParams) -> Patches:
+    """The :func:`hidden_patches` that return light to at least one scan point (their cosines at the
+    wall and at the patch both positive somewhere on the grid): the surface the scan can see."""
+    from .transport import return_per_pulse
+
+    pt = hidden_patches(scene, params)
+    if not len(pt.areas):
+        return pt
+    x, y = scan_grid(params)
+    opt = optics(scene, params)
+    seen = np.zeros(len(pt.areas), bool)
+    for i in range(0, len(seen), 256):
+        j = slice(i, i + 256)
+        n, _ = return_per_pulse(x, y, Patches(pt.centers[j], pt.normals[j], pt.areas[j], pt.albedo[j]), opt)
+        seen[j] = n.reshape(len(n), -1).max(axis=1) > 0
+    return Patches(pt.centers[seen], pt.normals[seen], pt.areas[seen], pt.albedo[seen])
 
 
 def optics(scene: Scene, params: SpadParams) -> Optics:

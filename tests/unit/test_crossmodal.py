@@ -78,16 +78,56 @@ def test_spad_detection_on_a_handmade_histogram():
 
 
 def test_spad_reconstruction_and_volume_peak():
-    a = np.zeros((4, 2, 2))
-    a[3, 0, 0] = 10.0  # far-depth noise
-    a[1, 1, 0] = 1.0  # the return
-    z = np.array([0.0, 1.0, 2.0, 3.0])
-    grid = (np.array([-0.5, 0.5]), np.array([-0.5, 0.5]))
-    assert cs.volume_peak(a, z, grid, 1.5) == (1.0, 0.5, -0.5)
-    assert cs.volume_peak(a, z, grid, 10.0) == (3.0, -0.5, -0.5)
-    truth = [[-0.5, 0.5, 1.2]]
-    assert cs.spad_reconstruction((-0.5, 0.5, 1.0), truth, 0.5, True).tp
-    assert cs.spad_reconstruction((-0.5, 0.5, 1.0), truth, 0.5, False).fn
+    a = np.zeros((5, 3, 3))
+    a[4, 0, 0] = 10.0  # far-depth noise
+    a[2, 1, 1] = 1.0  # the return
+    z = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    grid = (np.array([-0.5, 0.0, 0.5]), np.array([-0.5, 0.0, 0.5]))
+    assert cs.volume_peak(a, z, grid, 3.5) == cs.VolumePeak(0.0, 0.0, 2.0, True)
+    assert cs.volume_peak(a, z, grid, 10.0) == cs.VolumePeak(-0.5, -0.5, 4.0, False)
+    truth = [[0.0, 0.0, 2.2]]
+    hit = cs.volume_peak(a, z, grid, 3.5)
+    assert cs.spad_reconstruction(hit, truth, 0.5, True).tp
+    assert cs.spad_reconstruction(hit, truth, 0.5, False).fn
+    assert cs.spad_reconstruction(hit, np.zeros((0, 3)), 0.5, True).fp
+    with pytest.raises(InputError, match="no depth slice"):
+        cs.volume_peak(a, z, grid, 0.5, min_depth=0.6)
+    with pytest.raises(InputError, match="shape"):
+        cs.volume_peak(a[:, :2], z, grid, 3.0)
+
+
+def test_boundary_artefacts_that_the_old_score_counted_are_not_hits():
+    """The artefacts seen in the 1 m SPAD panel (crossmodal.md): the albedo's maximum at the scan
+    aperture's corner on the wall (z = 0) or on the depth cut z = ρ + gate, 1 m from a point of the
+    car that the scan never sees. The old score (argmax over z ≤ ρ + gate, distance to every truth
+    point) called both hits; the new one reports neither, and finds the weaker interior return."""
+    z = np.arange(0.0, 6.0, 0.25)  # (24,) depths [m]
+    x = y = np.linspace(-0.9375, 0.9375, 16)
+    vis = np.array([[0.0625, -0.1875, 2.0], [0.3125, -0.1875, 2.0]])  # the face toward the wall, seen
+    hidden = np.array([[-0.9375, -0.9375, 1.0], [0.9375, 0.9375, 3.0]])  # far-side points, never seen
+    every = np.vstack([vis, hidden])
+
+    def old(albedo, max_depth):
+        sub = np.where((z <= max_depth)[:, None, None], albedo, -np.inf)
+        k, i, j = np.unravel_index(int(np.argmax(sub)), albedo.shape)
+        d = np.linalg.norm(every - [x[j], y[i], z[k]], axis=1).min(keepdims=True)
+        return cs.outcome(d, 1.5)
+
+    base = np.zeros((len(z), 16, 16))
+    base[8, 6, 8] = 1.0  # the real return at (x[8], y[6], z[8]) = (0.0625, −0.1875, 2.0)
+    wall = base.copy()
+    wall[0, 0, 0] = 5.0  # first-bounce / t = 0 artefact at the aperture's corner
+    ceiling = base.copy()
+    ceiling[12, 15, 15] = 5.0  # r⁴-lifted noise on the depth cut z = 3.0 (ρ + gate), corner
+    for vol in (wall, ceiling):
+        assert old(vol, 3.0).tp  # what the old score reported
+    pk = cs.volume_peak(wall, z, (x, y), 3.0, min_depth=0.5)
+    assert pk == cs.VolumePeak(0.0625, -0.1875, 2.0, True)
+    assert cs.spad_reconstruction(pk, vis, 1.5, True).tp
+    pk = cs.volume_peak(ceiling, z, (x, y), 3.0, min_depth=0.5)
+    assert not pk.interior and pk.z == 3.0
+    o = cs.spad_reconstruction(pk, every, 1.5, True)
+    assert (o.tp, o.fp, o.fn) == (False, True, True)
 
 
 def _tiny(tmp_path: Path) -> Path:
