@@ -97,7 +97,8 @@ class WallPaths:
     pos (P, 2) apparent position (arrival direction × length/2) [m]; hidden (P, 2) the object centre
     [m]; centre (P,) its index; ia, ib (P,) indices of the cells a (out) and b (back) into the cells
     given; rate (P,) d(length/2)/dt [m/s]; total: the wall's summed three-bounce power [W] before the
-    cut; neglected: the power [W] of the pairs left out; pairs: the candidate pairs Σ_o K_o².
+    cut; neglected: the power [W] of the pairs left out; pairs: the candidate pairs Σ_o K_o²; capped:
+    the path cap, not the floor, set the threshold (``neglected`` may then exceed the floor's budget).
     """
 
     length: np.ndarray
@@ -112,6 +113,7 @@ class WallPaths:
     total: float
     neglected: float
     pairs: int
+    capped: bool = False
 
 
 def wall_paths(radar: RadarConfig, spec, normal, cells, area: float, origin, points, rcs, sees, velocity,
@@ -167,7 +169,8 @@ def wall_paths(radar: RadarConfig, spec, normal, cells, area: float, origin, poi
 
     t = budget / max(n_pairs, 1)
     counts = keep(t)
-    if counts.sum() > cap:
+    capped = bool(counts.sum() > cap)
+    if capped:
         hi = float(np.max(c[:, None] * u * v_sorted[:, -1:])) * 1.01
         lo = t
         for _ in range(60):
@@ -197,12 +200,13 @@ def wall_paths(radar: RadarConfig, spec, normal, cells, area: float, origin, poi
             + np.einsum("ij,ij->i", to_obj[o_k, ib], vel) / d[o_k, ib]) / 2
     return WallPaths(length=length, azimuth=az[ib], power=power, pos=dirs * (length / 2)[:, None],
                      hidden=pts[o_k, :2], centre=o_k, ia=ia, ib=ib, rate=rate, total=total,
-                     neglected=neglected, pairs=n_pairs)
+                     neglected=neglected, pairs=n_pairs, capped=capped)
 
 
-def describe_cut(kept: int, pairs: int, total: float, neglected: float, radar: RadarConfig) -> str:
-    """meta["components"]["diffuse_nlos_cut"]: paths kept of the candidate pairs and the power left out."""
+def describe_cut(kept: int, pairs: int, total: float, neglected: float, capped: bool, radar: RadarConfig) -> str:
+    """meta["components"]["diffuse_nlos_cut"]: paths kept of the candidate pairs and the power left out
+    (and whether the path cap, rather than the floor, set what was left out)."""
     with np.errstate(divide="ignore"):
         snr = 10 * math.log10(neglected / noise_equivalent_power(radar)) if neglected > 0 else -math.inf
     return (f"kept {kept} of {pairs} pairs; neglected {neglected:.3g} W of {total:.3g} W "
-            f"(RA-map SNR of the neglected sum {snr:.1f} dB)")
+            f"(RA-map SNR of the neglected sum {snr:.1f} dB){'; path cap reached' if capped else ''}")

@@ -187,7 +187,7 @@ class ImageForwardModel(ForwardModel):
             rough = [i for i, (spec, seg) in enumerate(zip(planar, segs))
                      if spec.relay and seg.offset > 0 and spec.material is not None and spec.roughness > 0]
             budget = diffuse_nlos.noise_equivalent_power(radar) * 10 ** (p.diffuse_nlos_floor_db / 10)
-            cut = [0, 0, 0.0, 0.0]  # kept paths, candidate pairs, total and neglected power [W]
+            cut = [0, 0, 0.0, 0.0, False]  # kept paths, candidate pairs, total, neglected power [W], capped
             for i in rough:
                 _diffuse_nlos(out, planar[i], segs[i], segs, i, radar, objs, obj_phase, walls[i], wall_phase[i], vel,
                               p.diffuse_nlos_cell, budget / len(rough), max(1, p.diffuse_nlos_max_paths // len(rough)),
@@ -202,7 +202,7 @@ def _diffuse_nlos(out: PathList, spec, seg, segs, i: int, radar: RadarConfig, ob
     """Append the three-bounce diffuse paths (:func:`sims.diffuse_nlos.wall_paths`) of relay wall ``i``
     for every object centre on its radar side; cell phases are those of the nearest LOS wall cell (no
     new draws). Visibility: 2-D segment tests against the other walls. ``cut`` accumulates
-    [kept paths, candidate pairs, total power, neglected power]."""
+    [kept paths, candidate pairs, total power, neglected power, path cap reached]."""
     n, b = seg.normal, seg.offset
     a, ds = diffuse_nlos.cells(spec, cell_length)
     phase_a = fine_phase[np.argmin(np.linalg.norm(fine[0][None, :, :] - a[:, None, :], axis=2), axis=1)]
@@ -225,7 +225,8 @@ def _diffuse_nlos(out: PathList, spec, seg, segs, i: int, radar: RadarConfig, ob
     v3 = np.array([np.append(vel[owner[o]], 0.0) for o in near])
     w = diffuse_nlos.wall_paths(radar, spec, n3, a3, ds * spec.height, np.zeros(3),
                                 np.column_stack([pts[near], np.zeros(len(near))]), rcs[near], sees, v3, budget, cap)
-    cut[:] = [cut[0] + len(w.power), cut[1] + w.pairs, cut[2] + w.total, cut[3] + w.neglected]
+    cut[:] = [cut[0] + len(w.power), cut[1] + w.pairs, cut[2] + w.total, cut[3] + w.neglected,
+              cut[4] or w.capped]
     o = near[w.centre]
     obj_ph = np.array([obj_phase[owner[k]][index[k]] for k in o])
     u = np.column_stack([np.cos(w.azimuth), np.sin(w.azimuth)])

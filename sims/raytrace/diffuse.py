@@ -68,7 +68,7 @@ def diffuse_paths(world: World, scene, radar: RadarConfig, origin: np.ndarray, c
     pts = np.concatenate([c[0] for c in centres] + [np.zeros((0, 3))])
     nrm = np.concatenate([c[1] for c in centres] + [np.zeros((0, 3))])
     rcs = np.concatenate([c[2] for c in centres] + [np.zeros(0)])
-    out_cells, n_cells, cut = [], 0, [0, 0, 0.0, 0.0]
+    out_cells, n_cells, cut = [], 0, [0, 0, 0.0, 0.0, False]
     for s in rough:
         spec, seg = planar[s], planar[s].segment()
         a2, ds = diffuse_nlos.cells(spec, params.diffuse_nlos_cell)
@@ -82,7 +82,8 @@ def diffuse_paths(world: World, scene, radar: RadarConfig, origin: np.ndarray, c
         v3 = np.array([velocities[owner[o]] for o in near])
         w = diffuse_nlos.wall_paths(radar, world.surfaces[s], np.append(seg.normal, 0.0), a[lit],
                                     ds * spec.height, origin, pts[near], rcs[near], sees, v3, budget, cap)
-        cut = [cut[0] + len(w.power), cut[1] + w.pairs, cut[2] + w.total, cut[3] + w.neglected]
+        cut = [cut[0] + len(w.power), cut[1] + w.pairs, cut[2] + w.total, cut[3] + w.neglected,
+               cut[4] or w.capped]
         o = near[w.centre]
         u = np.column_stack([np.cos(w.azimuth), np.sin(w.azimuth)])
         paths.add(length=w.length, azimuth=w.azimuth, power=w.power, amp=np.sqrt(w.power).astype(np.complex128),

@@ -148,6 +148,7 @@ def test_path_cap_keeps_the_strongest_pairs():
     paths, cut = _image(scene, diffuse_nlos_max_paths=100)
     kept = np.sort(_diffuse(paths)[1])
     assert 0 < len(kept) <= 100 and f"kept {len(kept)} of {len(brute)} pairs" in cut["diffuse_nlos_cut"]
+    assert cut["diffuse_nlos_cut"].endswith("path cap reached")
     np.testing.assert_allclose(kept, brute[len(brute) - len(kept):], rtol=1e-9)
     ray, _, _ = _ray(scene, diffuse_nlos_max_paths=100)
     np.testing.assert_allclose(np.sort(_diffuse(ray)[1]), kept, rtol=1e-9)
