@@ -94,7 +94,8 @@ def main(argv=None) -> int:
             med = {k: statistics.median(v[0]) for k, v in res.items()}
             sm = {k: statistics.median(v) for k, v in search.items()}
             cut = models["after"].simulate(sc, radar, np.random.default_rng(0)).meta["components"]["diffuse_nlos_cut"]
-            print(f"| {obj} | {cell} | {med['before']:.0f} ({res['before'][1]}) | {med['after']:.0f} ({res['after'][1]}) "
+            print(f"| {obj} | {cell} | {med['before']:.0f} ({res['before'][1]}) "
+                  f"| {med['after']:.0f} ({res['after'][1]}) "
                   f"| {med['all']:.0f} ({res['all'][1]}) | {med['before'] / med['after']:.1f}× "
                   f"| {med['before'] / med['all']:.1f}× | {sm['before']:.0f} / {sm['all']:.0f} "
                   f"| {'; '.join(cut.split('; ')[1:])} |", flush=True)

@@ -36,7 +36,8 @@ def _image(scene, radar=W, **kw):
 
 
 def _ray(scene, radar=W, **kw):
-    _, paths, tr, use = RaytraceForwardModel({**ALL, "mixed_paths": False, "min_snr_db": -100.0, **kw}).trace(scene, radar)
+    model = RaytraceForwardModel({**ALL, "mixed_paths": False, "min_snr_db": -100.0, **kw})
+    _, paths, tr, use = model.trace(scene, radar)
     return paths, tr, use
 
 
