@@ -5,7 +5,8 @@ The mirror (mNLOS) path of a rough relay wall keeps only the coherent part of th
 F = (1 − ρ_s)|Γ|² leaves the wall in the diffuse lobe. At 77 GHz a facade with σ_h ≈ 1 mm is
 almost entirely diffuse (ρ_s(0) ≈ 3·10⁻⁵), at 10 GHz almost a mirror (ρ_s(0) ≈ 0.84) (paper
 Sec. 1, Fig. 2b). The diffuse power still reaches hidden objects by the three-bounce path that
-optical (SPAD) NLOS imaging uses; this module gives its power. Wall patches a (out) and b (back)
+optical (SPAD) NLOS imaging uses; this module gives its power and, in :func:`wall_paths`, the paths of
+one wall with an importance cut, for both radar forward models (each supplies its own visibility). Wall patches a (out) and b (back)
 are cells of length Δs and the wall's height h (area dA = Δs·h, as the LOS wall cells), the object
 a scattering centre of RCS σ_o:
 
