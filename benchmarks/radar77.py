@@ -10,7 +10,8 @@ image sits at (29 + d, 3)). Radars: ``xband_default`` and ``automotive_77ghz`` (
 wavelengths, 1.6 mW). Facade: concrete or brick (brick at 77 GHz: the documented fallback), σ_h = 0
 or 1 mm. Columns: RA-map SNR [dB] of the mirror (mNLOS) path from the image model, the same from the
 ray tracer (every third distance), and the SNR of the summed three-bounce diffuse NLOS paths
-(:mod:`sims.diffuse_nlos`, 0.5 m cells; an upper bound for one cell, since it sums all cells). Writes
+(:mod:`sims.diffuse_nlos`, 0.5 m cells, every pair: no importance cut; an upper bound for one cell,
+since it sums all cells) from the image model and from the ray tracer (:mod:`sims.raytrace.diffuse`). Writes
 ``radar77.png`` (SNR vs d) beside the table.
 """
 from __future__ import annotations
@@ -39,8 +40,9 @@ from xnlos_core.scene import ObjectSpec, Scene, WallSpec  # noqa: E402
 DISTANCES = [1, 2, 3, 5, 7, 10, 15, 20, 30, 40, 50, 60]
 RAY_AT = DISTANCES[::3]
 QUIET = {"noise": False, "random_phase": False}
-IMG = ImageForwardModel({**QUIET, "diffuse": "off", "diffuse_nlos": "on", "diffuse_nlos_cell": 0.5})
-RAY = RaytraceForwardModel({**QUIET, "mixed_paths": False, "min_snr_db": -100.0, "diffuse": "off"})
+ALL_PAIRS = {"diffuse_nlos": "on", "diffuse_nlos_cell": 0.5, "diffuse_nlos_floor_db": -300.0}  # no importance cut
+IMG = ImageForwardModel({**QUIET, "diffuse": "off", **ALL_PAIRS})
+RAY = RaytraceForwardModel({**QUIET, "mixed_paths": False, "min_snr_db": -100.0, "diffuse": "off", **ALL_PAIRS})
 
 
 def scene(d: float, material: str, sigma_h: float) -> Scene:
@@ -64,11 +66,12 @@ def measure(radar, d, material, sigma_h):
                        {"diffuse": False, "transmission": False, "diffuse_nlos": True})
     mirror = snr(radar, float(paths.power[paths.kind == MNLOS].sum()))
     diffuse = snr(radar, float(paths.power[(paths.kind == OTHER) & (paths.obj >= 0)].sum()))
-    ray = None
+    ray = ray_diffuse = None
     if d in RAY_AT:
         _, rp, _, _ = RAY.trace(sc, radar)
         ray = snr(radar, float(rp.power[(rp.kind == MNLOS) & (rp.obj >= 0)].sum()))
-    return mirror, ray, diffuse
+        ray_diffuse = snr(radar, float(rp.power[(rp.kind == OTHER) & (rp.obj >= 0)].sum()))
+    return mirror, ray, diffuse, ray_diffuse
 
 
 def main(argv=None) -> int:
@@ -86,7 +89,7 @@ def main(argv=None) -> int:
                 res[band, m, s] = [measure(radar, d, m, s) for d in DISTANCES]
     buf = io.StringIO()
     buf.write("RA-map SNR [dB] of the hidden point (RCS 10 m²): mirror path image model / ray tracer "
-              "(— not traced) / diffuse three-bounce sum\n\n")
+              "(— not traced) / diffuse three-bounce sum image model / ray tracer\n\n")
     head = ["d [m]"] + [f"{b} {m} σh={s * 1e3:g} mm" for b in radars for m, s in cases]
     buf.write("| " + " | ".join(head) + " |\n|" + "---|" * len(head) + "\n")
     fmt = lambda x: "—" if x is None else ("-inf" if x == float("-inf") else f"{x:.1f}")  # noqa: E731

@@ -17,7 +17,7 @@ Components are added only when the scene or configuration asks for them (``Param
 * ``atmosphere``: ITU-R P.676 gaseous loss over each round trip, when the scene declares an
   atmosphere and the loss over the longest path reaches ``tolerance_db``.
 * ``coupling``: the radar's mutual-coupling matrix mixes the channels (:mod:`xnlos_core.antenna`).
-* ``diffuse_nlos`` (image only): the three-bounce path radar → rough relay wall → object → wall →
+* ``diffuse_nlos`` (as ``raytrace``): the three-bounce path radar → rough relay wall → object → wall →
   radar through the diffuse lobe (:mod:`sims.diffuse_nlos`), the power a rough wall takes out of the
   mirror path; auto: on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < ½).
 
@@ -31,9 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from typing import Literal
-
-from pydantic import Field, model_serializer
+from pydantic import Field
 
 from xnlos_core.errors import InputError
 from xnlos_core.geometry import cartesian_to_polar, mirror_reflect, ray_segment_intersection, segments_intersect
@@ -81,22 +79,6 @@ class ImageForwardModel(ForwardModel):
 
     class Params(ForwardParams):
         mirror_paths: bool = Field(True, description="model relay-wall (mNLOS) mirror paths (Eq. 3, 5)")
-        diffuse_nlos: Literal["auto", "on", "off"] = Field(
-            "auto", description="three-bounce diffuse NLOS path via rough relay walls (sims.diffuse_nlos); auto: "
-                                "on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < 1/2)")
-        diffuse_nlos_cell: float = Field(1.0, ge=0.05, le=10, description="wall cell length [m] of the diffuse "
-                                                                         "NLOS path (pairs of cells: cost ∝ 1/cell²)")
-
-        @model_serializer(mode="wrap")
-        def _omit_doppler_off(self, handler):
-            # doppler, diffuse_nlos and diffuse_nlos_cell arrived after dataset digests existed: left
-            # out at their defaults so those digests stay the same
-            data = handler(self)
-            if isinstance(data, dict):
-                for key, default in (("doppler", False), ("diffuse_nlos", "auto"), ("diffuse_nlos_cell", 1.0)):
-                    if key in data and data[key] == default:
-                        del data[key]
-            return data
 
     def components(self, scene, radar: RadarConfig) -> dict[str, str]:
         """Which optional components this scene and radar need: name → "on" or "off: reason"."""
@@ -124,16 +106,18 @@ class ImageForwardModel(ForwardModel):
         use = self.components(scene, radar)
         self.check(scene, radar)
         planar = scene.planar_walls()  # curved walls as planar facets, each its own mirror
-        paths = self._paths(scene, planar, radar, rng, timestamp, {k: v == "on" for k, v in use.items()})
+        cut: dict[str, str] = {}
+        paths = self._paths(scene, planar, radar, rng, timestamp, {k: v == "on" for k, v in use.items()}, cut)
+        use = {**use, **cut}
         return render_paths(paths, scene, radar, rng, self.params, use, forward_model="image",
                             walls=tuple(w.segment() for w in planar), timestamp=timestamp, index=index,
                             surface_names=[w.name for w in planar])
 
     def _paths(self, scene, planar, radar: RadarConfig, rng: np.random.Generator, timestamp: float,
-               on: dict[str, bool]) -> Paths:
+               on: dict[str, bool], cut_out: dict | None = None) -> Paths:
         """The LOS and mirror paths of ``scene`` (walls as the planar facets ``planar``) at
         ``timestamp`` [s], with their random phases (drawn from ``rng`` first); ``on``: component
-        name → in use."""
+        name → in use; ``cut_out``: receives "diffuse_nlos_cut" (the importance cut's record) when given."""
         p = self.params
         segs = tuple(w.segment() for w in planar)
         objs = [o.scatterers(timestamp) for o in scene.objects]  # (pos (K,2), normal (K,2), rcs (K,))
@@ -200,51 +184,55 @@ class ImageForwardModel(ForwardModel):
 
         # --- diffuse NLOS: radar → rough relay wall → object → wall → radar (sims.diffuse_nlos) ---
         if on.get("diffuse_nlos"):
-            for i, (spec, seg) in enumerate(zip(planar, segs)):
-                if spec.relay and seg.offset > 0 and spec.material is not None and spec.roughness > 0:
-                    _diffuse_nlos(out, spec, seg, segs, i, radar, objs, obj_phase, walls[i], wall_phase[i], vel,
-                                  p.diffuse_nlos_cell)
+            rough = [i for i, (spec, seg) in enumerate(zip(planar, segs))
+                     if spec.relay and seg.offset > 0 and spec.material is not None and spec.roughness > 0]
+            budget = diffuse_nlos.noise_equivalent_power(radar) * 10 ** (p.diffuse_nlos_floor_db / 10)
+            cut = [0, 0, 0.0, 0.0, False]  # kept paths, candidate pairs, total, neglected power [W], capped
+            for i in rough:
+                _diffuse_nlos(out, planar[i], segs[i], segs, i, radar, objs, obj_phase, walls[i], wall_phase[i], vel,
+                              p.diffuse_nlos_cell, budget / len(rough), max(1, p.diffuse_nlos_max_paths // len(rough)),
+                              cut)
+            if cut_out is not None:
+                cut_out["diffuse_nlos_cut"] = diffuse_nlos.describe_cut(*cut, radar)
         return out.paths()
 
 
 def _diffuse_nlos(out: PathList, spec, seg, segs, i: int, radar: RadarConfig, objs, obj_phase, fine, fine_phase,
-                  vel, cell_length: float) -> None:
-    """Append the three-bounce diffuse paths (:mod:`sims.diffuse_nlos`) of relay wall ``i`` for every
-    object centre on its radar side; cell phases are those of the nearest LOS wall cell (no new draws)."""
+                  vel, cell_length: float, budget: float, cap: int, cut: list) -> None:
+    """Append the three-bounce diffuse paths (:func:`sims.diffuse_nlos.wall_paths`) of relay wall ``i``
+    for every object centre on its radar side; cell phases are those of the nearest LOS wall cell (no
+    new draws). Visibility: 2-D segment tests against the other walls. ``cut`` accumulates
+    [kept paths, candidate pairs, total power, neglected power, path cap reached]."""
     n, b = seg.normal, seg.offset
     a, ds = diffuse_nlos.cells(spec, cell_length)
     phase_a = fine_phase[np.argmin(np.linalg.norm(fine[0][None, :, :] - a[:, None, :], axis=2), axis=1)]
-    r_a, az_a = cartesian_to_polar(a)
     lit = ((-a @ n) > 0) & ~_blocked(_ORIGIN, a, segs, skip=i)
-    a, ds_phase, r_a, az_a = a[lit], phase_a[lit], r_a[lit], az_a[lit]
+    a, phase_a = a[lit], phase_a[lit]
     if len(a) == 0:
         return
-    n3 = np.append(n, 0.0)
-    area = ds * spec.height
-    to_radar = np.column_stack([-a, np.zeros(len(a))])
-    for j, (pts, nrm, rcs) in enumerate(objs):
-        near = pts @ n + b > 0
-        for o in np.flatnonzero(near):
-            po = pts[o]
-            to_obj = np.column_stack([po - a, np.zeros(len(a))])
-            d = np.linalg.norm(po - a, axis=1)
-            sees = _faces(np.repeat(nrm[o][None], len(a), 0), np.repeat(po[None], len(a), 0), a)
-            sees &= (d > 1e-6) & ~_blocked(a, np.repeat(po[None], len(a), 0), segs, skip=i)
-            if not sees.any():
-                continue
-            s_out = wall_em.bistatic_sigma0(spec, radar, to_radar, to_obj, n3) * area  # radar → a → o
-            s_back = wall_em.bistatic_sigma0(spec, radar, to_obj, to_radar, n3) * area  # o → b → radar
-            ia, ib = np.meshgrid(np.flatnonzero(sees), np.flatnonzero(sees), indexing="ij")
-            ia, ib = ia.ravel(), ib.ravel()
-            power = diffuse_nlos.three_bounce_power(radar, r_a[ia], az_a[ia], r_a[ib], az_a[ib], d[ia], d[ib],
-                                                    s_out[ia], s_back[ib], rcs[o])
-            length = r_a[ia] + d[ia] + d[ib] + r_a[ib]
-            u = np.column_stack([np.cos(az_a[ib]), np.sin(az_a[ib])])
-            v = np.asarray(vel[j], dtype=np.float64)
-            rate = ((po - a[ia]) @ v / d[ia] + (po - a[ib]) @ v / d[ib]) / 2  # d(length/2)/dt [m/s]
-            out.add(length=length, azimuth=az_a[ib], power=power, phase=ds_phase[ia] + obj_phase[j][o] + ds_phase[ib],
-                    kind=OTHER, order=1, pos=u * (length / 2)[:, None], hidden=np.repeat(po[None], len(ia), 0),
-                    obj=j, centre=o, velocity=u * rate[:, None])
+    n3, a3 = np.append(n, 0.0), np.column_stack([a, np.zeros(len(a))])
+    owner = np.concatenate([np.full(len(o[0]), j) for j, o in enumerate(objs)])  # object of each centre
+    index = np.concatenate([np.arange(len(o[0])) for o in objs])
+    pts = np.concatenate([o[0] for o in objs])
+    nrm = np.concatenate([o[1] for o in objs])
+    rcs = np.concatenate([o[2] for o in objs])
+    near = np.flatnonzero(pts @ n + b > 0)  # centres on the radar side of the wall
+    if len(near) == 0:
+        return
+    sees = np.stack([_faces(np.repeat(nrm[o][None], len(a), 0), np.repeat(pts[o][None], len(a), 0), a)
+                     & (np.linalg.norm(pts[o] - a, axis=1) > 1e-6)
+                     & ~_blocked(a, np.repeat(pts[o][None], len(a), 0), segs, skip=i) for o in near])
+    v3 = np.array([np.append(vel[owner[o]], 0.0) for o in near])
+    w = diffuse_nlos.wall_paths(radar, spec, n3, a3, ds * spec.height, np.zeros(3),
+                                np.column_stack([pts[near], np.zeros(len(near))]), rcs[near], sees, v3, budget, cap)
+    cut[:] = [cut[0] + len(w.power), cut[1] + w.pairs, cut[2] + w.total, cut[3] + w.neglected,
+              cut[4] or w.capped]
+    o = near[w.centre]
+    obj_ph = np.array([obj_phase[owner[k]][index[k]] for k in o])
+    u = np.column_stack([np.cos(w.azimuth), np.sin(w.azimuth)])
+    out.add(length=w.length, azimuth=w.azimuth, power=w.power, phase=phase_a[w.ia] + obj_ph + phase_a[w.ib],
+            kind=OTHER, order=1, pos=w.pos, hidden=w.hidden, obj=owner[o], centre=index[o],
+            velocity=u * w.rate[:, None])
 
 
 def _through_walls(planar, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:

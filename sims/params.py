@@ -51,14 +51,34 @@ class ForwardParams(BaseModel):
                                              "frozen at the frame's timestamp")
     tolerance_db: float = Field(0.1, ge=0, le=60, description="'auto' leaves out a loss term whose largest "
                                                               "effect stays below this [dB]")
+    diffuse_nlos: Switch = Field(
+        "auto", description="three-bounce diffuse NLOS path via rough relay walls (sims.diffuse_nlos); auto: "
+                            "on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < 1/2)")
+    diffuse_nlos_cell: float = Field(1.0, ge=0.05, le=10, description="wall cell length [m] of the diffuse "
+                                                                     "NLOS path (pairs of cells: cost ∝ 1/cell²)")
+    diffuse_nlos_floor_db: float = Field(
+        -20.0, ge=-300, le=0, description="importance cut of the diffuse NLOS pairs: the weakest pairs are left "
+                                          "out while their summed power stays below this RA-map SNR [dB] "
+                                          "(sims.diffuse_nlos.wall_paths); -300 keeps every pair")
+    diffuse_nlos_max_paths: int = Field(
+        20000, ge=1, le=10_000_000, description="at most this many diffuse NLOS paths per frame (the strongest "
+                                                 "pairs; the power left out is in meta['components'])")
 
     @model_serializer(mode="wrap")
-    def _omit_doppler_off(self, handler):
-        # doppler arrived after dataset digests existed: left out while off so they stay the same
+    def _omit_late_defaults(self, handler):
+        # fields that arrived after dataset digests existed are left out at their defaults, so those
+        # digests stay the same
         data = handler(self)
-        if isinstance(data, dict) and data.get("doppler") is False:
-            del data["doppler"]
+        if isinstance(data, dict):
+            for key, default in LATE_DEFAULTS.items():
+                if key in data and data[key] == default:
+                    del data[key]
         return data
+
+
+#: Parameters added after dataset digests existed, left out of serialised configs at these defaults.
+LATE_DEFAULTS = {"doppler": False, "diffuse_nlos": "auto", "diffuse_nlos_cell": 1.0, "diffuse_nlos_floor_db": -20.0,
+                 "diffuse_nlos_max_paths": 20000}
 
 
 def components_needed(p: ForwardParams, scene, radar: RadarConfig) -> dict[str, str]:

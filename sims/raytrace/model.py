@@ -9,8 +9,9 @@ seen directly) and mNLOS points (object centres and strips via one mirror) whose
 reaches ``min_snr_db`` inside the field of view; other multipath is clutter, not ground truth.
 
 Models only what the scene needs (as ``image``): the diffuse lobe of material walls when they
-are rough, the P.676 atmosphere when declared and above ``tolerance_db``, coupling when the
-radar has it. Slab transmission is not modelled by the ray tracer (use ``image``).
+are rough, the diffuse three-bounce NLOS path via mostly diffuse relay walls (:mod:`.diffuse`,
+same switch and ``auto`` rule as ``image``), the P.676 atmosphere when declared and above
+``tolerance_db``, coupling when the radar has it. Slab transmission is not modelled by the ray tracer (use ``image``).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from xnlos_core.interfaces import ForwardModel
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Frame
 
+from sims import diffuse_nlos
 from sims import walls as wall_em
 from sims.motion_paths import mirror_velocity, object_velocity
 from sims.params import ForwardParams, components_needed
@@ -32,6 +34,7 @@ from sims.paths import OTHER, PathList
 from sims.propagation import received_power
 from sims.render import render_paths
 
+from .diffuse import diffuse_paths
 from .tracer import Trace, bistatic_power, em_groups, image_paths_chains, shoot
 from .world import build_world, check_radar_outside
 
@@ -59,7 +62,8 @@ class RaytraceForwardModel(ForwardModel):
 
     def components(self, scene, radar: RadarConfig) -> dict[str, str]:
         """Optional components this scene and radar need: name → "on" or "off: reason"."""
-        return components_needed(self.params, scene, radar)
+        return {**components_needed(self.params, scene, radar),
+                "diffuse_nlos": diffuse_nlos.decide(self.params.diffuse_nlos, scene, radar)}
 
     def check(self, scene, radar: RadarConfig) -> None:
         """What :meth:`trace` refuses at t = 0: unreadable or unsupported meshes, the radar inside a
@@ -90,6 +94,13 @@ class RaytraceForwardModel(ForwardModel):
                    reflection=p.reflection, diffuse=use["diffuse"] == "on", paths=paths,
                    keep_segments=keep_segments)
         self._object_paths(world, radar, origin, scene, centres, tr, paths, timestamp)
+        if use["diffuse_nlos"] == "on":  # last: Trace.diffuse_cells rows are the last paths
+            z = [min(p.radar_height, o.height) for o in scene.objects]
+            c3 = [(np.column_stack([c[0], np.full(len(c[0]), zj)]), np.column_stack([c[1], np.zeros(len(c[1]))]),
+                   c[2]) for c, zj in zip(centres, z)]
+            vel = [np.append(object_velocity(o, timestamp), 0.0) for o in scene.objects]
+            tr.diffuse_cells, tr.n_cells, record = diffuse_paths(world, scene, radar, origin, c3, vel, p, paths)
+            use = {**use, "diffuse_nlos_cut": record}
         return world, paths.paths(), tr, use
 
     def _object_paths(self, world, radar, origin, scene, centres, tr: Trace, paths: PathList,
@@ -187,6 +198,10 @@ class RaytraceForwardModel(ForwardModel):
         for j, ph in enumerate(obj_phase):
             m = (~strip) & (paths.obj == j)
             phase[m] = ph[paths.centre[m]]
+        if p.random_phase and tr.n_cells:  # diffuse NLOS: one phase per wall cell, drawn after the others
+            cell_phase = rng.uniform(0, 2 * np.pi, tr.n_cells)
+            tail = slice(len(paths) - len(tr.diffuse_cells), len(paths))
+            phase[tail] += cell_phase[tr.diffuse_cells[:, 0]] + cell_phase[tr.diffuse_cells[:, 1]]
 
         def describe(live):
             return {"n_other_paths": int((live & (paths.kind == OTHER)).sum()), "max_bounce": int(tr.max_order),

@@ -25,7 +25,7 @@ h_r, and a wall hit stands for the wall's whole vertical extent (as in the image
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,13 +43,17 @@ START = 1e-4  # [m] a leg leaving a reflection point is cast from this far along
 @dataclass
 class Trace:
     """What the fan did, for pictures and statistics: segments (S, 2, 3) of every ray leg and
-    their bounce order (S,), chains {planes: (az_min, az_max)}, rays cast, deepest bounce reached."""
+    their bounce order (S,), chains {planes: (az_min, az_max)}, rays cast, deepest bounce reached;
+    diffuse_cells (P_d, 2): wall cells (a, b) of the diffuse NLOS paths, which are the last P_d paths
+    of the trace (:mod:`.diffuse`), numbered 0 … n_cells − 1 over all relay walls."""
 
     segments: np.ndarray
     segment_order: np.ndarray
     chains: dict
     rays: int
     max_order: int
+    diffuse_cells: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    n_cells: int = 0
 
 
 def _angle(d: np.ndarray, n: np.ndarray) -> np.ndarray:
