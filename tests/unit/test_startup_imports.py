@@ -47,3 +47,12 @@ def test_the_closed_form_chi2_gate_is_scipys_quantile():
 
     for p in (1e-6, 0.5, 0.9, 0.99, 0.999, 1 - 1e-9):
         assert abs(chi2_2_ppf(p) - chi2.ppf(p, df=2)) <= 1e-12 * max(1.0, chi2.ppf(p, df=2))
+
+
+def test_the_windows_radar_accepts_without_scipy_are_scipy_windows():
+    from scipy.signal import get_window
+
+    from xnlos_core.radar import SCIPY_WINDOWS
+
+    for name in sorted(SCIPY_WINDOWS):
+        assert get_window(name, 8).shape == (8,), name
