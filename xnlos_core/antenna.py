@@ -30,7 +30,6 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import get_window
 
 from .errors import InputError
 from .radar import RadarConfig
@@ -214,6 +213,8 @@ def azimuth_weights(radar: RadarConfig, window: str | None = None) -> np.ndarray
     follows each channel's y (:func:`aperture_taper`), so a raised or interleaved transmitter
     does not scramble it.
     """
+    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
+
     name = radar.azimuth_window if window is None else window
     if radar.has_custom_layout:
         return aperture_taper(name, channel_positions(radar)[:, 0] / radar.wavelength)
@@ -229,6 +230,8 @@ def aperture_taper(window: str, y) -> np.ndarray:
     sampled finely over [min y, max y] and read at each y, so coinciding elements weigh the same.
     All elements at one y: uniform weights (no azimuth aperture to taper).
     """
+    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
+
     y = np.asarray(y, dtype=np.float64)
     k = len(y)
     order = np.argsort(y, kind="stable")

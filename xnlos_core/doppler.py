@@ -26,7 +26,6 @@ from typing import Literal
 
 import numpy as np
 import scipy.fft
-from scipy.signal import get_window
 
 from .errors import InputError
 from .radar import RadarConfig
@@ -89,6 +88,8 @@ def chirp_sequence_cube(radar: RadarConfig, range_m, azimuth, amplitude, radial_
 
 
 def _doppler_window(name: str, n: int) -> np.ndarray:
+    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
+
     try:
         return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
     except Exception as exc:  # scipy raises ValueError/TypeError with little context

@@ -374,7 +374,17 @@ def _check_no_overlap(name: str, positions) -> None:
                          "apart (virtual elements may coincide, physical ones may not)")
 
 
+# scipy.signal windows that need no parameter, accepted by get_window under these names (checked
+# against scipy in tests/unit/test_startup_imports.py): validating them needs no scipy.signal, whose
+# import (~0.3 s) every pipeline load would otherwise pay. Any other name is asked of scipy.
+SCIPY_WINDOWS = frozenset({"barthann", "bartlett", "blackman", "blackmanharris", "bohman", "boxcar", "cosine",
+                           "flattop", "hamming", "hann", "lanczos", "nuttall", "parzen", "taylor", "triang",
+                           "tukey"})
+
+
 def _check_window(name: str, window: str) -> None:
+    if window in SCIPY_WINDOWS:
+        return
     from scipy.signal import get_window
 
     try:

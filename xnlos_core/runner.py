@@ -17,7 +17,9 @@ of range or two different records of one frame are refused with an InputError na
 With a tracker that has a checkpoint (:attr:`xnlos_core.interfaces.Tracker.supports_state`), its
 state is written after each recorded frame to ``tracker_state.json`` (:mod:`xnlos_core.tracker_state`)
 and a resume restores it instead of replaying the recorded frames; otherwise (no checkpoint, a gap,
-an unusable file) every frame from 0 is replayed through the tracker. A finished run runs no stage.
+an unusable file) every frame from 0 is replayed through the tracker. A finished run runs no stage,
+and rewrites its summary, figures and GIF only when they are not those of this config and these
+results (``outputs.json``, :mod:`xnlos_core.run_outputs`).
 """
 from __future__ import annotations
 
@@ -34,6 +36,7 @@ from .figures import split_outlines
 from .frame_snapshot import FrameSnapshot
 from .io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, write_jsonl
 from .pipeline import Pipeline
+from .run_outputs import STAMP, outputs_current, outputs_key, write_outputs_stamp
 from .rundir import claim, write_record
 from .track_record import track_history
 from .tracker_state import STATE_FILE, restore_tracker_state, write_tracker_state
@@ -52,7 +55,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     done: dict[int, dict] = {}
     animate = config.run.wants_animation("tracker" in pipe.stages)
     old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
-                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE],
+                what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE, STAMP],
                 state=prov["state_sha256"])
     if old is not None:
         done = read_results(res_path, n if "forward_model" in pipe.stages else None)
@@ -61,6 +64,9 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         resumed = old.get("resumed", 0)
         prov = {**old, "resumed": (resumed if isinstance(resumed, int) and not isinstance(resumed, bool) else 0) + 1}
     write_record(out, "provenance.json", prov)
+    # As a resume reads it back (keys sorted, JSON types), so that a fresh run and a rerun of it render
+    # the same summary (the plugin and version lists in key order) and the rerun need not rewrite it.
+    prov = json.loads(json.dumps(prov, sort_keys=True, default=str))
 
     records = dict(done)
     bar = _progress(total=n, initial=len(done), enabled=progress, desc=f"run {config.name}")
@@ -91,17 +97,28 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     if list(records) != sorted(records):  # a gap was filled after later frames: store in frame order
         write_jsonl(res_path, ordered)
     records = ordered
-    figures = _write_figures(pipe, out, records)
-    gif = _write_animation(pipe, out, records, progress) if animate else None
+    figures = [figure_path(out, k) for k in config.run.figure_frames(r["frame"] for r in records)]
     summary = summarise(records)
     summary["figure"] = figures[-1].name if figures else None
     if len(figures) > 1:
         summary["figures"] = [p.name for p in figures]
-    if gif is not None:
-        summary["animation"] = gif.name
+    if animate:
+        summary["animation"] = GIF
     summary["state_sha256"] = prov.get("state_sha256", {})
-    atomic_write_text(out / "summary.md", render_summary(summary, prov, config))
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, sort_keys=True, default=str))
+    texts = {"summary.md": render_summary(summary, prov, config),
+             "summary.json": json.dumps(summary, indent=2, sort_keys=True, default=str)}
+    # A rerun of a finished run whose summary, figures and GIF on disk are those of this config and
+    # these results (xnlos_core.run_outputs) writes none of them again.
+    names = [*texts, *(p.name for p in figures), *([GIF] if animate else [])]
+    key = outputs_key(config, prov, res_path, texts.values())
+    if outputs_current(out, key, names):
+        return summary
+    _write_figures(pipe, out, records)
+    if animate:
+        _write_animation(pipe, out, records, progress)
+    for name, text in texts.items():
+        atomic_write_text(out / name, text)
+    write_outputs_stamp(out, key, names)
     return summary
 
 

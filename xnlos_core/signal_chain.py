@@ -21,7 +21,6 @@ import functools
 
 import numpy as np
 import scipy.fft
-from scipy.signal import get_window
 
 from .antenna import azimuth_weights, coupling_matrix, steering_vector
 from .errors import InputError
@@ -145,6 +144,8 @@ def add_noise(cube: np.ndarray, radar: RadarConfig, rng: np.random.Generator) ->
 
 
 def _window(name: str, n: int) -> np.ndarray:
+    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
+
     # symmetric taper (fftbins=False), same convention as the azimuth weights
     return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
 

@@ -15,7 +15,6 @@ than 5 % do).
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.path import Path
 
 from xnlos_core.errors import InputError
 
@@ -30,6 +29,9 @@ class Region:
         area = 0.5 * np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
         if abs(area) == 0:
             raise InputError("Region: the polygon's vertices are collinear (zero area)")
+        from matplotlib.path import Path  # here: matplotlib costs ~0.3 s, and importing the kalman tracker
+        # (every `xnlos` start registers it) must not load it
+
         self.vertices = v
         self._path = Path(v)
         self._c, self._d = v, np.roll(v, -1, axis=0)

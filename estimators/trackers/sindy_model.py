@@ -32,14 +32,17 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pysindy as ps
 from scipy.linalg import expm
 from scipy.optimize import least_squares
 
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.validation import as_array
+
+if TYPE_CHECKING:
+    import pysindy as ps
 
 FEATURES = ("vx", "vy")
 MIN_SAMPLES = 8
@@ -232,6 +235,9 @@ def _stlsq(threshold: float) -> ps.STLSQ:
     # unbias=False: with the 1e-6 ridge the unbiasing least-squares refit on the support changes the
     # coefficients by ~1e-6 (relative) and cost a third of each fit; the supports are what is used here
     # (the coefficients are refitted on the positions, _refit).
+    import pysindy as ps  # here, not at module level: pysindy pulls in sklearn and pandas (~1.5 s), and
+    # registering the tracker (every `xnlos` start) must not pay for that (issue 31, cheap start-up)
+
     return ps.STLSQ(threshold=threshold, alpha=1e-6, normalize_columns=True, unbias=False)
 
 

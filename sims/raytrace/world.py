@@ -13,14 +13,18 @@
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from xnlos_core.errors import InputError
 
 from .caster import Caster
+
+if TYPE_CHECKING:
+    import trimesh
 
 OBJECT_MARGIN = 0.05  # [m] occluder boxes are this much smaller than the scattering outline
 DEFAULT_DEPTH = 0.3  # [m] wall box depth when the wall has no slab thickness
@@ -60,6 +64,9 @@ def _depth(w) -> float:
 def wall_box(w) -> trimesh.Trimesh:
     """Watertight box of a planar wall facet (module doc); the front face is on the BEV segment,
     the box extends ``thickness`` (or DEFAULT_DEPTH) away from the radar side."""
+    import trimesh  # here, not at module level: trimesh (and networkx) cost ~0.2–0.6 s, and registering
+    # the ray-tracing forward model (every `xnlos` start) imports this module (issue 31)
+
     seg = w.segment()
     a, b = np.asarray(w.start, float), np.asarray(w.end, float)
     u = (b - a) / np.linalg.norm(b - a)
@@ -70,15 +77,24 @@ def wall_box(w) -> trimesh.Trimesh:
     return trimesh.creation.box(extents=(float(np.linalg.norm(b - a)), _depth(w), w.height), transform=tf)
 
 
-_UNIT_BOX = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+@functools.cache
+def _unit_box() -> tuple[np.ndarray, np.ndarray]:
+    """The unit cube's vertices (8, 3) and faces (12, 3), as trimesh.creation.box makes them."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    v, f = np.array(box.vertices), np.array(box.faces)
+    v.flags.writeable = f.flags.writeable = False  # shared by every call
+    return v, f
 
 
 def wall_boxes(walls) -> trimesh.Trimesh:
     """All walls' boxes (same geometry as :func:`wall_box`) as one mesh, built without per-wall
     trimesh objects: the unit cube's outward faces, scaled, rotated and moved per wall.
     Faces are wall-major, 12 per wall."""
-    v0 = np.asarray(_UNIT_BOX.vertices)
-    f0 = np.asarray(_UNIT_BOX.faces)
+    import trimesh
+
+    v0, f0 = _unit_box()
     verts, faces = [], []
     for i, w in enumerate(walls):
         seg = w.segment()
@@ -105,6 +121,8 @@ def inside_wall_box(w, point: np.ndarray) -> bool:
 
 def object_box(obj, t: float) -> trimesh.Trimesh | None:
     """Occluder box of an object at time t [s] (None for point objects)."""
+    import trimesh
+
     if obj.shape == "point":
         return None
     length, width = obj.size
@@ -139,6 +157,8 @@ class World:
 
 def build_world(scene, t: float = 0.0, backend: str = "auto") -> World:
     """The triangle world of ``scene`` at time t [s] (walls, user meshes, object occluders)."""
+    import trimesh
+
     parts: list[tuple[trimesh.Trimesh, int, int]] = []  # (mesh, surface index, object index)
     surfaces: list[Surface] = []
     planar = scene.planar_walls()

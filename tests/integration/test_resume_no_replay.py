@@ -4,6 +4,7 @@ reruns no stage, and an unusable checkpoint falls back to the replay with a Chec
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import warnings
 from pathlib import Path
@@ -158,3 +159,29 @@ def test_an_unusable_checkpoint_falls_back_to_the_replay(reference, killed_kalma
     # Replayed: every frame through the tracker again, and the results are the uninterrupted run's.
     assert calls["detector"] == list(range(N)) and calls["forward_model"] == list(range(N))
     assert _strip(read_jsonl(out / "results.jsonl")) == reference["kalman"]
+
+
+def test_a_finished_run_rerun_rewrites_no_output_unless_it_is_stale(tmp_path, monkeypatch):
+    """outputs.json (xnlos_core.run_outputs): a rerun of a finished run leaves summary, figure and GIF
+    alone (their mtimes, set to a known past value, stay), reruns no stage; a deleted GIF, an edited
+    summary or another figure setting makes it write them again."""
+    cfg = _cfg("kalman", frames=3, figure=True, animation=True)
+    run_to_dir(cfg, tmp_path, progress=False)
+    outputs = ["summary.md", "summary.json", "frame_0002.png", "sequence.gif"]
+    past = 1_000_000_000_000_000_000  # ns: 2001-09-09
+    for name in outputs:
+        os.utime(tmp_path / name, ns=(past, past))
+    calls = _spy(monkeypatch, cfg)
+    first = json.loads((tmp_path / "summary.json").read_text())
+    assert run_to_dir(cfg, tmp_path, progress=False) == first
+    assert calls == {"forward_model": [], "detector": [], "tracker": []}
+    assert {n: (tmp_path / n).stat().st_mtime_ns for n in outputs} == dict.fromkeys(outputs, past)
+
+    (tmp_path / "sequence.gif").unlink()
+    (tmp_path / "summary.md").write_text("edited")
+    run_to_dir(cfg, tmp_path, progress=False)
+    assert (tmp_path / "sequence.gif").exists() and (tmp_path / "summary.md").read_text().startswith("#")
+    assert (tmp_path / "frame_0002.png").stat().st_mtime_ns == past  # present and current: not redrawn
+
+    run_to_dir(_cfg("kalman", frames=3, figure=True, animation=True, figures="all"), tmp_path, progress=False)
+    assert all((tmp_path / f"frame_{k:04d}.png").exists() for k in range(3))
