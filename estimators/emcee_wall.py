@@ -63,6 +63,11 @@ class EmceeParams(RobustWallParams):
                              "WallPosterior.samples")
     min_ess: float = Field(400.0, ge=0, le=1e9, description="warn when the effective sample size "
                            "n_walkers·(n_steps − burn)/max τ is below this (0: never)")
+    target_ess: float = Field(0.0, ge=0, le=1e9, description="continue the chain, n_steps − burn steps "
+                              "at a time, while its ESS is below this, up to max_steps (0: never; the "
+                              "first n_steps are the same either way)")
+    max_steps: int = Field(1000, ge=20, le=10_000_000, description="most steps per walker when "
+                           "target_ess extends the chain")
 
     @model_validator(mode="after")
     def _burn_below_steps(self):
@@ -126,11 +131,15 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
             f"emcee wall posterior ({lik.model}): could not place {n_walkers} linearly independent walkers "
             f"inside the posterior's support around the MAP θ = {np.round(fit.theta, 6).tolist()}")
     sampler.run_mcmc(start, params.n_steps, progress=False)
+    n_steps = params.n_steps
+    tau, ess = _ess(sampler, params.burn, n_walkers, n_steps)
+    while ess < params.target_ess and n_steps < params.max_steps:  # extend from where the walkers are
+        more = min(params.n_steps - params.burn, params.max_steps - n_steps)
+        sampler.run_mcmc(None, more, progress=False)
+        n_steps += more
+        tau, ess = _ess(sampler, params.burn, n_walkers, n_steps)
     chain = sampler.get_chain(discard=params.burn, flat=True)
-    n_kept = params.n_steps - params.burn
-    tau = np.asarray(sampler.get_autocorr_time(discard=params.burn, quiet=True, tol=0), dtype=np.float64)
-    tau_max = float(np.nanmax(tau)) if np.isfinite(tau).any() else float("inf")
-    ess = float(n_walkers * n_kept / tau_max) if tau_max > 0 else float(len(chain))
+    n_kept = n_steps - params.burn
     acc = float(np.mean(sampler.acceptance_fraction))
     low = not (ess >= params.min_ess)
     if low:
@@ -141,9 +150,17 @@ def sample_posterior(lik: WallLikelihood, fit: MapFit, params: EmceeParams,
             "raise n_walkers or n_steps", RuntimeWarning, stacklevel=3)
     stride = max(1, int(np.ceil(len(chain) / params.max_samples)))
     diag = {"tau": tau.tolist(), "ess": ess, "acceptance_fraction": acc, "n_walkers": n_walkers,
-            "n_steps": params.n_steps, "burn": params.burn, "moves": params.moves,
+            "n_steps": n_steps, "target_ess": params.target_ess, "burn": params.burn, "moves": params.moves,
             "ess_too_low": bool(low), "min_ess": params.min_ess, "sample_time_s": time.perf_counter() - t0}
     return chain, chain[::stride], diag
+
+
+def _ess(sampler, burn: int, n_walkers: int, n_steps: int) -> tuple[np.ndarray, float]:
+    """(τ per parameter [steps], ESS = n_walkers·(n_steps − burn)/max τ) of the chain so far."""
+    tau = np.asarray(sampler.get_autocorr_time(discard=burn, quiet=True, tol=0), dtype=np.float64)
+    tau_max = float(np.nanmax(tau)) if np.isfinite(tau).any() else float("inf")
+    n = n_walkers * (n_steps - burn)
+    return tau, (float(n / tau_max) if tau_max > 0 else float(n))
 
 
 class EmceeWallEstimator(WallEstimator):

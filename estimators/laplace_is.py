@@ -17,7 +17,9 @@ log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_p
    × ``fallback_n_steps`` = 128 × 200, 60 burn-in: ESS 2031–2659 per wall at ≈ 100 ms on the
    calibration frames against 16 × 2000's 1045–2095 at ≈ 740 ms (2 shared cores); τ ≈ 8–11
    steps; it warns below ``fallback_min_ess``; emcee's own defaults since issue 31;
-   :class:`estimators.emcee_wall.EmceeWallEstimator`)
+   :class:`estimators.emcee_wall.EmceeWallEstimator`; a chain whose ESS is below ``target_ess``
+   is continued from where its walkers are, 140 steps at a time, up to ``fallback_max_steps``,
+   so the fallback's walls reach the same ESS as the importance-sampled ones)
    runs in-process on the same cluster fit, from the same MAP; info then says ``fallback: "emcee"`` and keeps the failed
    k̂ and ESS (``is_pareto_k``, ``is_ess``);
 5. otherwise the WallPosterior's mean and cov are the weighted moments (φ averaged on the
@@ -66,6 +68,8 @@ class LaplaceISParams(RobustWallParams):
     fallback_n_steps: int = Field(200, ge=20, le=10_000_000, description="emcee steps of the fallback, "
                                   "burn-in included")
     fallback_burn: int = Field(60, ge=0, le=10_000_000, description="emcee burn-in steps of the fallback")
+    fallback_max_steps: int = Field(1000, ge=20, le=10_000_000, description="the fallback's chain is "
+                                    "extended while its ESS is below target_ess, up to this many steps")
     fallback_min_ess: float = Field(400.0, ge=0, le=1e9, description="the fallback warns when its "
                                     "effective sample size is below this (EmceeParams.min_ess)")
     max_samples: int = Field(4000, ge=10, le=10_000_000, description="resampled draws kept in "
@@ -124,7 +128,9 @@ class LaplaceISWallEstimator(WallEstimator):
                                               n_walkers=self.params.fallback_n_walkers,
                                               n_steps=self.params.fallback_n_steps, burn=self.params.fallback_burn,
                                               max_samples=self.params.max_samples,
-                                              min_ess=self.params.fallback_min_ess))
+                                              min_ess=self.params.fallback_min_ess,
+                                              target_ess=self.params.target_ess,
+                                              max_steps=self.params.fallback_max_steps))
 
     def fit_wall(self, points: np.ndarray, point_cov: np.ndarray, rng: np.random.Generator) -> WallPosterior:
         """WallPosterior with samples for one LOS cluster: points (N, 2) [m], point_cov (N, 2, 2) [m²]."""

@@ -131,3 +131,18 @@ def test_a_wide_proposal_draws_more_batches_until_the_target_ess():
     (good,) = LaplaceISWallEstimator({"seed": 3}).estimate(det)
     assert good.info["n_draws"] == 4000  # the default proposal reaches the target in one batch
     assert np.all(np.abs(w.mean - good.mean) < 0.2 * np.sqrt(np.diag(good.cov)))
+
+
+def test_the_emcee_fallback_extends_its_chain_until_the_target_ess():
+    """A fallback chain too short for target_ess (16 walkers × 100 steps) is continued, block by
+    block, until its ESS reaches the target; its first steps are those of the unextended chain."""
+    det = _clean_wall()
+    base = {"proposal_scale": 0.05, "fallback_n_walkers": 16, "fallback_n_steps": 100, "fallback_burn": 20,
+            "fallback_min_ess": 0.0, "seed": 2}
+    (short,) = LaplaceISWallEstimator({**base, "target_ess": 0.0}).estimate(det)
+    assert short.info["fallback"] == "emcee" and short.info["n_steps"] == 100 and short.info["ess"] < 1000
+    (long,) = LaplaceISWallEstimator({**base, "fallback_max_steps": 5000}).estimate(det)
+    assert long.info["ess"] >= 1000 and 100 < long.info["n_steps"] <= 5000
+    assert (long.info["n_steps"] - 100) % 80 == 0  # whole blocks of n_steps − burn
+    (capped,) = LaplaceISWallEstimator({**base, "fallback_max_steps": 180}).estimate(det)
+    assert capped.info["n_steps"] == 180 and capped.info["ess"] < 1000
