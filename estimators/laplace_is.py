@@ -60,8 +60,9 @@ class LaplaceISParams(RobustWallParams):
                                   "deviations in the proposal's scale matrix")
     max_pareto_k: float = Field(0.7, gt=0, le=10, description="fall back to emcee when the Pareto k̂ "
                                 "of the weights exceeds this")
-    min_ess: float = Field(100.0, ge=0, le=1e9, description="fall back to emcee when the importance ESS "
-                           "is below this")
+    min_ess: float = Field(1000.0, ge=0, le=1e9, description="fall back to emcee when the importance ESS "
+                           "is below this once max_draws are drawn (the default equals target_ess: every "
+                           "wall gets ESS ≥ 1000 from one sampler or the other)")
     fallback: bool = Field(True, description="run emcee when a diagnostic fails (else keep the IS "
                            "result and only report it)")
     fallback_n_walkers: int = Field(128, ge=8, le=4096, description="emcee walkers of the fallback")

@@ -121,9 +121,10 @@ def test_student_t_draws_and_weighted_moments():
 
 def test_a_wide_proposal_draws_more_batches_until_the_target_ess():
     """A proposal 4× too wide: k̂ passes but 4000 draws give ESS < 1000, so further batches of the
-    same proposal join until ESS ≥ target_ess; with target_ess = 0 one batch is kept."""
+    same proposal join until ESS ≥ target_ess; with target_ess = 0 (and min_ess = 0, else the short
+    batch falls back to emcee) one batch is kept."""
     det = _clean_wall()
-    (one,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "target_ess": 0, "seed": 3}).estimate(det)
+    (one,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "target_ess": 0, "min_ess": 0, "seed": 3}).estimate(det)
     assert one.info["n_draws"] == 4000 and one.info["ess"] < 1000 and one.info["pareto_k"] < 0.7, one.info
     (w,) = LaplaceISWallEstimator({"proposal_scale": 4.0, "seed": 3}).estimate(det)
     assert w.info["fallback"] is None and w.info["ess"] >= 1000 and w.info["n_draws"] > 4000, w.info
