@@ -110,9 +110,11 @@ def stolt_torch(f, bx: float, by: float, chunk: int):
             break  # q grows with k: every later chunk is out of range too
         q0 = torch.clamp(q, max=m - 1).to(torch.int64)
         frac = torch.where(ok, q - q0, torch.zeros((), dtype=real, device=dev))
-        idx = q0 * plane + pix
-        val = flat[idx] * (1 - frac)
-        val += flat[torch.clamp(idx + plane, max=flat.numel() - 1)] * frac
+        idx = (q0 * plane + pix).reshape(-1)
+        shape = q.shape
+        # index_select on the flat view: several times faster than advanced indexing on torch-cpu
+        val = torch.index_select(flat, 0, idx).reshape(shape) * (1 - frac)
+        val += torch.index_select(flat, 0, torch.clamp(idx + plane, max=flat.numel() - 1)).reshape(shape) * frac
         val *= torch.where(ok, k / q, torch.zeros((), dtype=real, device=dev))
         out[k0:k0 + k.shape[0]] = val
     return out
