@@ -19,6 +19,7 @@ from xnlos_core.nlos_volume import NLOSVolume
 from xnlos_core.transient import TransientVolume
 
 from .prep import prepare
+from .torch_backend import device_field, fk_torch, torch_device
 
 
 class FKParams(BaseModel):
@@ -28,6 +29,7 @@ class FKParams(BaseModel):
     workers: int = Field(-1, description="scipy.fft worker threads (-1: all cores)")
     chunk: int = Field(64, ge=1, description="depth-frequency rows per Stolt interpolation chunk "
                                              "(bounds the temporary memory)")
+    device: str = device_field()
 
 
 def stolt(f: np.ndarray, bx: float, by: float, chunk: int = 64) -> np.ndarray:
@@ -69,6 +71,10 @@ class FKSolver(NLOSSolver):
 
     Params = FKParams
 
+    def __init__(self, params=None):
+        super().__init__(params)
+        self._torch = None if self.params.device == "numpy" else torch_device(self.params.device, "fk")
+
     def reconstruct(self, volume: TransientVolume) -> NLOSVolume:
         p = self.params
         dtype = np.dtype(p.dtype)
@@ -77,13 +83,15 @@ class FKSolver(NLOSSolver):
         w = p.workers
         t = (np.arange(m, dtype=dtype) / m)[:, None, None]
         psi = np.sqrt(prep.data) * t  # wave amplitude: √(1/r⁴) · r = 1/r
+        # b = (c·Δt/2)/Δx in bins of the padded grids: 2m along t, 2n along x, y
+        bx = m * prep.bin_length / (2 * n * prep.dx)
+        by = m * prep.bin_length / (2 * n * prep.dy)
+        if self._torch is not None:
+            return prep.result(fk_torch(psi, bx, by, p.chunk, self._torch))
         f = sfft.rfft(psi, n=2 * m, axis=0, workers=w)
         del psi
         f = sfft.fft(f, n=2 * n, axis=1, workers=w, overwrite_x=True)
         f = sfft.fft(f, n=2 * n, axis=2, workers=w, overwrite_x=True)
-        # b = (c·Δt/2)/Δx in bins of the padded grids: 2m along t, 2n along x, y
-        bx = m * prep.bin_length / (2 * n * prep.dx)
-        by = m * prep.bin_length / (2 * n * prep.dy)
         g = stolt(f, bx, by, p.chunk)
         del f
         g = sfft.ifft(g, axis=2, workers=w, overwrite_x=True)[:, :, :n]

@@ -21,6 +21,7 @@ from xnlos_core.nlos_volume import NLOSVolume
 from xnlos_core.transient import TransientVolume
 
 from .prep import prepare
+from .torch_backend import device_field, lct_torch, torch_device
 
 
 class LCTParams(BaseModel):
@@ -31,6 +32,7 @@ class LCTParams(BaseModel):
     dtype: str = Field("float32", pattern="^(float32|float64)$",
                        description="working precision of the FFTs: float32 (complex64) or float64")
     workers: int = Field(-1, description="scipy.fft worker threads (-1: all cores)")
+    device: str = device_field()
 
 
 ZETA_HALF = -1.4603545088095868  # ζ(1/2)
@@ -143,6 +145,11 @@ class LCTSolver(NLOSSolver):
 
     Params = LCTParams
 
+    def __init__(self, params=None):
+        super().__init__(params)
+        self._torch = None if self.params.device == "numpy" else torch_device(self.params.device, "lct")
+        self._torch_cache: dict = {}
+
     def reconstruct(self, volume: TransientVolume) -> NLOSVolume:
         p = self.params
         dtype = np.dtype(p.dtype)
@@ -152,8 +159,10 @@ class LCTSolver(NLOSSolver):
         t = (np.arange(m, dtype=dtype) / m)[:, None, None]
         data = prep.data * (t ** 4 if p.diffuse else t ** 2)  # undo the 1/r⁴ (1/r²) fall-off, r ∝ t
         a = resampling_matrix(m).astype(dtype)
-        data = (a @ data.reshape(m, n * n)).reshape(m, n, n)
         inv = self._kernel(m, n, prep.dx, prep.dy, prep.bin_length, p.snr, dtype, w)
+        if self._torch is not None:
+            return prep.result(lct_torch(data, a, inv, self._torch, self._torch_cache))
+        data = (a @ data.reshape(m, n * n)).reshape(m, n, n)
         f = sfft.rfft(data, n=2 * m, axis=0, workers=w)
         del data
         f = sfft.fft(f, n=2 * n, axis=1, workers=w, overwrite_x=True)
