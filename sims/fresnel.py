@@ -52,9 +52,9 @@ def as_eps(eps_r) -> np.ndarray:
 def as_theta(theta_i) -> np.ndarray:
     """Incidence angle [rad] as float64 in [0, π/2]; values within 1e-9 rad outside are clipped."""
     t = np.asarray(theta_i, dtype=np.float64)
-    if not np.isfinite(t).all():
-        raise InputError("theta_i must be finite (radians)")
-    if (t < -1e-9).any() or (t > _HALF_PI + 1e-9).any():
+    if not ((t >= -1e-9) & (t <= _HALF_PI + 1e-9)).all():  # one pass; NaN and ±inf fail it too
+        if not np.isfinite(t).all():
+            raise InputError("theta_i must be finite (radians)")
         raise InputError(f"theta_i must lie in [0, π/2] rad (from the wall normal), got {theta_i!r}")
     return np.clip(t, 0.0, _HALF_PI)
 

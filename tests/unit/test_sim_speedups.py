@@ -1,5 +1,5 @@
-"""Per-radar caches (issue 31 item 5, dataset speed): cached values equal a fresh computation, and
-callers get copies, so writing into a returned array cannot change what the next caller sees."""
+"""Dataset-speed changes (issue 31 item 5) that must not change a number: per-radar caches equal a
+fresh computation and hand out copies; cell_power's row grouping equals np.unique(axis=0)."""
 import numpy as np
 from scipy.signal import get_window
 
@@ -49,3 +49,22 @@ def test_wall_segment_cached_values_and_read_only():
     other = WallSpec(name="w", start=(0.0, 6.0), end=(4.0, 6.0)).segment()
     assert np.array_equal(other.start, [0.0, 6.0]) and np.isclose(other.offset, 6.0)
     assert np.array_equal(w.segment().start, [0.0, 5.0])
+
+
+def test_row_groups_match_unique_rows():
+    """sims.render._row_groups (packed 1-D keys) groups rows exactly as np.unique(axis=0) does, so
+    cell_power's per-group sums (np.bincount in path order) are unchanged; huge ranges fall back."""
+    from sims.render import _row_groups
+
+    rng = np.random.default_rng(7)
+    key = np.column_stack([rng.integers(0, 3, 400), rng.integers(-4, 6, 400), rng.integers(0, 50, 400),
+                           rng.integers(-20, 20, 400)])
+    want = np.unique(key, axis=0, return_inverse=True)[1].reshape(-1)
+    got = _row_groups(key)
+    w = rng.random(400)
+    assert np.array_equal(np.bincount(got, weights=w)[got], np.bincount(want, weights=w)[want])
+    assert len(np.unique(got)) == len(np.unique(want))
+    assert all(len(np.unique(got[want == g])) == 1 for g in np.unique(want))
+    big = key.copy()
+    big[:, 2] *= 2**40  # the packed key would overflow int64: np.unique(axis=0) path
+    assert np.array_equal(_row_groups(big), np.unique(big, axis=0, return_inverse=True)[1].reshape(-1))
