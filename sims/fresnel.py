@@ -37,9 +37,11 @@ def as_eps(eps_r) -> np.ndarray:
     if e.dtype == object or not (np.issubdtype(e.dtype, np.number)):
         raise InputError(f"eps_r must be numeric (complex relative permittivity), got dtype {e.dtype}")
     e = e.astype(np.complex128)
-    if not np.all(np.isfinite(e)):
+    # ndarray methods, not np.all/np.any: the same test without the dispatch wrapper (validation runs per
+    # wall bounce in the ray tracer)
+    if not np.isfinite(e).all():
         raise InputError("eps_r must be finite")
-    if np.any(e.imag > 1e-12 * np.maximum(np.abs(e), 1.0)):
+    if (e.imag > 1e-12 * np.maximum(np.abs(e), 1.0)).any():
         raise InputError(
             "eps_r must have Im(eps_r) ≤ 0 (passive medium in the e^{+jωt} convention, "
             "η = ε' − jσ/(ωε0)); a positive imaginary part suggests the e^{−iωt} convention — conjugate it"
@@ -50,9 +52,9 @@ def as_eps(eps_r) -> np.ndarray:
 def as_theta(theta_i) -> np.ndarray:
     """Incidence angle [rad] as float64 in [0, π/2]; values within 1e-9 rad outside are clipped."""
     t = np.asarray(theta_i, dtype=np.float64)
-    if not np.all(np.isfinite(t)):
-        raise InputError("theta_i must be finite (radians)")
-    if np.any(t < -1e-9) or np.any(t > _HALF_PI + 1e-9):
+    if not ((t >= -1e-9) & (t <= _HALF_PI + 1e-9)).all():  # one pass; NaN and ±inf fail it too
+        if not np.isfinite(t).all():
+            raise InputError("theta_i must be finite (radians)")
         raise InputError(f"theta_i must lie in [0, π/2] rad (from the wall normal), got {theta_i!r}")
     return np.clip(t, 0.0, _HALF_PI)
 

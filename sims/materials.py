@@ -62,11 +62,11 @@ class Material:
     # -- evaluation -------------------------------------------------------------------------
     def _f_ghz(self, f_hz, extrapolate: bool) -> np.ndarray:
         f = np.asarray(f_hz, dtype=np.float64)
-        if not np.all(np.isfinite(f)) or np.any(f <= 0):
+        if not np.isfinite(f).all() or (f <= 0).any():
             raise InputError(f"f_hz must be finite and > 0 (Hz), got {f_hz!r}")
         if not extrapolate:
             bad = (f < self.f_min_hz * (1 - 1e-12)) | (f > self.f_max_hz * (1 + 1e-12))
-            if np.any(bad):
+            if bad.any():
                 fb = float(np.atleast_1d(f)[np.atleast_1d(bad)][0])
                 raise InputError(
                     f"material {self.name!r} is defined by ITU-R P.2040-3 only for "
@@ -100,7 +100,7 @@ class Material:
     def covers(self, f_hz) -> bool:
         """True if every frequency [Hz] lies inside the P.2040 validity range."""
         f = np.asarray(f_hz, dtype=np.float64)
-        return bool(np.all((f >= self.f_min_hz) & (f <= self.f_max_hz)))
+        return bool(((f >= self.f_min_hz) & (f <= self.f_max_hz)).all())
 
 
 def _m(name, a, b, c, d, f_lo_ghz, f_hi_ghz, notes=""):

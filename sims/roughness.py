@@ -44,14 +44,14 @@ LOBES = ("lambertian", "directive")
 
 def _nonneg(x, name: str) -> np.ndarray:
     a = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(a)) or np.any(a < 0):
+    if not np.isfinite(a).all() or (a < 0).any():
         raise InputError(f"{name} must be finite and ≥ 0 (metres), got {x!r}")
     return a
 
 
 def _positive(x, name: str) -> np.ndarray:
     a = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(a)) or np.any(a <= 0):
+    if not np.isfinite(a).all() or (a <= 0).any():
         raise InputError(f"{name} must be finite and > 0 (metres), got {x!r}")
     return a
 

@@ -213,9 +213,24 @@ def azimuth_weights(radar: RadarConfig, window: str | None = None) -> np.ndarray
     follows each channel's y (:func:`aperture_taper`), so a raised or interleaved transmitter
     does not scramble it.
     """
+    name = radar.azimuth_window if window is None else window
+    try:
+        return _azimuth_weights(radar, name).copy()
+    except TypeError:  # an unhashable window spec (e.g. a list): computed without the cache
+        return _azimuth_weights_uncached(radar, name)
+
+
+@functools.lru_cache(maxsize=64)
+def _azimuth_weights(radar: RadarConfig, name: str) -> np.ndarray:
+    """:func:`azimuth_weights`, computed once per (frozen, hashable) radar and window, read-only."""
+    w = _azimuth_weights_uncached(radar, name)
+    w.flags.writeable = False
+    return w
+
+
+def _azimuth_weights_uncached(radar: RadarConfig, name: str) -> np.ndarray:
     from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
 
-    name = radar.azimuth_window if window is None else window
     if radar.has_custom_layout:
         return aperture_taper(name, channel_positions(radar)[:, 0] / radar.wavelength)
     # symmetric (fftbins=False) so the beam is symmetric about the steering angle

@@ -21,6 +21,7 @@ Example (see ``xnlos_core/defaults/corner.toml``)::
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -41,6 +42,13 @@ Vec2 = tuple[Coord, Coord]
 Velocity = tuple[Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=False)],
                  Annotated[float, Field(ge=-MAX_SPEED, le=MAX_SPEED, allow_inf_nan=False)]]
 Size = Annotated[float, Field(gt=0, le=1_000, allow_inf_nan=False)]
+
+
+@functools.lru_cache(maxsize=4096)
+def _segment(start: tuple, end: tuple, name: str) -> WallSegment:
+    """:meth:`WallSpec.segment`, cached: a WallSegment is immutable (frozen, read-only arrays), and the
+    ray tracer asks each wall for it several times per map (world boxes, inside checks, ground truth)."""
+    return WallSegment(np.array(start, float), np.array(end, float), name)
 
 
 class WallSpec(BaseModel):
@@ -106,7 +114,8 @@ class WallSpec(BaseModel):
         return -12.0 if self.backscatter_db is None else self.backscatter_db
 
     def segment(self) -> WallSegment:
-        return WallSegment(np.array(self.start, float), np.array(self.end, float), self.name)
+        """The planar segment start→end (read-only; one object per distinct start, end and name)."""
+        return _segment(tuple(self.start), tuple(self.end), self.name)
 
     def vertices(self) -> np.ndarray:
         """(K+1, 2) polyline [m]: start, end for a planar wall; the arc's facet corners for a curved one

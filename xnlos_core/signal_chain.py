@@ -161,6 +161,12 @@ def _range_taper(name: str, n: int) -> np.ndarray:
 
 def processing_gain(radar: RadarConfig) -> float:
     """G_p = N·M / (ENBW_r·ENBW_a) (linear): RA-map SNR of a grid-centred point over per-sample SNR."""
+    return _processing_gain(radar)
+
+
+@functools.lru_cache(maxsize=32)
+def _processing_gain(radar: RadarConfig) -> float:
+    """:func:`processing_gain`, cached per (frozen, hashable) radar: the simulators ask for it per path set."""
     wr = _window(radar.range_window, radar.n_samples)
     wa = azimuth_weights(radar)
     return float(wr.sum() ** 2 / (wr**2).sum() * wa.sum() ** 2 / (wa**2).sum())
@@ -199,13 +205,22 @@ def beamform(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
 
     κ(r, θ) = Σ_k w_k a_k*(θ) X_k(r) / Σ w_k, so a unit plane wave from a grid angle gives 1.
     """
-    return range_profiles @ beam_weights(radar)
+    return range_profiles @ _beam_weights(radar)
 
 
 def beam_weights(radar: RadarConfig) -> np.ndarray:
-    """Delay-and-sum weights w_k a_k*(θ) / Σ w_k of :func:`beamform`, (n_channels, n_azimuth_bins) complex128."""
+    """Delay-and-sum weights w_k a_k*(θ) / Σ w_k of :func:`beamform`, (n_channels, n_azimuth_bins) complex128.
+
+    Computed once per radar (cached, read-only); the caller gets a writable copy."""
+    return _beam_weights(radar).copy()
+
+
+@functools.lru_cache(maxsize=32)
+def _beam_weights(radar: RadarConfig) -> np.ndarray:
     w = azimuth_weights(radar)
-    return (w / w.sum())[:, None] * steering_vector(radar, radar.azimuth_axis).conj()
+    out = (w / w.sum())[:, None] * steering_vector(radar, radar.azimuth_axis).conj()
+    out.flags.writeable = False
+    return out
 
 
 def decouple(range_profiles: np.ndarray, radar: RadarConfig) -> np.ndarray:
