@@ -35,7 +35,7 @@ from sims import walls as wall_em
 from sims.paths import PathList
 from sims.propagation import ra_snr_db, received_power
 
-from .world import World, reflect_points
+from .world import World
 
 START = 1e-4  # [m] a leg leaving a reflection point is cast from this far along it (not from the surface)
 
