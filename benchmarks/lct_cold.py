@@ -18,6 +18,7 @@ import sys
 import tempfile
 
 import numpy as np
+from nlos_solvers import VOLUME  # the same test volume (run as a script: benchmarks/ is on sys.path)
 
 CHILD = r"""
 import importlib.util, json, resource, sys, time
@@ -26,17 +27,7 @@ from xnlos_core.transient import TransientVolume, SPEED_OF_LIGHT as C
 path, n, t, save = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 spec = importlib.util.spec_from_file_location("estimators.nlos._lct_under_test", path)
 mod = importlib.util.module_from_spec(spec); spec.loader.exec_module(mod)
-rng = np.random.default_rng(0)
-bw = 2 * 2.0 / C / t
-x = (np.arange(n) - (n - 1) / 2) * (2.0 / n)
-r = np.sqrt((x[None, :] - 0.3) ** 2 + (x[:, None] + 0.2) ** 2 + 1.1 ** 2)
-data = rng.poisson(1e-3, (t, n, n)).astype(float)
-k = np.rint(2 * r / C / bw).astype(int)
-i, j = np.nonzero(k < t)
-data[k[i, j], i, j] += 1e3 * r[i, j] ** -4
-vol = TransientVolume(data, bw, 2.0, 2.0)
-del data
-s = mod.LCTSolver({})
+""" + VOLUME + r"""s = mod.LCTSolver({})
 t0 = time.perf_counter(); out = s.reconstruct(vol); cold = time.perf_counter() - t0
 warm = []
 for _ in range(3):

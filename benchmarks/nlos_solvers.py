@@ -16,12 +16,9 @@ import os
 import subprocess
 import sys
 
-CHILD = r"""
-import json, resource, sys, time
-import numpy as np
-from xnlos_core.registry import get_registry
-from xnlos_core.transient import TransientVolume, SPEED_OF_LIGHT as C
-name, n, t, device = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+# the test volume (a hidden point at (z, y, x) = (1.1, -0.2, 0.3) m plus Poisson background),
+# shared with benchmarks/lct_cold.py; needs n, t, np, C and TransientVolume in scope
+VOLUME = r"""
 rng = np.random.default_rng(0)
 bw = 2 * 2.0 / C / t                      # bins reach 2 m depth on a 2 m wall
 x = (np.arange(n) - (n - 1) / 2) * (2.0 / n)
@@ -32,7 +29,15 @@ i, j = np.nonzero(k < t)
 data[k[i, j], i, j] += 1e3 * r[i, j] ** -4
 vol = TransientVolume(data, bw, 2.0, 2.0)
 del data
-solver = get_registry().create("nlos_solver", name, {"device": device})
+"""
+
+CHILD = r"""
+import json, resource, sys, time
+import numpy as np
+from xnlos_core.registry import get_registry
+from xnlos_core.transient import TransientVolume, SPEED_OF_LIGHT as C
+name, n, t, device = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
+""" + VOLUME + r"""solver = get_registry().create("nlos_solver", name, {"device": device})
 t0 = time.perf_counter(); out = solver.reconstruct(vol); cold = time.perf_counter() - t0
 warm = []
 for _ in range(3):
