@@ -228,13 +228,20 @@ def _azimuth_weights(radar: RadarConfig, name: str) -> np.ndarray:
     return w
 
 
-def _azimuth_weights_uncached(radar: RadarConfig, name: str) -> np.ndarray:
-    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
+def symmetric_window(name: str, n: int) -> np.ndarray:
+    """The n-point symmetric (``fftbins=False``) scipy.signal window ``name``, (n,) float64: the
+    taper of every window in xnlos (range, Doppler, azimuth), so a beam or spectrum is symmetric
+    about its centre. scipy.signal is imported here, not at module level: it loads scipy.stats
+    (~0.2 s), which an ``xnlos`` start need not pay."""
+    from scipy.signal import get_window
 
+    return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
+
+
+def _azimuth_weights_uncached(radar: RadarConfig, name: str) -> np.ndarray:
     if radar.has_custom_layout:
         return aperture_taper(name, channel_positions(radar)[:, 0] / radar.wavelength)
-    # symmetric (fftbins=False) so the beam is symmetric about the steering angle
-    return np.asarray(get_window(name, radar.n_channels, fftbins=False), dtype=np.float64)
+    return symmetric_window(name, radar.n_channels)
 
 
 def aperture_taper(window: str, y) -> np.ndarray:
@@ -245,8 +252,6 @@ def aperture_taper(window: str, y) -> np.ndarray:
     sampled finely over [min y, max y] and read at each y, so coinciding elements weigh the same.
     All elements at one y: uniform weights (no azimuth aperture to taper).
     """
-    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
-
     y = np.asarray(y, dtype=np.float64)
     k = len(y)
     order = np.argsort(y, kind="stable")
@@ -257,10 +262,10 @@ def aperture_taper(window: str, y) -> np.ndarray:
     gaps = np.diff(ys)
     w = np.empty(k)
     if np.all(gaps > 1e-9 * span) and np.allclose(gaps, gaps[0], rtol=1e-6, atol=0.0):
-        w[order] = get_window(window, k, fftbins=False)
+        w[order] = symmetric_window(window, k)
         return w
     fine = 4096 + 1
-    return np.interp(y, np.linspace(ys[0], ys[-1], fine), get_window(window, fine, fftbins=False))
+    return np.interp(y, np.linspace(ys[0], ys[-1], fine), symmetric_window(window, fine))
 
 
 def array_factor(radar: RadarConfig, theta, steer_to: float = 0.0, window: str = "boxcar",

@@ -27,6 +27,7 @@ from typing import Literal
 import numpy as np
 import scipy.fft
 
+from .antenna import symmetric_window
 from .errors import InputError
 from .radar import RadarConfig
 from .signal_chain import _dechirp_paths, beam_weights, decouple, processing_gain, range_fft
@@ -88,10 +89,8 @@ def chirp_sequence_cube(radar: RadarConfig, range_m, azimuth, amplitude, radial_
 
 
 def _doppler_window(name: str, n: int) -> np.ndarray:
-    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
-
     try:
-        return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
+        return symmetric_window(name, n)
     except Exception as exc:  # scipy raises ValueError/TypeError with little context
         raise InputError(f"doppler window {name!r} is not a scipy.signal window name (e.g. 'hann', "
                          f"'boxcar'): {exc}") from None

@@ -22,7 +22,7 @@ import functools
 import numpy as np
 import scipy.fft
 
-from .antenna import azimuth_weights, coupling_matrix, steering_vector
+from .antenna import azimuth_weights, coupling_matrix, steering_vector, symmetric_window
 from .errors import InputError
 from .radar import SPEED_OF_LIGHT, RadarConfig
 from .types import RAMap
@@ -144,10 +144,8 @@ def add_noise(cube: np.ndarray, radar: RadarConfig, rng: np.random.Generator) ->
 
 
 def _window(name: str, n: int) -> np.ndarray:
-    from scipy.signal import get_window  # here: scipy.signal loads scipy.stats (~0.2 s), not for every `xnlos` start
-
     # symmetric taper (fftbins=False), same convention as the azimuth weights
-    return np.asarray(get_window(name, n, fftbins=False), dtype=np.float64)
+    return symmetric_window(name, n)
 
 
 @functools.lru_cache(maxsize=32)
