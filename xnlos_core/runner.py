@@ -97,7 +97,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     if list(records) != sorted(records):  # a gap was filled after later frames: store in frame order
         write_jsonl(res_path, ordered)
     records = ordered
-    figures = [figure_path(out, k) for k in config.run.figure_frames(r["frame"] for r in records)]
+    wanted = config.run.figure_frames(r["frame"] for r in records)
+    figures = [figure_path(out, k) for k in wanted]
     summary = summarise(records)
     summary["figure"] = figures[-1].name if figures else None
     if len(figures) > 1:
@@ -113,7 +114,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     key = outputs_key(config, prov, res_path, texts.values())
     if outputs_current(out, key, names):
         return summary
-    _write_figures(pipe, out, records)
+    _write_figures(pipe, out, records, wanted)
     if animate:
         _write_animation(pipe, out, records, progress)
     for name, text in texts.items():
@@ -138,17 +139,15 @@ def plot_result(pipe: Pipeline, result, out: Path, records: list[dict]) -> Path:
                       objects=object_outlines(pipe, result))
 
 
-def _write_figures(pipe: Pipeline, out: Path, records: list[dict]) -> list[Path]:
-    """The figures ``run.figures`` asks for among the recorded frames: those not on disk yet (a
-    resumed run, a finished one whose ``figures`` was changed) are recomputed and drawn; returns the
-    paths, in frame order."""
-    wanted = pipe.config.run.figure_frames(r["frame"] for r in records)
+def _write_figures(pipe: Pipeline, out: Path, records: list[dict], wanted) -> None:
+    """Draw the figures of frames ``wanted`` (what ``run.figures`` asks for among the recorded
+    frames) that are not on disk yet (a resumed run, a finished one whose ``figures`` was changed),
+    recomputing those frames."""
     missing = {k for k in wanted if not figure_path(out, k).exists()}
     if missing:
         for res in pipe.run(skip={r["frame"] for r in records} - missing):
             if res.frame.index in missing:
                 plot_result(pipe, res, out, records)
-    return [figure_path(out, k) for k in wanted]
 
 
 def _scene_outlines(pipe: Pipeline, result) -> dict[str, np.ndarray]:
