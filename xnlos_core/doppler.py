@@ -21,6 +21,7 @@ timing). This module is the opt-in path that keeps the slow-time axis:
 from __future__ import annotations
 
 import functools
+import threading
 from dataclasses import dataclass
 from typing import Literal
 
@@ -30,7 +31,7 @@ import scipy.fft
 from .antenna import symmetric_window
 from .errors import InputError
 from .radar import RadarConfig
-from .signal_chain import _dechirp_paths, beam_weights, decouple, processing_gain, range_fft
+from .signal_chain import _dechirp_paths, _range_taper, beam_weights, decouple, processing_gain, range_fft
 from .types import RAMap
 from .validation import as_array
 
@@ -121,13 +122,34 @@ def _range_profiles(cube, radar: RadarConfig, remove_static: bool, workers: int 
     return prof - prof.mean(axis=1, keepdims=True) if remove_static else prof
 
 
+def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: int, work: np.ndarray) -> np.ndarray:
+    """:func:`_range_profiles` in single precision for :func:`doppler_ra_maps` → (n_range_bins, n_chirps,
+    n_channels) complex64: the range window and the cast in one compiled pass (which also counts
+    non-finite samples) into ``work`` (n_samples, n_chirps·n_channels) complex64, then the range FFT
+    in place with ``threads`` workers."""
+    from . import doppler_kernels as kernels
+
+    want = (radar.n_samples, radar.n_chirps, radar.n_channels)
+    arr = cube if isinstance(cube, np.ndarray) and cube.dtype == np.complex128 else \
+        as_array("chirp-sequence cube", cube, dtype=np.complex128)
+    if arr.shape != want:
+        raise InputError(f"chirp-sequence cube: expected shape (n_samples, n_chirps, n_channels) = {want} "
+                         f"for this radar, got {arr.shape}")
+    n, d, k = want
+    bad = kernels.run(kernels.taper_cast, threads, np.ascontiguousarray(arr).reshape(n, d * k),
+                      _range_taper(radar.range_window, n), work)
+    if bad:
+        raise InputError(f"chirp-sequence cube: {bad} of {arr.size} values are NaN or infinite; all must be finite")
+    prof = scipy.fft.fft(work, axis=0, overwrite_x=True, workers=threads)[: radar.n_range_bins].reshape(-1, d, k)
+    if radar.coupling_compensation:
+        prof = decouple(prof.reshape(-1, k), radar).reshape(-1, d, k).astype(np.complex64)
+    return prof - prof.mean(axis=1, keepdims=True) if remove_static else prof
+
+
 def _doppler_fft(prof: np.ndarray, window: str) -> np.ndarray:
     """Windowed (normalised by the window's sum) Doppler FFT over axis 1, fft-shifted."""
     w = _doppler_window(window, prof.shape[1])
     return np.fft.fftshift(np.fft.fft(prof * (w / w.sum())[None, :, None], axis=1), axes=1)
-
-
-_VELOCITY_BLOCK = 16  # range bins per block of the three-bin velocity gather
 
 
 def _shift_modulation(n: int) -> np.ndarray:
@@ -143,48 +165,49 @@ def _shift_modulation(n: int) -> np.ndarray:
 class _DopplerPlan:
     """Everything :func:`doppler_ra_maps` needs that depends only on (radar, window), computed once.
 
-    taper (n_chirps,): Doppler window / Σw times the fftshift modulation; boxcar (n_chirps,): the same
-    for the unwindowed spectrum (1/N times the modulation); comp (n_chirps, n_channels) complex128:
-    :func:`tdm_compensation`; weights64 (n_channels, n_azimuth) complex64: :func:`beam_weights`;
-    comp_tx (n_chirps, n_tdm) complex128: the compensation of each TX (the same on all its channels);
-    weights_t (n_azimuth, n_tdm, n_rx) complex128: :func:`beam_weights` by azimuth, TX, RX;
-    enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]. Arrays read-only (shared by calls).
+    taper (n_chirps,) complex128: Doppler window / Σw times the fftshift modulation; boxcar (n_chirps,)
+    complex128: the same for the unwindowed spectrum (1/N times the modulation); comp_r, comp_i (n_chirps,
+    n_channels) float64: :func:`tdm_compensation`'s real and imaginary parts; wt_r, wt_i (n_azimuth,
+    n_channels) float64: those of :func:`beam_weights`, transposed; ipos, ineg (H,) int64: the azimuths the kernel computes and their mirrors
+    (:func:`~xnlos_core.doppler_kernels.azimuth_pairs`); wa = [Re w | Im w], wb = [Im w | Re w]
+    (n_channels, 2H) float32 of the ipos columns; enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp
+    noise / G_p [W]. Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
     boxcar: np.ndarray
-    comp: np.ndarray
-    weights64: np.ndarray
-    comp_tx: np.ndarray
-    weights_t: np.ndarray
+    comp_r: np.ndarray
+    comp_i: np.ndarray
+    wt_r: np.ndarray
+    wt_i: np.ndarray
+    ipos: np.ndarray
+    ineg: np.ndarray
+    wa: np.ndarray
+    wb: np.ndarray
     enbw: float
     sigma_cell: float
 
 
 @functools.lru_cache(maxsize=16)
 def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
+    from .doppler_kernels import azimuth_pairs  # numba: imported with the first Doppler map, not at startup
+
     d = radar.n_chirps
     w = _doppler_window(window, d)
     mod = _shift_modulation(d)
+    weights = np.ascontiguousarray(beam_weights(radar))
+    ipos, ineg = azimuth_pairs(weights)
     comp = tdm_compensation(radar)
-    weights = beam_weights(radar)
-    arrays = dict(taper=mod * (w / w.sum()), boxcar=mod / d, comp=comp,
-                  weights64=weights.astype(np.complex64),
-                  comp_tx=np.ascontiguousarray(comp[:, :: radar.n_channels // radar.n_tdm]),
-                  weights_t=np.ascontiguousarray(weights.T).reshape(weights.shape[1], radar.n_tdm, -1))
+    w32 = weights[:, ipos].astype(np.complex64)
+    arrays = dict(taper=(mod * (w / w.sum())).astype(np.complex128), boxcar=(mod / d).astype(np.complex128),
+                  comp_r=np.ascontiguousarray(comp.real), comp_i=np.ascontiguousarray(comp.imag),
+                  wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag), ipos=ipos, ineg=ineg,
+                  wa=np.ascontiguousarray(np.hstack([w32.real, w32.imag])),
+                  wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])))
     for a in arrays.values():
         a.flags.writeable = False
     return _DopplerPlan(**arrays, enbw=d * float((w**2).sum() / w.sum() ** 2),
                         sigma_cell=chirp_noise_power(radar) / processing_gain(radar))
-
-
-def _first_argmax_axis0(x: np.ndarray, xmax: np.ndarray) -> np.ndarray:
-    """np.argmax(x, axis=0) given xmax = x.max(axis=0), by a reverse scan over the leading axis
-    (contiguous slabs; numpy's argmax over a non-last axis copies the array first). First index on ties."""
-    idx = np.zeros(xmax.shape, dtype=np.intp)
-    for j in range(x.shape[0] - 1, -1, -1):
-        np.copyto(idx, j, where=x[j] == xmax)
-    return idx
 
 
 def range_doppler(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
@@ -226,6 +249,22 @@ class DopplerRAMaps:
         return RAMap.from_radar(np.sqrt(getattr(self, which)).astype(np.complex64), self.radar)
 
 
+_WORK = threading.local()
+
+
+def _work_buffers(radar: RadarConfig) -> tuple[np.ndarray, np.ndarray]:
+    """This thread's scratch arrays of :func:`doppler_ra_maps` for ``radar``'s size: (n_samples,
+    n_chirps·n_channels) and (2, n_range_bins, n_chirps, n_channels) complex64 (8 + 13 MB at the default
+    size). Kept between calls: fresh ones would be paged in on every frame (≈ 2–3 ms of page faults);
+    one pair per thread, replaced when the size changes."""
+    shapes = ((radar.n_samples, radar.n_chirps * radar.n_channels),
+              (2, radar.n_range_bins, radar.n_chirps, radar.n_channels))
+    bufs = getattr(_WORK, "bufs", None)
+    if bufs is None or tuple(b.shape for b in bufs) != shapes:
+        bufs = _WORK.bufs = tuple(np.empty(s, dtype=np.complex64) for s in shapes)
+    return bufs
+
+
 def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
                     workers: int | None = None) -> DopplerRAMaps:
     """Chirp-sequence cube → :class:`DopplerRAMaps`: :func:`range_doppler`, then beamforming per Doppler bin.
@@ -251,60 +290,25 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     if radar.n_chirps < 3:
         raise InputError(f"doppler_ra_maps: Doppler processing needs n_chirps ≥ 3 (three-bin velocity "
                          f"interpolation), this radar has n_chirps={radar.n_chirps}")
+    from . import doppler_kernels as kernels  # numba: imported with the first Doppler map, not at startup
+
+    threads = max(1, workers or 1)
     plan = _doppler_plan(radar, window)
-    prof = _range_profiles(cube, radar, remove_static, workers)  # one range FFT for both Doppler spectra
+    work, spec = _work_buffers(radar)
+    prof = _range_profiles32(cube, radar, remove_static, threads, work)  # (r, d, k) complex64
     r, d, k = prof.shape
-    # The beamforming of every Doppler bin dominates the cost (n_range·n_chirps·n_channels·n_azimuth
-    # complex MACs); it runs in single precision (relative error ~1e-7, far below the noise of any
-    # map with < 120 dB dynamic range) on the double-precision compensated spectrum, as in the first
-    # version. Power, peak and velocity are then formed in double precision. The fftshift is a
-    # modulation folded into the window, and the spectrum is laid out Doppler-bin-major
-    # (n_chirps, n_range, ·) so that the sum and the maximum over the Doppler bins run over contiguous slabs.
-    tapered = np.multiply(prof.transpose(1, 0, 2), plan.taper[:, None, None], order="C")  # (d, r, k)
-    rd_w = scipy.fft.fft(tapered, axis=0, overwrite_x=True, workers=workers)
-    rd64 = np.empty((d, r, k), dtype=np.complex64)  # compensated in double precision, rounded once
-    np.multiply(rd_w, plan.comp[:, None, :], out=rd64, casting="same_kind")
-    del rd_w, tapered
-    bf = (rd64.reshape(d * r, k) @ plan.weights64).reshape(d, r, -1)
-    del rd64
-    pw = np.square(bf.real)
-    pw += np.square(bf.imag)
-    del bf
-    enbw = plan.enbw
-    power = pw.sum(axis=0, dtype=np.float64) / enbw
-    peak_pw = pw.max(axis=0)
-    peak = _first_argmax_axis0(pw, peak_pw)  # (r, n_az)
-    peak_power = peak_pw.astype(np.float64)
-    del pw
-
-    # unwindowed spectrum at the peak bin and its two neighbours, each compensated with the f_D of
-    # the peak bin, beamformed only at the cell's own azimuth (a gather, not n_chirps beamformings)
-    rd_r = scipy.fft.fft(prof * plan.boxcar[None, :, None], axis=1, overwrite_x=True, workers=workers)
-    # the compensation is one phase per TX (n_tdm of them): each cell's weights comp[peak, k]·w[k, a]
-    # are built from the (n_tdm,) phases of its peak bin, then the three bins are gathered at once
-    # (np.take of contiguous channel rows) in blocks of range bins that keep the temporaries in cache.
-    n_az = peak.shape[1]
-    flat = rd_r.reshape(r * d, k)
-    x3 = np.empty((3, r, n_az), dtype=np.complex128)
-    offsets = np.array([-1, 0, 1])[:, None, None]
-    for lo in range(0, r, _VELOCITY_BLOCK):
-        hi = min(r, lo + _VELOCITY_BLOCK)
-        pk = peak[lo:hi]
-        wc = (plan.comp_tx[pk][..., None] * plan.weights_t).reshape(hi - lo, n_az, k)  # (block, n_az, k)
-        idx = (np.arange(lo, hi) * d)[None, :, None] + (pk[None] + offsets) % d  # rows of flat, (3, block, n_az)
-        g = np.take(flat, idx.ravel(), axis=0).reshape(3, -1, k).transpose(1, 0, 2)  # (cells, 3, k)
-        x3[:, lo:hi] = np.matmul(g, wc.reshape(-1, k, 1))[..., 0].T.reshape(3, hi - lo, n_az)
-    xm, x0, xp = x3
-    den = 2 * x0 - xm - xp
-    safe = np.abs(den) > 0
-    delta = np.where(safe, np.real((xm - xp) / np.where(safe, den, 1.0)), 0.0)
-    delta = np.clip(np.tan(np.pi / d) / (np.pi / d) * delta, -0.5, 0.5)
-    ts, vmax = radar.chirp_loop_time, radar.max_unambiguous_velocity
-    v = radar.velocity_axis[peak] + delta * radar.velocity_resolution
-    v = np.mod(v + vmax, 2 * vmax) - vmax
-
-    sigma_cell = plan.sigma_cell
-    eta = np.maximum(power / sigma_cell - 1.0, 1e-12)
-    v_std = radar.doppler_wavelength / (4 * np.pi * ts) * np.sqrt(12.0 / (eta * d * (d**2 - 1.0)))
+    # both Doppler spectra (windowed for the maps, unwindowed for the velocity) in one FFT call; the
+    # fftshift is a modulation folded into the tapers, so the bins come out ascending
+    kernels.run(kernels.doppler_tapers, threads, prof, plan.taper, plan.boxcar, spec)
+    spec = scipy.fft.fft(spec, axis=2, overwrite_x=True, workers=threads)
+    ts, n_az = radar.chirp_loop_time, radar.n_azimuth_bins
+    consts = np.array([1.0 / plan.enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
+                       radar.max_unambiguous_velocity, plan.sigma_cell,
+                       radar.doppler_wavelength / (4 * np.pi * ts) * np.sqrt(12.0 / (d * (d**2 - 1.0)))])
+    power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
+    kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
+                plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, radar.velocity_axis, consts,
+                power, peak_power, v, v_std)
+    sigma_cell, enbw = plan.sigma_cell, plan.enbw
     return DopplerRAMaps(power=power, peak_power=peak_power, velocity=v, velocity_std=v_std,
                          noise_floor=sigma_cell, peak_noise_floor=sigma_cell * enbw / d, radar=radar)

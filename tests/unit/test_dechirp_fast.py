@@ -78,7 +78,8 @@ def test_range_fft_equals_numpy_fft():
 
 
 def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
-    """doppler_ra_maps as first written (issue 28): returns power, peak_power, peak bin, velocity, velocity_std."""
+    """doppler_ra_maps as first written (issue 28), in double precision throughout (the first version
+    beamformed in single precision): returns power, peak_power, peak bin, velocity, velocity_std."""
     n, d, k = cube.shape
     prof = decouple(range_fft(cube.reshape(n, d * k), radar).reshape(-1, k), radar).reshape(-1, d, k)
     if remove_static:
@@ -91,8 +92,8 @@ def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
     r = prof.shape[0]
     comp = tdm_compensation(radar)
     weights = beam_weights(radar)
-    rd_w = (dfft(prof, window) * comp[None]).astype(np.complex64)
-    bf = (rd_w.reshape(r * d, k) @ weights.astype(np.complex64)).reshape(r, d, -1)
+    rd_w = dfft(prof, window) * comp[None]
+    bf = (rd_w.reshape(r * d, k) @ weights).reshape(r, d, -1)  # double precision throughout
     pw = np.abs(bf) ** 2
     w = get_window(window, d, fftbins=False)
     enbw = d * (w**2).sum() / w.sum() ** 2
@@ -114,17 +115,21 @@ def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
 
 def _check_maps(new, radar, ref):
     power, peak_power, peak, v, v_std = ref
-    # cell by cell: both paths beamform in single precision from the same double-precision spectrum
-    assert np.allclose(new.power, power, rtol=1e-5, atol=0) and np.allclose(new.peak_power, peak_power, rtol=1e-5, atol=0)
+    # doppler_ra_maps runs in single precision (range and Doppler FFTs, beams), this reference in double:
+    # within 1e-6 of each map's maximum (measured 2.4e-7), and cell by cell within 1e-3 (measured 3.4e-4,
+    # in a noise cell 95 dB below the maximum; the first, partly double-precision version was 3.3e-5 off)
+    for fast, exact in ((new.power, power), (new.peak_power, peak_power)):
+        assert np.abs(fast - exact).max() <= 1e-6 * exact.max()
+        assert np.allclose(fast, exact, rtol=1e-3, atol=0)
     # the strongest Doppler bin: a cell whose two best bins are within single-precision rounding may
     # pick either (none did in these cubes, ≤ 0.1 % allowed); everywhere else the velocity agrees
     dv = np.abs(new.velocity - v)
-    assert (dv > 1e-9).mean() <= 1e-3
-    assert np.median(dv) < 1e-12
+    assert (dv > 1e-3).mean() <= 1e-3
+    assert np.median(dv) < 1e-4  # m/s; the bins are 0.57 m/s (default) and 2.2 m/s (SMALL) wide
     # σ_v is a closed form of the cell's power, ∝ 1/√(power/σ² − 1): ill-conditioned where power ≈ σ²,
     # so compared where the per-chirp SNR η ≥ 1 and checked as that closed form of new.power elsewhere
     eta = power / new.noise_floor - 1.0
-    assert np.allclose(new.velocity_std[eta >= 1], v_std[eta >= 1], rtol=1e-5, atol=0)
+    assert np.allclose(new.velocity_std[eta >= 1], v_std[eta >= 1], rtol=1e-3, atol=0)
     d = radar.n_chirps
     closed = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(
         12.0 / (np.maximum(new.power / new.noise_floor - 1.0, 1e-12) * d * (d**2 - 1.0)))
@@ -137,10 +142,10 @@ def test_doppler_ra_maps_equal_the_reference_at_the_default_size():
     ref = ref_doppler_ra_maps(cube, RADAR)
     _check_maps(doppler_ra_maps(cube, RADAR), RADAR, ref)
     _check_maps(doppler_ra_maps(cube, RADAR, workers=2), RADAR, ref)
-    # the movers themselves: same bin, velocity to 1e-9 m/s
+    # the movers themselves: same bin, velocity to 1e-5 m/s (Δv = 0.57 m/s)
     new = doppler_ra_maps(cube, RADAR)
     cells = np.unravel_index(np.argsort(ref[1], axis=None)[-3:], ref[1].shape)
-    assert np.allclose(new.velocity[cells], ref[3][cells], atol=1e-9, rtol=0)
+    assert np.allclose(new.velocity[cells], ref[3][cells], atol=1e-5, rtol=0)
 
 
 @pytest.mark.parametrize("window,remove_static", [("hann", True), ("boxcar", False)])
