@@ -3,8 +3,9 @@
 Why compiled: the Doppler-resolved RA maps need, for each of the 401 × 121 cells, the beam of each of
 the 64 Doppler bins (≈ 1e8 complex multiply-adds), then a sum, a maximum, its index and a three-bin
 velocity. In numpy every one of those steps is a pass over a 25664 × 121 array (≈ 12–25 MB each),
-so the chain was bound by memory passes (42 ms a frame). Here each range bin's whole chain runs
-while its spectrum is in cache, one range bin per task over ``numba.prange``:
+so the chain was bound by memory passes (42 ms a frame; 7.8–8.6 ms now with 2 threads,
+benchmarks/dechirp_speed.md). Here each range bin's whole chain runs while its spectrum is in
+cache, one range bin per task over ``numba.prange``:
 
 1. the TDM-compensated windowed spectrum y (n_chirps, n_channels) is split into real and imaginary
    parts in float32;
@@ -17,12 +18,14 @@ while its spectrum is in cache, one range bin per task over ``numba.prange``:
 3. |b|², its sum over Doppler bins (float64), maximum and first argmax, then the three-bin velocity
    estimate of :func:`~xnlos_core.doppler.doppler_ra_maps` at the peak bin, in double precision.
 
-Azimuths whose mirror is not in the grid or whose weights are not exact conjugates are computed on
-their own (ineg = −1), so any array and grid give the right maps; only the speed-up differs.
+When the grid is not mirror-symmetric or the mirrored weights are not conjugates (to
+:data:`MIRROR_RTOL`), every azimuth is computed on its own (:func:`azimuth_pairs`), so any array and
+grid give the right maps; only the speed-up differs.
 
-The kernels are compiled on first use (a few seconds) and cached on disk by numba (``cache=True``).
-Concurrent calls from several Python threads are serialised (:data:`_LOCK`): numba's default
-thread pool (``workqueue``) does not allow two parallel kernels at once.
+The kernels are compiled on first use (≈ 5 s) and cached on disk by numba (``cache=True``; ≈ 0.5 s
+to load in a new process). Concurrent calls from several Python threads are serialised
+(:data:`_LOCK`): numba's ``workqueue`` thread pool (used where no OpenMP runtime is installed) does not
+allow two parallel kernels at once.
 """
 from __future__ import annotations
 
@@ -125,7 +128,13 @@ def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, ve
         qt = np.dot(yi, wb)  # (d, 2H): Q | T
         peak = np.empty(n_az, np.int64)
         _doppler_stats(ps, qt, ipos, ineg, consts[0], power[i], peak_power[i], peak)
-        _velocity(spec_u[i], comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power[i],
+        ur = np.empty((d, k))  # the unwindowed spectrum split once: contiguous float64 rows vectorise
+        ui = np.empty((d, k))
+        for m in range(d):
+            for c in range(k):
+                ur[m, c] = spec_u[i, m, c].real
+                ui[m, c] = spec_u[i, m, c].imag
+        _velocity(ur, ui, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power[i],
                   velocity[i], velocity_std[i])
 
 
@@ -176,14 +185,15 @@ def _doppler_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak):  # pr
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _velocity(spec_u, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power,
+def _velocity(spec_r, spec_i, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power,
               velocity, velocity_std):  # pragma: no cover - compiled
     """One range bin of :func:`beam_maps`: velocity and its σ per azimuth (formulas in
-    :func:`xnlos_core.doppler.doppler_ra_maps`). The unwindowed spectrum spec_u (d, k) at the peak bin
-    and its two neighbours, all three compensated with the peak bin's f_D, is beamformed at the
-    azimuth in double precision; Candan's δ = tan(π/N)/(π/N)·Re[(X₋ − X₊) / (2X₀ − X₋ − X₊)], clipped
-    to ±½, gives v = v_k + δ·Δv folded into [−v_max, v_max); σ_v = crb/√max(power/σ_cell − 1, 1e-12)."""
-    d, k = spec_u.shape
+    :func:`xnlos_core.doppler.doppler_ra_maps`). The unwindowed spectrum (spec_r, spec_i: real and
+    imaginary parts, (d, k) float64) at the peak bin and its two neighbours, all three compensated
+    with the peak bin's f_D, is beamformed at the azimuth in double precision; Candan's
+    δ = tan(π/N)/(π/N)·Re[(X₋ − X₊) / (2X₀ − X₋ − X₊)], clipped to ±½, gives v = v_k + δ·Δv folded
+    into [−v_max, v_max); σ_v = crb/√max(power/σ_cell − 1, 1e-12)."""
+    d, k = spec_r.shape
     candan, dv, vmax, sigma_cell, crb = consts[1], consts[2], consts[3], consts[4], consts[5]
     for col in range(peak.shape[0]):
         pk = peak[col]
@@ -198,16 +208,16 @@ def _velocity(spec_u, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, p
         for c in range(k):
             wr = comp_r[pk, c] * wt_r[col, c] - comp_i[pk, c] * wt_i[col, c]
             wi = comp_r[pk, c] * wt_i[col, c] + comp_i[pk, c] * wt_r[col, c]
-            ur = np.float64(spec_u[lo, c].real)
-            ui = np.float64(spec_u[lo, c].imag)
+            ur = spec_r[lo, c]
+            ui = spec_i[lo, c]
             xmr += ur * wr - ui * wi
             xmi += ur * wi + ui * wr
-            ur = np.float64(spec_u[pk, c].real)
-            ui = np.float64(spec_u[pk, c].imag)
+            ur = spec_r[pk, c]
+            ui = spec_i[pk, c]
             x0r += ur * wr - ui * wi
             x0i += ur * wi + ui * wr
-            ur = np.float64(spec_u[hi, c].real)
-            ui = np.float64(spec_u[hi, c].imag)
+            ur = spec_r[hi, c]
+            ui = spec_i[hi, c]
             xpr += ur * wr - ui * wi
             xpi += ur * wi + ui * wr
         den = complex(2.0 * x0r - xmr - xpr, 2.0 * x0i - xmi - xpi)

@@ -1,0 +1,91 @@
+"""The compiled Doppler kernels (xnlos_core.doppler_kernels): mirrored azimuth pairs, the unpaired
+fallback, non-finite input, and calls from several threads at once."""
+import threading
+
+import numpy as np
+import pytest
+
+from xnlos_core import doppler, doppler_kernels
+from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
+from xnlos_core.errors import InputError
+from xnlos_core.radar import RadarConfig
+from xnlos_core.signal_chain import beam_weights
+
+SMALL = RadarConfig(n_samples=64, max_range=15.0, n_tx=2, n_rx=4, n_chirps=16, n_azimuth_bins=9, field_of_view=0.8)
+
+
+def _cube(radar, seed=0):
+    return add_chirp_noise(chirp_sequence_cube(radar, [4.0, 9.5], [0.2, -0.4], [1e-4, 5e-5], [3.0, -1.0]), radar,
+                           np.random.default_rng(seed))
+
+
+def test_a_symmetric_grid_is_computed_in_mirrored_pairs():
+    ipos, ineg = doppler_kernels.azimuth_pairs(beam_weights(SMALL))
+    assert ipos.tolist() == [4, 5, 6, 7, 8] and ineg.tolist() == [-1, 3, 2, 1, 0]
+    ipos, ineg = doppler_kernels.azimuth_pairs(beam_weights(RadarConfig(n_azimuth_bins=8)))
+    assert ipos.tolist() == [4, 5, 6, 7] and ineg.tolist() == [3, 2, 1, 0]
+
+
+def test_weights_that_are_not_mirror_conjugates_are_computed_one_by_one():
+    w = beam_weights(SMALL)
+    w[0, 0] *= 1.0 + 1e-6
+    ipos, ineg = doppler_kernels.azimuth_pairs(w)
+    assert ipos.tolist() == list(range(9)) and (ineg == -1).all()
+
+
+def test_the_unpaired_kernel_gives_the_paired_maps(monkeypatch):
+    cube = _cube(SMALL)
+    paired = doppler_ra_maps(cube, SMALL)
+    n = SMALL.n_azimuth_bins
+    monkeypatch.setattr(doppler_kernels, "azimuth_pairs",
+                        lambda w: (np.arange(n, dtype=np.int64), np.full(n, -1, dtype=np.int64)))
+    doppler._doppler_plan.cache_clear()
+    try:
+        assert doppler._doppler_plan(SMALL, "hann").ipos.size == n
+        single = doppler_ra_maps(cube, SMALL)
+    finally:
+        doppler._doppler_plan.cache_clear()
+    for name in ("power", "peak_power"):
+        a, b = getattr(single, name), getattr(paired, name)
+        assert np.abs(a - b).max() <= 1e-6 * b.max()
+    assert np.allclose(single.velocity, paired.velocity, atol=1e-4, rtol=0)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf * 1j])
+def test_non_finite_samples_are_an_input_error_with_their_count(bad):
+    cube = _cube(SMALL)
+    cube[3, 2, 1] = bad
+    cube[5, 0, 0] = bad
+    with pytest.raises(InputError, match=r"chirp-sequence cube: 2 of 8192 values are NaN or infinite"):
+        doppler_ra_maps(cube, SMALL)
+
+
+def test_workers_beyond_the_pool_are_clamped_and_give_the_same_maps():
+    cube = _cube(SMALL, 1)
+    one = doppler_ra_maps(cube, SMALL, workers=1)
+    many = doppler_ra_maps(cube, SMALL, workers=64)
+    assert np.array_equal(one.power, many.power) and np.array_equal(one.velocity, many.velocity)
+
+
+def test_threads_calling_at_once_get_their_own_maps():
+    radars = [SMALL, RadarConfig(n_samples=128, max_range=25.0, n_chirps=8, n_azimuth_bins=31)]
+    cubes = [_cube(r, 7) for r in radars]
+    want = [doppler_ra_maps(c, r) for c, r in zip(cubes, radars)]
+    got, errors = {}, []
+
+    def work(i):
+        try:
+            for _ in range(5):
+                got[i] = doppler_ra_maps(cubes[i % 2], radars[i % 2], workers=2)
+        except Exception as exc:  # pragma: no cover - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for i, maps in got.items():
+        assert np.array_equal(maps.power, want[i % 2].power)
+        assert np.array_equal(maps.velocity, want[i % 2].velocity)
