@@ -24,8 +24,8 @@ grid give the right maps; only the speed-up differs.
 
 The kernels are compiled on first use (≈ 5 s) and cached on disk by numba (``cache=True``; ≈ 0.5 s
 to load in a new process). Concurrent calls from several Python threads are serialised
-(:data:`_LOCK`): numba's ``workqueue`` thread pool (used where no OpenMP runtime is installed) does not
-allow two parallel kernels at once.
+(:data:`_LOCK`): numba's ``workqueue`` thread pool, which this module selects unless the user chose
+another, does not allow two parallel kernels at once.
 """
 from __future__ import annotations
 
@@ -37,29 +37,16 @@ import numpy as np
 from numba import njit, prange
 
 _LOCK = threading.Lock()
-
-
-def _start_thread_pool() -> None:
-    """Start numba's thread pool with idle workers that sleep (OpenMP ``OMP_WAIT_POLICY=PASSIVE``).
-
-    With GNU OpenMP (numba's ``omp`` layer) idle workers otherwise spin for a while after each
-    parallel kernel, on the same cores as the FFT threads that run between the kernels: on 2 cores
-    that made the default-size frame ≈ 2 ms slower (10.4 against 8.5 ms median,
-    benchmarks/dechirp_speed.md). The variable is read once, when numba loads the OpenMP runtime
-    here, and restored at once, so torch's own OpenMP runtime and the rest of the process keep
-    theirs; a policy set by the user in the environment is left alone."""
-    if "OMP_WAIT_POLICY" in os.environ:
-        numba.get_num_threads()
-        return
-    os.environ["OMP_WAIT_POLICY"] = "PASSIVE"
-    try:
-        numba.get_num_threads()  # loads the threading layer (and its OpenMP runtime) now
-    finally:
-        del os.environ["OMP_WAIT_POLICY"]
-
-
-_start_thread_pool()
 MIRROR_RTOL = 1e-12  # mirrored weights taken as conjugates when they differ by less (float32 beams: 6e-8)
+
+if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
+    # numba's own work queue rather than its first choice, GNU OpenMP: that one aborts a forked child
+    # that runs a parallel kernel ("fork() called from a process already using GNU OpenMP"), and its idle
+    # workers spin on the cores that the FFT threads between the kernels need. The work queue is as fast
+    # here (7.6 against 7.5 ms a frame) and fork-safe; it is not thread-safe, hence :data:`_LOCK`. A
+    # layer chosen by the user (NUMBA_THREADING_LAYER or numba.config) is left alone; this takes effect
+    # only if no numba parallel code has run in the process yet.
+    numba.config.THREADING_LAYER = "workqueue"
 
 
 @njit(parallel=True, cache=True)

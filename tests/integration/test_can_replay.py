@@ -63,15 +63,19 @@ def test_replay_at_recorded_speed(tmp_path, monkeypatch):
     import can.io.player
 
     path = tmp_path / "paced.blf"
-    live, _ = record(path, n=4, pace=True, frame_interval=0.1)
-    span = live[-1].meta["rx_time"] - live[0].meta["rx_time"]
+    record(path, n=4, pace=True, frame_interval=0.1)
+    with can.LogReader(str(path)) as reader:
+        stamps = [m.timestamp for m in reader]
+    log_span = stamps[-1] - stamps[0]  # the recorded bus time, which realtime replay waits out
     clock = _VirtualClock()
     monkeypatch.setattr(can.io.player, "time", clock)
     fast, _ = replay(path)
     assert clock.slept == 0.0  # as fast as the log reads
     slow, _ = replay(path, realtime=True)
-    assert len(fast) == len(slow) == 4 and span > 0.25
-    assert clock.slept >= span  # waited out at least the recorded gaps between the frames
+    # paced at 0.1 s, four frames span three intervals (less only by the first frame's lateness);
+    # the receiver's own clock is not compared: under load it lags the bus by a varying amount
+    assert len(fast) == len(slow) == 4 and log_span > 0.2
+    assert clock.slept == pytest.approx(log_span, abs=1e-3)  # every recorded gap waited out (< 0.1 ms skipped)
 
 
 @pytest.mark.parametrize("suffix", [".blf", ".asc"])

@@ -89,3 +89,23 @@ def test_threads_calling_at_once_get_their_own_maps():
     for i, maps in got.items():
         assert np.array_equal(maps.power, want[i % 2].power)
         assert np.array_equal(maps.velocity, want[i % 2].velocity)
+
+
+def _child_maps(cube, queue):
+    queue.put(doppler_ra_maps(cube, SMALL, workers=2).power)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="fork start method only")
+def test_a_forked_child_computes_maps_after_its_parent():
+    """numba's GNU OpenMP layer aborts such a child; the kernels run on the fork-safe work queue."""
+    import multiprocessing as mp
+
+    cube = _cube(SMALL, 3)
+    want = doppler_ra_maps(cube, SMALL, workers=2).power
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_child_maps, args=(cube, queue))
+    child.start()
+    got = queue.get(timeout=30)
+    child.join(timeout=30)
+    assert child.exitcode == 0 and np.array_equal(got, want)
