@@ -145,3 +145,14 @@ def test_builtin_scene_by_name_from_any_folder(tmp_path, monkeypatch):
     assert load_scene({"builtin": "corner"}, "t", tmp_path).name == "corner"
     with pytest.raises(ConfigError, match="unknown scene 'corner.toml'"):
         load_scene({"builtin": "corner.toml"}, "t", tmp_path)
+
+
+@pytest.mark.parametrize(("name", "dataset"), [("table2.toml", "default"), ("tracking.toml", "sequences")])
+def test_ablations_read_the_dataset_their_simulate_command_writes(monkeypatch, name, dataset):
+    """Each ablation names `xnlos simulate … --out out/data/<dataset>` (run from the project root); its
+    dataset path, taken from the config's own folder, is that same place."""
+    monkeypatch.chdir(ROOT)
+    cfg = ROOT / "configs" / "ablations" / name
+    assert f"--out out/data/{dataset}" in cfg.read_text()
+    path = Pipeline(load_pipeline(cfg)).stages["backend"].params.path
+    assert path == str((ROOT / "out" / "data" / dataset).resolve())
