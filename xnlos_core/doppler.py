@@ -123,11 +123,21 @@ def _range_profiles(cube, radar: RadarConfig, remove_static: bool, workers: int 
     return prof - prof.mean(axis=1, keepdims=True) if remove_static else prof
 
 
-def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: int, work: np.ndarray) -> np.ndarray:
-    """:func:`_range_profiles` in single precision for :func:`doppler_ra_maps` → (n_range_bins, n_chirps,
-    n_channels) complex64: the range window and the cast in one compiled pass (which also counts
-    non-finite samples) into ``work`` (n_samples, n_chirps·n_channels) complex64, then the range FFT
-    in place with ``threads`` workers."""
+_SAFE_AMPLITUDE = (1e-12, 1e15)  # [√W] largest |Re|, |Im| of a cube that needs no rescaling (module doc)
+
+
+def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: int,
+                      work: np.ndarray) -> tuple[np.ndarray, float]:
+    """:func:`_range_profiles` in single precision for :func:`doppler_ra_maps` → ((n_range_bins, n_chirps,
+    n_channels) complex64 profiles, scale): the range window and the cast in one compiled pass (which
+    also sums the energy that reveals non-finite samples) into ``work`` (n_samples, n_chirps·n_channels) complex64, then the
+    range FFT in place with ``threads`` workers.
+
+    The profiles are ``scale`` times the cube's: 1, unless the cube's largest component lies outside
+    :data:`_SAFE_AMPLITUDE`, where it is 1/that (a second pass; the first pass's energy bounds the
+    largest sample, so in-range cubes cost nothing more). Single precision holds powers of
+    ~1e-38 to 3e38 W, so a cube of amplitude 1e20 √W would overflow |κ|² and one of 1e-20 √W lose
+    its noise floor to underflow; rescaled, every finite cube keeps the same relative accuracy."""
     from . import doppler_kernels as kernels
 
     want = (radar.n_samples, radar.n_chirps, radar.n_channels)
@@ -137,14 +147,23 @@ def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: in
         raise InputError(f"chirp-sequence cube: expected shape (n_samples, n_chirps, n_channels) = {want} "
                          f"for this radar, got {arr.shape}")
     n, d, k = want
-    bad = kernels.run(kernels.taper_cast, threads, np.ascontiguousarray(arr).reshape(n, d * k),
-                      _range_taper(radar.range_window, n), work)
-    if bad:
-        raise InputError(f"chirp-sequence cube: {bad} of {arr.size} values are NaN or infinite; all must be finite")
+    flat, taper, energy = np.ascontiguousarray(arr).reshape(n, d * k), _range_taper(radar.range_window, n), np.empty(n)
+    kernels.run(kernels.taper_cast, threads, flat, taper, 1.0, work, energy)
+    bound = float(np.sqrt(energy.sum()))  # ≥ the largest |sample|; NaN or inf: a non-finite sample, or overflow
+    if not np.isfinite(bound):
+        bad = int(flat.size - np.count_nonzero(np.isfinite(flat)))
+        if bad:
+            raise InputError(f"chirp-sequence cube: {bad} of {arr.size} values are NaN or infinite; all must be finite")
+    scale = 1.0
+    if not bound <= _SAFE_AMPLITUDE[1] or 0.0 < bound < _SAFE_AMPLITUDE[0]:  # rare: a second, rescaled pass
+        big = float(np.max(np.maximum(np.abs(flat.real), np.abs(flat.imag))))
+        if big > _SAFE_AMPLITUDE[1] or 0.0 < big < _SAFE_AMPLITUDE[0]:
+            scale = 1.0 / big
+            kernels.run(kernels.taper_cast, threads, flat, taper, scale, work, energy)
     prof = scipy.fft.fft(work, axis=0, overwrite_x=True, workers=threads)[: radar.n_range_bins].reshape(-1, d, k)
     if radar.coupling_compensation:
         prof = decouple(prof.reshape(-1, k), radar).reshape(-1, d, k).astype(np.complex64)
-    return prof - prof.mean(axis=1, keepdims=True) if remove_static else prof
+    return (prof - prof.mean(axis=1, keepdims=True) if remove_static else prof), scale
 
 
 def _doppler_fft(prof: np.ndarray, window: str) -> np.ndarray:
@@ -306,7 +325,7 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     threads = max(1, workers or 1)
     plan = _doppler_plan(radar, window)
     work, spec = _work_buffers(radar)
-    prof = _range_profiles32(cube, radar, remove_static, threads, work)  # (r, d, k) complex64
+    prof, scale = _range_profiles32(cube, radar, remove_static, threads, work)  # (r, d, k) complex64, scale·cube
     r, d, k = prof.shape
     # both Doppler spectra (windowed for the maps, unwindowed for the velocity) in one FFT call; the
     # fftshift is a modulation folded into the tapers, so the bins come out ascending
@@ -314,13 +333,16 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     spec = scipy.fft.fft(spec, axis=2, overwrite_x=True, workers=threads)
     ts, n_az = radar.chirp_loop_time, radar.n_azimuth_bins
     consts = np.array([1.0 / plan.enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
-                       radar.max_unambiguous_velocity, plan.sigma_cell,
+                       radar.max_unambiguous_velocity, plan.sigma_cell * scale**2,
                        radar.doppler_wavelength / (4 * np.pi * ts) * np.sqrt(12.0 / (d * (d**2 - 1.0)))])
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
         kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
                     plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, radar.velocity_axis, consts,
                     power, peak_power, v, v_std)
+    if scale != 1.0:  # back to the cube's own units
+        power /= scale**2
+        peak_power /= scale**2
     sigma_cell, enbw = plan.sigma_cell, plan.enbw
     return DopplerRAMaps(power=power, peak_power=peak_power, velocity=v, velocity_std=v_std,
                          noise_floor=sigma_cell, peak_noise_floor=sigma_cell * enbw / d, radar=radar)

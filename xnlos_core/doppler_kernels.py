@@ -49,21 +49,22 @@ if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER ==
     numba.config.THREADING_LAYER = "workqueue"
 
 
-@njit(parallel=True, cache=True)
-def taper_cast(cube, taper, out):  # pragma: no cover - compiled
-    """out[i, j] = cube[i, j]·taper[i] in complex64; returns the number of non-finite entries of ``cube``.
+@njit(parallel=True, cache=True, fastmath={"reassoc", "contract"})
+def taper_cast(cube, taper, scale, out, row_energy):  # pragma: no cover - compiled
+    """out[i, j] = cube[i, j]·taper[i]·scale in complex64; row_energy[i] = Σ_j |cube[i, j]|² (float64).
 
-    cube (n, m) complex128, taper (n,) float64, out (n, m) complex64 (written)."""
+    cube (n, m) complex128, taper (n,) float64, scale float, out (n, m) complex64 and row_energy (n,)
+    float64 (written). A NaN or infinite sample makes its row's energy NaN or inf (reassociation keeps
+    that: it never assumes finite values), so one sum checks the whole cube for the caller."""
     n, m = cube.shape
-    bad = 0
     for i in prange(n):
-        t = taper[i]
+        t = taper[i] * scale
+        e = 0.0
         for j in range(m):
             z = cube[i, j]
-            if not (np.isfinite(z.real) and np.isfinite(z.imag)):
-                bad += 1
+            e += z.real * z.real + z.imag * z.imag
             out[i, j] = z * t
-    return bad
+        row_energy[i] = e
 
 
 @njit(parallel=True, cache=True)
