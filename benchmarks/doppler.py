@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/doppler.py [--repeats 20] [--cars 12] [--out benchmarks/doppler.md]
 
 1. Time: :func:`xnlos_core.doppler.doppler_ra_maps` on one frame's chirp-sequence cube at the default
-   radar size (512 samples × 64 chirp loops × 32 virtual channels → 401 range × 121 azimuth bins), and
+   radar size (512 samples × 64 chirp loops × 32 virtual channels → 401 range × 121 azimuth bins) with
+   one and two workers, and
    the coherent-mean RA path of the same cube for reference; median of ``--repeats`` after a warm-up.
 2. Velocity: hidden cars 20 m from the radar in the corner scene's hidden street, speeds 2–12 m/s in
    random directions along the street (seeded), rendered with the Doppler image model on the lighter
@@ -49,7 +50,7 @@ def timing(repeats: int) -> list[str]:
     rng = np.random.default_rng(0)
     cube = add_chirp_noise(chirp_sequence_cube(radar, [20.0, 35.0], [0.3, -0.2], [1e-4, 3e-5], [5.0, -1.3]),
                            radar, rng)
-    dop = _median_ms(lambda: doppler_ra_maps(cube, radar), repeats)
+    dop = {w: _median_ms(lambda: doppler_ra_maps(cube, radar, workers=w), repeats) for w in (1, 2)}
     ra = _median_ms(lambda: ra_map_from_cube(canonical_cube(cube, AdcLayout(), radar), radar), repeats)
     return ["## Doppler processing time per frame (default radar size)", "",
             f"cube {cube.shape} → maps ({len(radar.range_axis)}, {radar.n_azimuth_bins}); "
@@ -57,7 +58,8 @@ def timing(repeats: int) -> list[str]:
             f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (a shared machine inflates both rows alike; "
             f"old vs new back to back: benchmarks/dechirp_speed.md)", "",
             "| path | median ms |", "|---|---|",
-            f"| doppler_ra_maps (range–Doppler, beamforming per Doppler bin, velocity per cell) | {dop:.1f} |",
+            *(f"| doppler_ra_maps (range–Doppler, beams per Doppler bin, velocity per cell), workers={w} | {t:.1f} |"
+              for w, t in dop.items()),
             f"| coherent chirp mean → ra_map_from_cube (no Doppler) | {ra:.1f} |", ""]
 
 

@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-HEAVY = ("pysindy", "sklearn", "pandas", "trimesh", "torch", "casadi", "emcee", "matplotlib", "motmetrics", "dask")
+HEAVY = ("pysindy", "sklearn", "pandas", "trimesh", "torch", "casadi", "emcee", "matplotlib", "motmetrics", "dask",
+         "numba")
 
 SCRIPT = """
 import json, sys
