@@ -155,7 +155,7 @@ def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: in
         if bad:
             raise InputError(f"chirp-sequence cube: {bad} of {arr.size} values are NaN or infinite; all must be finite")
     scale = 1.0
-    if not bound <= _SAFE_AMPLITUDE[1] or 0.0 < bound < _SAFE_AMPLITUDE[0]:  # rare: a second, rescaled pass
+    if not bound <= _SAFE_AMPLITUDE[1] or bound < _SAFE_AMPLITUDE[0]:  # rare (0: all zero, or squares underflowed)
         big = float(np.max(np.maximum(np.abs(flat.real), np.abs(flat.imag))))
         if big > _SAFE_AMPLITUDE[1] or 0.0 < big < _SAFE_AMPLITUDE[0]:
             scale = 1.0 / big
@@ -332,8 +332,10 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     kernels.run(kernels.doppler_tapers, threads, prof, plan.taper, plan.boxcar, spec)
     spec = scipy.fft.fft(spec, axis=2, overwrite_x=True, workers=threads)
     ts, n_az = radar.chirp_loop_time, radar.n_azimuth_bins
+    with np.errstate(over="ignore"):  # a cube below ~1e-154 √W: its powers are below float64's range anyway
+        scale2 = np.float64(scale) ** 2
     consts = np.array([1.0 / plan.enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
-                       radar.max_unambiguous_velocity, plan.sigma_cell * scale**2,
+                       radar.max_unambiguous_velocity, plan.sigma_cell * scale2,
                        radar.doppler_wavelength / (4 * np.pi * ts) * np.sqrt(12.0 / (d * (d**2 - 1.0)))])
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
@@ -341,8 +343,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
                     plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, radar.velocity_axis, consts,
                     power, peak_power, v, v_std)
     if scale != 1.0:  # back to the cube's own units
-        power /= scale**2
-        peak_power /= scale**2
+        power /= scale2
+        peak_power /= scale2
     sigma_cell, enbw = plan.sigma_cell, plan.enbw
     return DopplerRAMaps(power=power, peak_power=peak_power, velocity=v, velocity_std=v_std,
                          noise_floor=sigma_cell, peak_noise_floor=sigma_cell * enbw / d, radar=radar)
