@@ -31,8 +31,8 @@ import scipy.fft
 from .antenna import symmetric_window
 from .errors import InputError
 from .radar import RadarConfig
-from .threads import blas_limit
 from .signal_chain import _dechirp_paths, _range_taper, beam_weights, decouple, processing_gain, range_fft
+from .threads import blas_limit
 from .types import RAMap
 from .validation import as_array
 
@@ -130,8 +130,8 @@ def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: in
                       work: np.ndarray) -> tuple[np.ndarray, float]:
     """:func:`_range_profiles` in single precision for :func:`doppler_ra_maps` → ((n_range_bins, n_chirps,
     n_channels) complex64 profiles, scale): the range window and the cast in one compiled pass (which
-    also sums the energy that reveals non-finite samples) into ``work`` (n_samples, n_chirps·n_channels) complex64, then the
-    range FFT in place with ``threads`` workers.
+    also sums the energy that reveals non-finite samples) into ``work`` (n_samples, n_chirps·n_channels)
+    complex64, then the range FFT in place with ``threads`` workers.
 
     The profiles are ``scale`` times the cube's: 1, unless the cube's largest component lies outside
     :data:`_SAFE_AMPLITUDE`, where it is 1/that (a second pass; the first pass's energy bounds the
@@ -147,7 +147,8 @@ def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: in
         raise InputError(f"chirp-sequence cube: expected shape (n_samples, n_chirps, n_channels) = {want} "
                          f"for this radar, got {arr.shape}")
     n, d, k = want
-    flat, taper, energy = np.ascontiguousarray(arr).reshape(n, d * k), _range_taper(radar.range_window, n), np.empty(n)
+    flat, taper = np.ascontiguousarray(arr).reshape(n, d * k), _range_taper(radar.range_window, n)
+    energy = np.empty(n)
     kernels.run(kernels.taper_cast, threads, flat, taper, 1.0, work, energy)
     bound = float(np.sqrt(energy.sum()))  # ≥ the largest |sample|; NaN or inf: a non-finite sample, or overflow
     if not np.isfinite(bound):
@@ -188,10 +189,10 @@ class _DopplerPlan:
     taper (n_chirps,) complex128: Doppler window / Σw times the fftshift modulation; boxcar (n_chirps,)
     complex128: the same for the unwindowed spectrum (1/N times the modulation); comp_r, comp_i (n_chirps,
     n_channels) float64: :func:`tdm_compensation`'s real and imaginary parts; wt_r, wt_i (n_azimuth,
-    n_channels) float64: those of :func:`beam_weights`, transposed; ipos, ineg (H,) int64: the azimuths the kernel computes and their mirrors
-    (:func:`~xnlos_core.doppler_kernels.azimuth_pairs`); wa = [Re w | Im w], wb = [Im w | Re w]
-    (n_channels, 2H) float32 of the ipos columns; enbw: N·Σw²/(Σw)² [bins]; sigma_cell: chirp
-    noise / G_p [W]. Arrays read-only (shared by calls).
+    n_channels) float64: those of :func:`beam_weights`, transposed; ipos, ineg (H,) int64: the
+    azimuths the kernel computes and their mirrors (:func:`~xnlos_core.doppler_kernels.azimuth_pairs`);
+    wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
+    N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]. Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
@@ -221,7 +222,8 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
     w32 = weights[:, ipos].astype(np.complex64)
     arrays = dict(taper=(mod * (w / w.sum())).astype(np.complex128), boxcar=(mod / d).astype(np.complex128),
                   comp_r=np.ascontiguousarray(comp.real), comp_i=np.ascontiguousarray(comp.imag),
-                  wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag), ipos=ipos, ineg=ineg,
+                  wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag),
+                  ipos=ipos, ineg=ineg,
                   wa=np.ascontiguousarray(np.hstack([w32.real, w32.imag])),
                   wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])))
     for a in arrays.values():
