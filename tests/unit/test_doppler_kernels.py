@@ -1,5 +1,6 @@
 """The compiled Doppler kernels (xnlos_core.doppler_kernels): mirrored azimuth pairs, the unpaired
-fallback, non-finite input, and calls from several threads at once."""
+fallback, non-finite input, thread counts, calls from several threads at once, a forked child, and
+cubes beyond single precision's range."""
 import threading
 
 import numpy as np
