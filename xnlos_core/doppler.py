@@ -110,15 +110,22 @@ def tdm_compensation(radar: RadarConfig) -> np.ndarray:
     return np.exp(-2j * np.pi * np.outer(radar.doppler_axis * radar.chirp_interval, i_tx))
 
 
-def _range_profiles(cube, radar: RadarConfig, remove_static: bool, workers: int | None = None) -> np.ndarray:
-    """Validated chirp-sequence cube → range profiles (n_range_bins, n_chirps, n_channels) complex128:
-    range FFT, coupling compensation, optional static-clutter removal (module doc of range_doppler)."""
+def _cube_array(cube, radar: RadarConfig, finite: bool = True) -> np.ndarray:
+    """``cube`` as a complex128 array of shape (n_samples, n_chirps, n_channels) for ``radar`` (no copy when
+    it already is one); InputError naming the shape expected, or NaN/inf when ``finite``."""
     want = (radar.n_samples, radar.n_chirps, radar.n_channels)
-    arr = as_array("chirp-sequence cube", cube, dtype=np.complex128)
+    arr = as_array("chirp-sequence cube", cube, dtype=np.complex128, finite=finite)
     if arr.shape != want:
         raise InputError(f"chirp-sequence cube: expected shape (n_samples, n_chirps, n_channels) = {want} "
                          f"for this radar, got {arr.shape}")
-    n, d, k = want
+    return arr
+
+
+def _range_profiles(cube, radar: RadarConfig, remove_static: bool, workers: int | None = None) -> np.ndarray:
+    """Validated chirp-sequence cube → range profiles (n_range_bins, n_chirps, n_channels) complex128:
+    range FFT, coupling compensation, optional static-clutter removal (module doc of range_doppler)."""
+    arr = _cube_array(cube, radar)
+    n, d, k = arr.shape
     prof = decouple(range_fft(arr.reshape(n, d * k), radar, workers=workers).reshape(-1, k), radar).reshape(-1, d, k)
     return prof - prof.mean(axis=1, keepdims=True) if remove_static else prof
 
@@ -140,13 +147,8 @@ def _range_profiles32(cube, radar: RadarConfig, remove_static: bool, threads: in
     its noise floor to underflow; rescaled, every finite cube keeps the same relative accuracy."""
     from . import doppler_kernels as kernels
 
-    want = (radar.n_samples, radar.n_chirps, radar.n_channels)
-    arr = cube if isinstance(cube, np.ndarray) and cube.dtype == np.complex128 else \
-        as_array("chirp-sequence cube", cube, dtype=np.complex128)
-    if arr.shape != want:
-        raise InputError(f"chirp-sequence cube: expected shape (n_samples, n_chirps, n_channels) = {want} "
-                         f"for this radar, got {arr.shape}")
-    n, d, k = want
+    arr = _cube_array(cube, radar, finite=False)  # non-finite samples: found by the cast pass below
+    n, d, k = arr.shape
     flat, taper = np.ascontiguousarray(arr).reshape(n, d * k), _range_taper(radar.range_window, n)
     energy = np.empty(n)
     kernels.run(kernels.taper_cast, threads, flat, taper, 1.0, work, energy)
@@ -192,7 +194,9 @@ class _DopplerPlan:
     n_channels) float64: those of :func:`beam_weights`, transposed; ipos, ineg (H,) int64: the
     azimuths the kernel computes and their mirrors (:func:`~xnlos_core.doppler_kernels.azimuth_pairs`);
     wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
-    N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]. Arrays read-only (shared by calls).
+    N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]; velocity_axis (n_chirps,) [m/s] and
+    consts (6,) float64: the kernel's constants (:func:`~xnlos_core.doppler_kernels.beam_maps`, σ_cell
+    for a cube that needs no rescaling). Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
@@ -205,6 +209,8 @@ class _DopplerPlan:
     ineg: np.ndarray
     wa: np.ndarray
     wb: np.ndarray
+    velocity_axis: np.ndarray
+    consts: np.ndarray
     enbw: float
     sigma_cell: float
 
@@ -220,16 +226,21 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
     ipos, ineg = azimuth_pairs(weights)
     comp = tdm_compensation(radar)
     w32 = weights[:, ipos].astype(np.complex64)
+    enbw = d * float((w**2).sum() / w.sum() ** 2)
+    sigma_cell = chirp_noise_power(radar) / processing_gain(radar)
+    crb = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(12.0 / (d * (d**2 - 1.0)))
     arrays = dict(taper=(mod * (w / w.sum())).astype(np.complex128), boxcar=(mod / d).astype(np.complex128),
                   comp_r=np.ascontiguousarray(comp.real), comp_i=np.ascontiguousarray(comp.imag),
                   wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag),
                   ipos=ipos, ineg=ineg,
                   wa=np.ascontiguousarray(np.hstack([w32.real, w32.imag])),
-                  wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])))
+                  wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])),
+                  velocity_axis=np.array(radar.velocity_axis, dtype=np.float64),
+                  consts=np.array([1.0 / enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
+                                   radar.max_unambiguous_velocity, sigma_cell, crb]))
     for a in arrays.values():
         a.flags.writeable = False
-    return _DopplerPlan(**arrays, enbw=d * float((w**2).sum() / w.sum() ** 2),
-                        sigma_cell=chirp_noise_power(radar) / processing_gain(radar))
+    return _DopplerPlan(**arrays, enbw=enbw, sigma_cell=sigma_cell)
 
 
 def range_doppler(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
@@ -333,16 +344,15 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     # fftshift is a modulation folded into the tapers, so the bins come out ascending
     kernels.run(kernels.doppler_tapers, threads, prof, plan.taper, plan.boxcar, spec)
     spec = scipy.fft.fft(spec, axis=2, overwrite_x=True, workers=threads)
-    ts, n_az = radar.chirp_loop_time, radar.n_azimuth_bins
-    with np.errstate(over="ignore"):  # a cube below ~1e-154 √W: its powers are below float64's range anyway
-        scale2 = np.float64(scale) ** 2
-    consts = np.array([1.0 / plan.enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
-                       radar.max_unambiguous_velocity, plan.sigma_cell * scale2,
-                       radar.doppler_wavelength / (4 * np.pi * ts) * np.sqrt(12.0 / (d * (d**2 - 1.0)))])
+    n_az, consts = radar.n_azimuth_bins, plan.consts.copy()  # writable: one compiled signature of the kernel
+    if scale != 1.0:
+        with np.errstate(over="ignore"):  # a cube below ~1e-154 √W: its powers are below float64's range anyway
+            scale2 = np.float64(scale) ** 2
+        consts[4] *= scale2  # σ_cell in the rescaled cube's units
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
         kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
-                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, radar.velocity_axis, consts,
+                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, plan.velocity_axis, consts,
                     power, peak_power, v, v_std)
     if scale != 1.0:  # back to the cube's own units
         power /= scale2
