@@ -7,7 +7,10 @@ between the radar (origin) and o'. Wall j is crossed when the segment origin →
 supported segment (``WallPosterior.extent`` lengthened by ``margin`` [m] at both ends; a wall
 without extent is an unbounded line); for an 'arc' the crossing is the ray's hit q on the arc,
 inside the extent when q's coordinate along the tangent line lies between the extent ends' (±
-margin). Of several crossed walls the first along the ray wins (the wave hits it first).
+margin). Of several crossed walls the first along the ray wins (the wave hits it first) — but a
+crossing inside a wall's observed extent beats any crossing only within its margin: the ray radar →
+o' into a side street passes just beyond the near building's corner, within the margin of that
+building's facade, and the facade's seen end is the corner itself, not a gap in sparse detections.
 
 Fallback when no wall is crossed: ``"nearest"`` takes the wall with o' on its far side (signed
 distance δ(o') < 0, δ = nᵀo' + b for a line) that is closest to o'; ``"drop"`` leaves o'
@@ -119,6 +122,8 @@ def anchor_points(points, walls: list[WallPosterior], margin: float = 2.0, fallb
             log.info("%s: %d mNLOS point(s) but no wall to anchor them to", who, k)
         return Anchoring(np.full(k, -1, np.int64), np.full(k, "none"), np.arange(k, dtype=np.int64))
     t = crossing_parameters(pts, walls, margin)
+    seen = crossing_parameters(pts, walls, 0.0) if margin > 0 else t  # crossings inside the observed extents
+    t = np.where(np.isfinite(seen).any(axis=1, keepdims=True), seen, t)
     crossed = np.isfinite(t).any(axis=1)
     choice = np.where(crossed, np.argmin(t, axis=1), -1)
     via = np.where(crossed, "ray", "none")

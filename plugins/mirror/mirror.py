@@ -19,7 +19,8 @@ samples keeps the first-order formula above.
 
 Wall choice (:mod:`plugins.mirror.association`, shared with ``residual_mirror``): the wall whose
 supported segment (WallPosterior.extent, lengthened by ``extent_margin`` at both ends; a wall
-without extent is an unbounded line) is crossed by the segment radar → o'; if several are crossed, the first one along the ray (the wall the wave hits).
+without extent is an unbounded line) is crossed by the segment radar → o'; if several are crossed, the first one along the ray (the wall the wave hits),
+where a crossing inside a wall's observed extent beats one only within another wall's margin.
 For an arc the crossing is the ray's hit q on the arc, inside the extent when q's coordinate
 along the tangent line lies between the extent ends' (± margin). If none is crossed,
 ``fallback``: "nearest" takes the wall with o' on its far side (signed distance δ(o') < 0:

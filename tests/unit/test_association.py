@@ -56,6 +56,20 @@ def test_anchoring_picks_the_crossed_wall_and_reports_the_unanchored(caplog):
     assert np.isfinite(t[2]).tolist() == [False, True]
 
 
+def test_a_crossing_inside_an_observed_extent_beats_a_margin_crossing():
+    # The ray into a side street passes 1 m beyond the near building's corner (x = 6, y = 8): within
+    # the 2 m margin of that facade, crossed first, but only the far facade (x = 18) is crossed where
+    # it was seen. Without the seen far facade the margin crossing still anchors the point.
+    near = WallPosterior.line(np.array([0.0, -1.0]), 8.0, extent=np.array([[0.0, 8.0], [6.0, 8.0]]))  # y = 8
+    far = WallPosterior.line(np.array([-1.0, 0.0]), 18.0, extent=np.array([[18.0, 10.0], [18.0, 30.0]]))  # x = 18
+    pts = np.array([[25.0, 28.6]])  # crosses y = 8 at x = 7.0, x = 18 at y = 20.6
+    assert np.isfinite(crossing_parameters(pts, [near, far], 2.0)).all()
+    assert crossing_parameters(pts, [near, far], 2.0)[0, 0] < crossing_parameters(pts, [near, far], 2.0)[0, 1]
+    assert anchor_points(pts, [near, far], 2.0).wall_index.tolist() == [1]
+    assert anchor_points(pts, [near], 2.0).wall_index.tolist() == [0]
+    assert anchor_points(pts, [near, far], 0.0).wall_index.tolist() == [1]
+
+
 def test_fallback_nearest_vs_drop():
     walls = two_walls()
     pts = np.array([[30.0, 40.0]])  # ray misses both extents; behind the x = 20 line only

@@ -86,3 +86,53 @@ def test_wall_posterior_flip_negates_cross_covariance():
     w = WallPosterior("line", np.array([0.0, -5.0]), cov)  # b < 0: canonical form flips n
     assert w.offset == 5.0 and np.allclose(w.normal, [-1, 0])
     assert np.allclose(w.cov, [[0.01, -0.02], [-0.02, 0.09]])
+
+def test_a_seen_building_corner_gives_one_wall_per_facade():
+    # Far block of a crossroads: facade y = −7 (x ≥ 19) and facade x = 17 (y ≤ −9), joined by a
+    # chamfer; 0.25 m apart, they chain into one single-linkage cluster. One TLS line through that L
+    # was a wall that is not there (φ ≈ 2.1 rad); the corner split gives the three facades.
+    rng = np.random.default_rng(3)
+    front = np.c_[np.arange(19.0, 33.0, 0.25), np.full(56, -7.0)]
+    chamfer = np.c_[np.linspace(18.8, 17.2, 8), np.linspace(-7.2, -8.8, 8)]
+    side = np.c_[np.full(41, 17.0), np.arange(-9.0, -19.25, -0.25)]
+    pts = np.concatenate([front, chamfer, side]) + rng.normal(0, 0.05, (105, 2))
+    walls = LSQWallEstimator().estimate(detections(pts))
+    assert len(walls) == 3
+    (a, b, c) = walls
+    for w, normal, offset in ((a, [0, 1], 7.0), (b, [-1, 0], 17.0)):  # within 3σ of their own posterior
+        sd_phi, sd_b = np.sqrt(np.diag(w.cov))
+        assert np.arccos(min(1.0, float(w.normal @ normal))) < 3 * sd_phi and abs(w.offset - offset) < 3 * sd_b
+    assert np.allclose(c.normal, np.array([-1, 1]) / np.sqrt(2), atol=0.1)  # x − y = 26
+    assert sorted(i for w in walls for i in w.info["detection_index"]) == list(range(105))
+
+
+def test_split_corners_keeps_straight_walls_arcs_and_outliers_whole():
+    from estimators.lsq import split_corners
+
+    rng = np.random.default_rng(5)
+    wall = on_line([-1, 0], 25.0, np.linspace(-10, 10, 60)) + rng.normal(0, 0.2, (60, 2))
+    assert [len(p) for p in split_corners(wall, 1.0)] == [60]
+    with_outlier = np.concatenate([wall, [[22.0, 0.05]]])  # 3 m in front of the wall: not a corner
+    assert [len(p) for p in split_corners(with_outlier, 1.0)] == [61]
+    # a curved facade, radius 20 m over a 25 m chord (sagitta 4.2 m, 77° of turn): the 'arc' model's
+    t = np.linspace(-0.65, 0.65, 80)
+    arc = np.c_[45.0 - 20.0 * np.cos(t), 20.0 * np.sin(t)] + rng.normal(0, 0.1, (80, 2))
+    assert [len(p) for p in split_corners(arc, 1.0)] == [80]
+    corner = np.concatenate([np.c_[np.full(40, 25.0), np.linspace(-12, -2, 40)],  # a block's two seen facades
+                             np.c_[np.linspace(25.25, 35, 40), np.full(40, -2.0)]]) + rng.normal(0, 0.1, (80, 2))
+    assert sorted(len(p) for p in split_corners(corner, 1.0)) == [40, 40]
+
+
+def test_collinear_facades_across_a_street_stay_two_walls_where_the_radar_sees_through():
+    # Facade y = 8 of the near block (x ≤ 6) and of the far block (x ≥ 16): one line, with the cross
+    # street's mouth between. Sparse pieces of one wall are merged (no LOS point beyond the gap), but
+    # here the radar sees a facade of the cross street (x = 20, y ≥ 13) through the gap: one wall across
+    # the mouth would claim every ray into the street.
+    near = np.c_[np.linspace(2, 6, 17), np.full(17, 8.0)]
+    far = np.c_[np.linspace(16, 30, 57), np.full(57, 8.0)]
+    merged = LSQWallEstimator().estimate(detections(np.concatenate([near, far])))
+    assert [w.n_points for w in merged] == [74]
+    seen = np.c_[np.full(20, 20.0), np.linspace(13.0, 17.75, 20)]  # through the gap (rays cross y = 8 at x ≈ 8–12)
+    walls = LSQWallEstimator().estimate(detections(np.concatenate([near, far, seen])))
+    along_y8 = [w for w in walls if np.allclose(w.normal, [0, -1], atol=1e-6)]
+    assert sorted(w.n_points for w in along_y8) == [17, 57]

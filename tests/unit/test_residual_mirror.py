@@ -27,10 +27,12 @@ def one_thread():
 
 
 def corner_scene():
-    """An L-shaped corner (walls x = 20, y ∈ [0, 15] and y = 15, x ∈ [20, 35]): lsq chains both legs
-    into one line, so the analytic mirror is off; hidden points mirrored across the x = 20 leg."""
+    """A facade that bends by 10° (x = 20 for y ∈ [0, 15], then on to (22.6, 29.8)): below lsq's
+    corner_angle, so lsq fits one line through both legs and the analytic mirror is off; hidden points
+    mirrored across the x = 20 leg."""
+    bend = np.radians(10.0)
     los = np.concatenate([np.stack([np.full(16, 20.0), np.linspace(0, 15, 16)], 1),
-                          np.stack([np.linspace(21, 35, 15), np.full(15, 15.0)], 1)])
+                          np.c_[20.0 + np.sin(bend) * np.linspace(1, 15, 15), 15.0 + np.cos(bend) * np.linspace(1, 15, 15)]])
     hidden = np.stack([np.linspace(8, 16, 12), np.linspace(-12, -2, 12)], 1)
     virt = mirror_reflect(hidden, np.array([-1.0, 0.0]), 20.0)
     keep = (virt[:, 1] / virt[:, 0] * 20 > 0) & (virt[:, 1] / virt[:, 0] * 20 < 15)
