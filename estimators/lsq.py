@@ -88,20 +88,22 @@ def split_corners(points: np.ndarray, tolerance: float, corner_angle: float = 15
        chord between its first and last point lies more than ``tolerance`` [m] and more than 3 σ of
        its own from the chord is cut at that point when it is a corner:
 
-       * each side lies along its total-least-squares line: RMS distance ≤ ``tolerance``/2 or ≤ twice
-         its points' RMS σ (clutter in front of a wall is no corner);
-       * the two lines differ in direction by at least ``corner_angle`` [deg] (a lone outlier leaves
-         two sides along one line), and each side's direction is known to within ``corner_angle`` at
-         3 standard deviations (σ_φ² = σ²/Σt², t the coordinates along the line, as in the module
-         doc): a few noisy points with an outlier at the chain's end bend any way;
-       * they fit better (smaller Σd²) than one circle through the whole piece: a curved facade, the
-         'arc' wall model, is not a chain of corners.
+       * the two sides' total-least-squares lines differ in direction by at least ``corner_angle``
+         [deg] (a lone outlier leaves two sides along one line), and each side's direction is known
+         to within ``corner_angle`` at 3 standard deviations (σ_φ² = σ²/Σt², t the coordinates along
+         the line, σ² the larger of the points' mean variance and the side's scatter about its line,
+         which clutter or a further corner in the side raise): a few noisy points bend any way.
 
-       Both sides are examined again; a piece that is not straight but has no such corner stays
-       whole, as without the split.
+       Both sides are examined again (a side may hold the next corner); a piece that is not
+       straight but has no such corner stays whole, as without the split.
     2. Adjust: in noise the farthest point misses the corner by a sample or two, which tilts both
        lines. Each cut between neighbouring pieces moves to where the two pieces' residuals Σd²
        (smaller eigenvalues of their scatter matrices, from prefix sums) add up least; two sweeps.
+    3. Merge: cuts go while the polyline's BIC falls without them (:func:`_merge_pieces`): a short
+       piece left at a corner by a cut a few samples off joins its neighbours.
+    4. Arc or corners: when one circle explains the whole cluster better than the polyline of its
+       pieces (BIC, :func:`_arc_beats_polyline`), the cluster stays whole: a curved facade (the
+       'arc' wall model) is not a chain of corners, while a chamfered corner (three facades) is.
 
     Each side of a cut keeps ≥ :data:`MIN_SIDE` points: with fewer, an outlier and two wall points
     pass every test above (three points nearly always lie along a line). Written out here rather
@@ -119,7 +121,7 @@ def split_corners(points: np.ndarray, tolerance: float, corner_angle: float = 15
         dist = np.abs((x[g] - x[g[0]]) @ np.array([-chord[1], chord[0]])) / max(length, 1e-300)
         k = int(np.argmax(dist))  # 0 < k < len(g) − 1 when dist[k] > 0: the ends lie on the chord
         if (length > 0.0 and dist[k] > max(tolerance, 3.0 * sd[g[k]])
-                and _is_corner(x[g], sd[g], k, tolerance, corner_angle)):
+                and _is_corner(x[g], sd[g], k, corner_angle)):
             todo += [g[:k], g[k:]]
         else:
             pieces.append(g)
@@ -132,7 +134,53 @@ def split_corners(points: np.ndarray, tolerance: float, corner_angle: float = 15
         for i in range(1, len(cuts) - 1):
             lo, hi = cuts[i - 1], cuts[i + 1]
             cuts[i] = lo + MIN_SIDE + int(np.argmin(_tls_residuals(x[chain[lo:hi]])[MIN_SIDE:hi - lo - MIN_SIDE + 1]))
-    return [np.sort(chain[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
+    cuts = _merge_pieces(x[chain], list(cuts))
+    pieces = [np.sort(chain[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
+    if len(pieces) > 1 and _arc_beats_polyline(x, pieces):
+        return [np.arange(len(x))]
+    return pieces
+
+
+def _bic(rss: float, n: int, params: int) -> float:
+    """Bayesian information criterion n ln(RSS/n) + params · ln n of a fit to n points; RSS/n [m²]
+    gets a floor of 1e-6 m² (noise-free points)."""
+    return n * np.log(max(rss / n, 1e-6)) + params * np.log(n)
+
+
+def _merge_pieces(x: np.ndarray, cuts: list[int]) -> list[int]:
+    """The merge step (split_corners, step 3): fewer cuts of the chain x (n, 2) [m] while that lowers
+    the polyline's BIC (m lines: 3m − 1 parameters, two per line and one per cut). Each round tries
+    removing one cut (its two pieces become one line) and dissolving one inner piece (its two
+    neighbours and it become two lines, cut where their residuals add up least, ≥ MIN_SIDE points a
+    side), and applies the best."""
+    n = len(x)
+    while len(cuts) > 2:
+        rss = [float(_tls_residuals(x[a:b])[0]) for a, b in zip(cuts[:-1], cuts[1:])]
+        m, total = len(rss), sum(rss)
+        best, best_bic = None, _bic(total, n, 3 * m - 1)
+        for i in range(1, m):  # remove cut i
+            merged = float(_tls_residuals(x[cuts[i - 1]:cuts[i + 1]])[0])
+            b = _bic(total - rss[i - 1] - rss[i] + merged, n, 3 * m - 4)
+            if b < best_bic:
+                best, best_bic = cuts[:i] + cuts[i + 1:], b
+        for j in range(1, m - 1):  # dissolve piece j
+            lo, hi = cuts[j - 1], cuts[j + 2]
+            r = _tls_residuals(x[lo:hi])[MIN_SIDE:hi - lo - MIN_SIDE + 1]
+            b = _bic(total - rss[j - 1] - rss[j] - rss[j + 1] + float(r.min()), n, 3 * m - 4)
+            if b < best_bic:
+                best, best_bic = cuts[:j] + [lo + MIN_SIDE + int(np.argmin(r))] + cuts[j + 2:], b
+        if best is None:
+            return cuts
+        cuts = best
+    return cuts
+
+
+def _arc_beats_polyline(x: np.ndarray, pieces: list[np.ndarray]) -> bool:
+    """Whether one circle explains the cluster x (n, 2) [m] better than the polyline of its m
+    ``pieces``, by BIC = n ln(RSS/n) + p ln n with p = 3 for the circle and 3m − 1 for the polyline
+    (two per line, one per cut); RSS/n gets a floor of 1e-6 m² (noise-free points)."""
+    rss_poly = sum(float(_tls_residuals(x[p])[0]) for p in pieces)
+    return bool(_bic(_circle_residual(x), len(x), 3) < _bic(rss_poly, len(x), 3 * len(pieces) - 1))
 
 
 def _chain_order(x: np.ndarray) -> np.ndarray:
@@ -146,22 +194,18 @@ def _chain_order(x: np.ndarray) -> np.ndarray:
     return np.argsort(shortest_path(tree, directed=False, indices=end), kind="stable")
 
 
-def _is_corner(x: np.ndarray, sd: np.ndarray, k: int, tolerance: float, corner_angle: float) -> bool:
+def _is_corner(x: np.ndarray, sd: np.ndarray, k: int, corner_angle: float) -> bool:
     """Whether the chain x (n, 2) [m] with position errors sd (n,) [m] bends at x[k] (split_corners)."""
     if min(k, len(x) - k) < MIN_SIDE:
         return False
     sides = []
     for side, s in ((x[:k + 1], sd[:k + 1]), (x[k:], sd[k:])):
         w, v = np.linalg.eigh(np.cov(side.T, bias=True))
-        noise = float(np.sqrt(np.mean(s ** 2)))
-        if np.sqrt(w[0]) > max(tolerance / 2, 2.0 * noise):
-            return False  # not straight
-        sides.append((v[:, 1], noise ** 2 / (len(side) * w[1])))  # direction, Var φ = σ²/Σt² [rad²]
+        noise2 = max(float(np.mean(s ** 2)), float(w[0]))  # the points' σ², or the side's scatter about its line
+        sides.append((v[:, 1], noise2 / (len(side) * w[1])))  # direction, Var φ = σ²/Σt² [rad²]
     (u0, var0), (u1, var1) = sides
     angle = float(np.arccos(min(1.0, abs(float(u0 @ u1)))))
-    if angle < np.radians(corner_angle) or 3.0 * np.sqrt(max(var0, var1)) > np.radians(corner_angle):
-        return False
-    return bool(_tls_residuals(x)[k] < _circle_residual(x))
+    return bool(angle >= np.radians(corner_angle) and 3.0 * np.sqrt(max(var0, var1)) <= np.radians(corner_angle))
 
 
 def _circle_residual(x: np.ndarray) -> float:

@@ -121,6 +121,14 @@ def test_split_corners_keeps_straight_walls_arcs_and_outliers_whole():
     corner = np.concatenate([np.c_[np.full(40, 25.0), np.linspace(-12, -2, 40)],  # a block's two seen facades
                              np.c_[np.linspace(25.25, 35, 40), np.full(40, -2.0)]]) + rng.normal(0, 0.1, (80, 2))
     assert sorted(len(p) for p in split_corners(corner, 1.0)) == [40, 40]
+    # a block corner cut by a 10.5 m chamfer: three facades, bending by 45° twice (one circle through
+    # them fits better than two lines; the polyline of three fits better than the circle)
+    a = np.c_[np.linspace(31.7, 26.8, 20), np.full(20, -8.8)]
+    chamfer = np.c_[np.linspace(26.4, 19.0, 42), np.linspace(-9.0, -16.4, 42)]
+    b = np.c_[np.full(44, 18.8), np.linspace(-16.8, -27.4, 44)]
+    three = np.concatenate([a, chamfer, b]) + rng.normal(0, 0.2, (106, 2))
+    sizes = sorted(len(p) for p in split_corners(three, 1.0, sigma=np.full(106, 0.25)))
+    assert len(sizes) == 3 and np.allclose(sizes, [20, 42, 44], atol=2), sizes
 
 
 def test_collinear_facades_across_a_street_stay_two_walls_where_the_radar_sees_through():
