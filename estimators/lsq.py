@@ -51,7 +51,7 @@ class ClusterParams(BaseModel):
     merge_tolerance: float = Field(0.75, ge=0, le=100, description="clusters (or single points) lying within "
                                    "this distance [m] of a larger cluster's line join it (one wall seen in pieces)")
     split_tolerance: float = Field(1.0, gt=0, le=100, description="a cluster is split at its corner when a point "
-                                   "lies farther than this [m] from the chord of its azimuth-ordered ends "
+                                   "lies farther than this [m] from the chord of its chain's ends "
                                    "(split_corners); larger than the LOS points' scatter about their wall")
     corner_angle: float = Field(15.0, ge=0, le=90, description="least change of direction [deg] between the two "
                                 "sides of a split (split_corners); smaller bends stay one wall")
@@ -202,7 +202,7 @@ def _is_corner(x: np.ndarray, sd: np.ndarray, k: int, corner_angle: float) -> bo
     for side, s in ((x[:k + 1], sd[:k + 1]), (x[k:], sd[k:])):
         w, v = np.linalg.eigh(np.cov(side.T, bias=True))
         noise2 = max(float(np.mean(s ** 2)), float(w[0]))  # the points' σ², or the side's scatter about its line
-        sides.append((v[:, 1], noise2 / (len(side) * w[1])))  # direction, Var φ = σ²/Σt² [rad²]
+        sides.append((v[:, 1], noise2 / (len(side) * max(float(w[1]), 1e-300))))  # direction, Var φ = σ²/Σt² [rad²]
     (u0, var0), (u1, var1) = sides
     angle = float(np.arccos(min(1.0, abs(float(u0 @ u1)))))
     return bool(angle >= np.radians(corner_angle) and 3.0 * np.sqrt(max(var0, var1)) <= np.radians(corner_angle))

@@ -194,8 +194,8 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     ev.add_argument("config", type=Path, help="pipeline TOML, e.g. configs/ablations/table2.toml")
     ev.add_argument("--out", type=Path, help="output directory (default: out/eval/<config file stem>; rerun the "
                     "same command to resume)")
-    ev.add_argument("--dataset", help="dataset directory (default: the config's dataset backend, else "
-                    "out/data/default)")
+    ev.add_argument("--dataset", help="dataset directory, relative to the working directory (default: the "
+                    "config's dataset backend, else out/data/default)")
     ev.add_argument("--split", choices=["train", "val", "test", "all"], help="split to score (default: the "
                     "config's, else test)")
     ev.add_argument("--limit", type=int, help="score at most this many maps of the split")

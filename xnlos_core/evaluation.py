@@ -79,7 +79,9 @@ def with_dataset(table: dict[str, Any], *, dataset: str | None = None, split: st
     """``table`` reading its frames from the ``dataset`` backend; returns (table, note or None).
 
     Keeps a ``[backend] name = "dataset"`` table (overriding the given params); any other frame
-    source is replaced by the default dataset (the note says so)."""
+    source is replaced by the default dataset (the note says so). A given ``dataset`` is a path on
+    the command line: relative to the working directory (like ``--out``), not to the config's folder
+    as the config's own paths are."""
     t = dict(table)
     note = None
     src = t.get("backend")
@@ -93,7 +95,7 @@ def with_dataset(table: dict[str, Any], *, dataset: str | None = None, split: st
         t.pop("forward_model", None)
     for k, v in (("path", dataset), ("split", split), ("limit", limit), ("start", start)):
         if v is not None:
-            params[k] = str(v) if k == "path" else v
+            params[k] = str(Path(v).resolve()) if k == "path" else v
     t["backend"] = {"name": "dataset", "params": params}
     return t, note
 

@@ -156,3 +156,13 @@ def test_ablations_read_the_dataset_their_simulate_command_writes(monkeypatch, n
     assert f"--out out/data/{dataset}" in cfg.read_text()
     path = Pipeline(load_pipeline(cfg)).stages["backend"].params.path
     assert path == str((ROOT / "out" / "data" / dataset).resolve())
+
+
+def test_eval_dataset_option_is_relative_to_the_working_directory(tmp_path, monkeypatch):
+    from xnlos_core.evaluation import with_dataset
+
+    monkeypatch.chdir(tmp_path)
+    table = {"backend": {"name": "dataset", "params": {"path": "../../out/data/sequences", "split": "test"}}}
+    t, _ = with_dataset(table, dataset="out/data/sequences_large", split="val")
+    assert t["backend"]["params"] == {"path": str(tmp_path / "out/data/sequences_large"), "split": "val"}
+    assert table["backend"]["params"]["path"] == "../../out/data/sequences"  # the config's own table is untouched
