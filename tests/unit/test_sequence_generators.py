@@ -194,12 +194,13 @@ def test_bad_parameters_name_the_key(family, overrides, pattern):
     assert family_params(family)().horizon == 3.0
 
 
-def test_the_sequences_dataset_config_stays_within_the_horizon():
+@pytest.mark.parametrize("name", ["sequences", "sequences_large"])
+def test_the_sequences_dataset_config_stays_within_the_horizon(name):
     from pathlib import Path
 
     from sims.dataset import load_dataset_config, resolve
 
-    path = Path(__file__).resolve().parents[2] / "configs/datasets/sequences.toml"
+    path = Path(__file__).resolve().parents[2] / f"configs/datasets/{name}.toml"
     cfg = load_dataset_config(path)
     resolve(cfg, str(path))  # registered families, valid parameters
     assert set(cfg.weights()) == set(SEQUENCE_FAMILIES) and cfg.frames_per_scene == 60
@@ -209,13 +210,14 @@ def test_the_sequences_dataset_config_stays_within_the_horizon():
     assert all(last <= family_params(f)(**cfg.generator_kwargs(f)).horizon for f in SEQUENCE_FAMILIES)
 
 
-def test_the_sequences_dataset_checks_visibility_with_its_own_radar_and_tests_every_car_motion():
+@pytest.mark.parametrize("name", ["sequences", "sequences_large"])
+def test_the_sequences_dataset_checks_visibility_with_its_own_radar_and_tests_every_car_motion(name):
     from pathlib import Path
 
     from sims.dataset.config import load_dataset_config, resolve
     from sims.dataset.plan import make_plan
 
-    path = Path(__file__).resolve().parents[2] / "configs/datasets/sequences.toml"
+    path = Path(__file__).resolve().parents[2] / f"configs/datasets/{name}.toml"
     cfg = load_dataset_config(path)
     radar = resolve(cfg, str(path)).radar
     for f in SEQUENCE_FAMILIES:
