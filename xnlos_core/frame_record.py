@@ -58,6 +58,8 @@ def hidden_record(h: HiddenPoints) -> dict[str, Any]:
                            "wall_index": h.wall_index.tolist()}
     if h.velocity is not None:
         out.update(velocity=h.velocity.tolist(), velocity_cov=h.velocity_cov.tolist())
+    if h.view is not None:
+        out["view"] = h.view.tolist()
     return out
 
 
@@ -117,6 +119,7 @@ def hidden_from_record(rec: dict[str, Any], where: str = "hidden") -> HiddenPoin
         raise InputError(f"{where}: expected an object with mean, cov, source_index, wall_index")
     parts = [_array(rec, "mean", where, (2,)), _array(rec, "cov", where, (2, 2)),
              _array(rec, "source_index", where, dtype=np.int64), _array(rec, "wall_index", where, dtype=np.int64)]
-    if "velocity" in rec:
-        parts += [_array(rec, "velocity", where, (2,)), _array(rec, "velocity_cov", where, (2, 2))]
-    return _checked(where, lambda: HiddenPoints(*parts))
+    parts += [_array(rec, "velocity", where, (2,)), _array(rec, "velocity_cov", where, (2, 2))] if "velocity" in rec \
+        else [None, None]
+    view = _array(rec, "view", where, (2,)) if "view" in rec else None
+    return _checked(where, lambda: HiddenPoints(*parts, view=view))

@@ -474,7 +474,10 @@ class HiddenPoints(_ReadOnlyArrays):
     wall_index (M,): the wall (index into the estimator's list) used for the mirror;
     velocity (M, 2) [m/s] and velocity_cov (M, 2, 2) [m²/s²], or None: the hidden velocity where
     the reconstructor had one (from a radial velocity only its observed component,
-    :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`).
+    :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`);
+    view (M, 2) [-] or None: the unit direction of the mirrored line of sight at o, from the bounce
+    point on the wall towards o (the radar mirrored across the wall sees o from there). An object's
+    seen points lie on its side facing that way; trackers use it to place the object's centre.
     """
 
     mean: np.ndarray
@@ -483,6 +486,7 @@ class HiddenPoints(_ReadOnlyArrays):
     wall_index: np.ndarray
     velocity: np.ndarray | None = None
     velocity_cov: np.ndarray | None = None
+    view: np.ndarray | None = None
 
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
@@ -500,6 +504,11 @@ class HiddenPoints(_ReadOnlyArrays):
             _set(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
             _set(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
                                                 readonly=True))
+        if self.view is not None:
+            v = as_array("HiddenPoints.view", self.view, shape=(k, 2), readonly=True)
+            if k and not np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6):
+                raise InputError("HiddenPoints.view: expected unit vectors (M, 2), one per hidden point")
+            _set(self, "view", v)
 
     @classmethod
     def empty(cls) -> "HiddenPoints":

@@ -43,7 +43,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import mirror_jacobians, mirror_reflect
 from xnlos_core.interfaces import Reconstructor
-from xnlos_core.mirror_doppler import unmirror_radial_velocity
+from xnlos_core.mirror_doppler import observed_direction, unmirror_radial_velocity
 from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
 from xnlos_core.wall_propagation import propagate
 
@@ -117,7 +117,22 @@ class MirrorReconstructor(Reconstructor):
             jx, jw = mirror_jacobians(pts[m], float(w.mean[0]), float(w.mean[1]))
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)
             cov[m] = 0.5 * (c + np.swapaxes(c, -1, -2))
-        return HiddenPoints(mean, cov, src, choice, *self._velocities(detections, walls, pts, pcov, choice, src)), pts
+        vel = self._velocities(detections, walls, pts, pcov, choice, src) or (None, None)
+        return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice)), pts
+
+    @staticmethod
+    def _views(walls, pts, choice) -> np.ndarray:
+        """(M, 2) unit direction of the mirrored line of sight at each hidden point, from its bounce point
+        towards it: ĝ = g/|g| with g = J_x⁻ᵀ r̂' (:func:`xnlos_core.mirror_doppler.observed_direction`)."""
+        view = pts / np.linalg.norm(pts, axis=1, keepdims=True)  # r̂', where an arc's mirror has no hit
+        for j in np.unique(choice):
+            m = choice == j
+            with np.errstate(invalid="ignore", divide="ignore"):
+                g = observed_direction(pts[m], walls[j])
+                g = g / np.linalg.norm(g, axis=1, keepdims=True)
+            ok = np.all(np.isfinite(g), axis=1)
+            view[np.flatnonzero(m)[ok]] = g[ok]
+        return view
 
     @staticmethod
     def _velocities(detections: Detections, walls, pts, pcov, choice, src) -> tuple:

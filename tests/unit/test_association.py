@@ -90,3 +90,12 @@ def test_wall_support_selects_each_walls_los_points():
     sup = wall_support(los, walls, distance=0.5, margin=1.0)
     assert sup[0].tolist() == [0, 1]  # (20, 40) is on the line but far outside the extent
     assert sup[1].tolist() == [2, 3]
+
+
+def test_the_view_runs_from_the_bounce_point_to_the_hidden_point():
+    wall = WallPosterior.line(np.array([-1.0, 0.0]), 20.0)  # x = 20
+    virt = np.array([[26.0, -3.0], [30.0, 4.0]])
+    hp = MirrorReconstructor().reconstruct(Detections.from_points(virt, MNLOS), [wall])
+    for o, o_v, u in zip(hp.mean, virt, hp.view):
+        q = o_v * 20.0 / o_v[0]  # where the ray radar → o' meets the wall
+        assert np.isclose(np.linalg.norm(u), 1.0) and np.allclose(u, (o - q) / np.linalg.norm(o - q))

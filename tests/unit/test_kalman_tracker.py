@@ -90,3 +90,18 @@ def test_errors():
         tracker.update(np.zeros((1, 2)), 2.0)
     with pytest.raises(ConfigError, match="confirm_window"):
         KalmanTracker({"confirm_hits": 4, "confirm_window": 3})
+
+
+def test_a_seen_side_moves_to_the_objects_centre_along_the_view():
+    from estimators.trackers.measurements import cluster
+
+    # a car (4.5 m × 1.8 m, centre (10, −20)) seen broadside along +y (its bounce point south of it):
+    # the seen face y = −20.9 spans 4.5 m, its centroid is 0.9 m in front of the centre
+    face = np.c_[np.linspace(7.75, 12.25, 10), np.full(10, -20.9)]
+    view = np.tile([0.0, 1.0], (10, 1))
+    pts = HiddenPoints(face, np.tile(0.01 * np.eye(2), (10, 1, 1)), np.arange(10), np.zeros(10), view=view)
+    z = cluster(pts, 5.0, 0.1, depth_ratio=0.2).z
+    assert np.allclose(z, [[10.0, -20.9 + 0.2 * 4.5]])  # W/(2L) = 0.2: the centre exactly
+    assert np.allclose(cluster(pts, 5.0, 0.1).z, [[10.0, -20.9]])  # depth_ratio 0: the centroid
+    plain = HiddenPoints(face, pts.cov, pts.source_index, pts.wall_index)  # no view: the centroid
+    assert np.allclose(cluster(plain, 5.0, 0.1, depth_ratio=0.2).z, [[10.0, -20.9]])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from xnlos_core.config import parse_pipeline
-from xnlos_core.errors import SchemaKeywordError, SchemaViolation
+from xnlos_core.errors import InputError, SchemaKeywordError, SchemaViolation
 from xnlos_core.frame_record import (SCHEMA_VERSION, detections_from_record, detections_record, hidden_from_record,
                                      hidden_record, wall_from_record, wall_record)
 from xnlos_core.io import json_default
@@ -156,3 +156,8 @@ def test_detections_and_hidden_round_trip_empty_and_with_doppler():
         np.testing.assert_array_equal(getattr(back, name), getattr(h, name))
     empty = hidden_from_record(_json(hidden_record(HiddenPoints.empty())))
     assert empty.mean.shape == (0, 2) and empty.cov.shape == (0, 2, 2)
+    seen = HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], view=[[0.6, -0.8]])  # no velocity, a view
+    back = hidden_from_record(_json(hidden_record(seen)))
+    assert back.velocity is None and back.view.tolist() == [[0.6, -0.8]]
+    with pytest.raises(InputError, match="view"):
+        HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], view=[[1.0, 1.0]])  # not a unit vector
