@@ -106,11 +106,14 @@ def split_corners(points: np.ndarray, tolerance: float, corner_angle: float = 15
        'arc' wall model) is not a chain of corners, while a chamfered corner (three facades) is.
 
     Each side of a cut keeps ≥ :data:`MIN_SIDE` points: with fewer, an outlier and two wall points
-    pass every test above (three points nearly always lie along a line). Written out here rather
+    pass every test above (three points nearly always lie along a line). A cluster whose points all
+    lie within ``tolerance`` of their total-least-squares line is one wall without further tests. Written out here rather
     than taken from shapely's ``simplify`` (step 1 without the corner test): that needs a new
     dependency and returns coordinates, not member indices.
     """
     x = np.asarray(points, dtype=np.float64)
+    if len(x) < 2 * MIN_SIDE or _straight(x, tolerance):
+        return [np.arange(len(x))]  # no cut possible, or every point within tolerance of one line
     sd = np.zeros(len(x)) if sigma is None else np.asarray(sigma, dtype=np.float64)
     order = _chain_order(x)
     pieces, todo = [], [order]
@@ -181,6 +184,14 @@ def _arc_beats_polyline(x: np.ndarray, pieces: list[np.ndarray]) -> bool:
     (two per line, one per cut); RSS/n gets a floor of 1e-6 m² (noise-free points)."""
     rss_poly = sum(float(_tls_residuals(x[p])[0]) for p in pieces)
     return bool(_bic(_circle_residual(x), len(x), 3) < _bic(rss_poly, len(x), 3 * len(pieces) - 1))
+
+
+def _straight(x: np.ndarray, tolerance: float) -> bool:
+    """Whether every point of x (n, 2) [m] lies within ``tolerance`` of their total-least-squares line
+    (the fast path of split_corners: most clusters are one straight facade)."""
+    z = x - x.mean(axis=0)
+    normal = np.linalg.eigh(z.T @ z)[1][:, 0]
+    return bool(np.abs(z @ normal).max() <= tolerance)
 
 
 def _chain_order(x: np.ndarray) -> np.ndarray:
