@@ -158,11 +158,11 @@ def _merge_pieces(x: np.ndarray, cuts: list[int]) -> list[int]:
     side), and applies the best."""
     n = len(x)
     while len(cuts) > 2:
-        rss = [float(_tls_residuals(x[a:b])[0]) for a, b in zip(cuts[:-1], cuts[1:])]
+        rss = [_tls_residual(x[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
         m, total = len(rss), sum(rss)
         best, best_bic = None, _bic(total, n, 3 * m - 1)
         for i in range(1, m):  # remove cut i
-            merged = float(_tls_residuals(x[cuts[i - 1]:cuts[i + 1]])[0])
+            merged = _tls_residual(x[cuts[i - 1]:cuts[i + 1]])
             b = _bic(total - rss[i - 1] - rss[i] + merged, n, 3 * m - 4)
             if b < best_bic:
                 best, best_bic = cuts[:i] + cuts[i + 1:], b
@@ -182,7 +182,7 @@ def _arc_beats_polyline(x: np.ndarray, pieces: list[np.ndarray]) -> bool:
     """Whether one circle explains the cluster x (n, 2) [m] better than the polyline of its m
     ``pieces``, by BIC = n ln(RSS/n) + p ln n with p = 3 for the circle and 3m − 1 for the polyline
     (two per line, one per cut); RSS/n gets a floor of 1e-6 m² (noise-free points)."""
-    rss_poly = sum(float(_tls_residuals(x[p])[0]) for p in pieces)
+    rss_poly = sum(_tls_residual(x[p]) for p in pieces)
     return bool(_bic(_circle_residual(x), len(x), 3) < _bic(rss_poly, len(x), 3 * len(pieces) - 1))
 
 
@@ -227,6 +227,12 @@ def _circle_residual(x: np.ndarray) -> float:
     c = -0.5 * np.array([d, e])
     r = np.sqrt(max(float(c @ c) - f, 0.0))
     return float(np.sum((np.linalg.norm(z - c, axis=1) - r) ** 2))
+
+
+def _tls_residual(x: np.ndarray) -> float:
+    """Total-least-squares Σd² [m²] of one line through x (n, 2) [m]: the scatter matrix's smaller eigenvalue."""
+    z = x - x.mean(axis=0)
+    return max(float(np.linalg.eigvalsh(z.T @ z)[0]), 0.0)
 
 
 def _tls_residuals(x: np.ndarray) -> np.ndarray:
@@ -353,8 +359,7 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
             f"{detections.range[i]:.6g} m); {len(bad)} LOS point(s) exceed {MAX_COORDINATE:g} m, the largest "
             "position standard deviation the wall estimators accept (such a point says nothing about a wall)")
     labels = single_linkage(pts, params.cluster_distance)
-    a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-    sigma = np.sqrt(0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b ** 2))  # largest axis [m]
+    sigma = np.sqrt(np.linalg.eigvalsh(cov)[:, 1])  # each point's largest position error [m]
     for k in np.unique(labels):
         members = np.flatnonzero(labels == k)
         for piece in split_corners(pts[members], params.split_tolerance, params.corner_angle, sigma[members])[1:]:
