@@ -2,14 +2,17 @@
 update), with each confirmed track's motion model identified by ensemble SINDy.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
-1. Every confirmed track keeps its history of (t, z, R) — the measurements it was updated with —
+1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
    over the last ``window`` [s].
 2. Identification (:func:`estimators.trackers.sindy_model.identify_motion`): once a track has
    ≥ ``min_samples`` samples in the window, and then every ``refit_every`` frames (not every frame:
    the time budget), its motion is identified from the window with the noise σ profiled out of the
    selection (identify_motion's sigma=None): a hidden point's R understates the scatter of a car's
    centroid (which parts of the body reflect changes), and a too-small σ inflates χ² until spurious
-   turn terms pass any evidence margin. At most
+   turn terms pass any evidence margin. With ``use_doppler`` (and ``identify_doppler``) the history
+   keeps each update's radial velocity y along ĝ too, and the identification fits them with the
+   positions (sindy_model, Doppler): the radial velocity's ramp shows a deceleration that the
+   centroid's wander hides. At most
    ``max_fits_per_frame`` tracks are fitted in one frame, the longest-unfitted first.
 3. Model choice: the identified Ξ (turn / acceleration terms) replaces constant velocity only when it
    is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
@@ -71,6 +74,8 @@ class SindyParams(KalmanParams):
     n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
+    identify_doppler: bool = Field(True, description="with use_doppler, the identification fits the track's "
+                                                     "radial velocities too (sindy_model, Doppler)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
     min_speed: float = Field(0.5, ge=0, le=100, description="speed [m/s] below which a track stays constant "
@@ -92,7 +97,7 @@ class SindyParams(KalmanParams):
 
 @dataclass
 class _SindyTrack(_Track):
-    history: list = field(default_factory=list)   # [(t [s], z (2,) [m], R (2, 2) [m²])]
+    history: list = field(default_factory=list)   # [(t [s], z (2,) [m], R (2, 2) [m²], ĝ (2,), y [m/s] or NaN)]
     motion: fc.LinearMotion = field(default_factory=lambda: CV)
     fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
     identified: MotionModel | None = None
@@ -142,7 +147,8 @@ class SindyTracker(KalmanTracker):
     def _track_state(self, tr: _SindyTrack) -> dict:
         m, ident = tr.motion, tr.identified
         out = {**super()._track_state(tr), "fitted_frame": tr.fitted_frame,
-               "history": [[float(t), z.tolist(), R.tolist()] for t, z, R in tr.history],
+               "history": [[float(t), z.tolist(), R.tolist(), g.tolist(), None if np.isnan(y) else float(y)]
+                           for t, z, R, g, y in tr.history],
                "motion": {"xi": m.xi.tolist(), "members": m.members.tolist(), "label": m.label}, "identified": None}
         if ident is not None:
             out["identified"] = {"coefficients": ident.coefficients.tolist(), "ensemble": ident.ensemble.tolist(),
@@ -156,10 +162,12 @@ class SindyTracker(KalmanTracker):
         base = super()._track_from(r)
         history = []
         for i, h in enumerate(r.items("history")):
-            if not isinstance(h, list) or len(h) != 3:
-                raise InputError(f"{r.where}: history[{i}] must be [t, z (2,), R (2, 2)]")
-            e = StateReader({"t": h[0], "z": h[1], "R": h[2]}, f"{r.where}: history[{i}]")
-            history.append((e.number("t"), e.array("z", (2,)), e.array("R", (2, 2))))
+            if not isinstance(h, list) or len(h) not in (3, 5):
+                raise InputError(f"{r.where}: history[{i}] must be [t, z (2,), R (2, 2)] or [t, z, R, ĝ (2,), y or "
+                                 "null]")
+            e = StateReader(dict(zip(("t", "z", "R", "g", "y"), h)), f"{r.where}: history[{i}]")
+            g, y = (e.array("g", (2,)), np.nan if h[4] is None else e.number("y")) if len(h) == 5 else (np.zeros(2), np.nan)
+            history.append((e.number("t"), e.array("z", (2,)), e.array("R", (2, 2)), g, y))
         m = r.sub("motion")
         motion = fc.LinearMotion(m.array("xi", (2, 2)), m.array("members", (None, 2, 2)), m.text("label"))
         identified = None
@@ -178,11 +186,12 @@ class SindyTracker(KalmanTracker):
                            identified=identified)
 
     def _new_track(self, track_id, x, P, t) -> _SindyTrack:
-        return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy())])
+        return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy(), np.zeros(2), np.nan)])
 
     def _correct(self, tr: _SindyTrack, meas: Measurements, k: int) -> None:
         super()._correct(tr, meas, k)
-        tr.history.append((tr.t, meas.z[k].copy(), meas.R[k].copy()))
+        y = float(meas.y[k]) if meas.doppler[k] else np.nan
+        tr.history.append((tr.t, meas.z[k].copy(), meas.R[k].copy(), meas.g[k].copy(), y))
 
     def _motion(self, tr: _SindyTrack) -> fc.LinearMotion:
         return tr.motion
@@ -212,9 +221,12 @@ class SindyTracker(KalmanTracker):
         p = self.params
         ts = np.array([h[0] for h in tr.history])
         zs = np.array([h[1] for h in tr.history])
+        doppler = {}
+        if p.use_doppler and p.identify_doppler:
+            doppler = {"direction": np.array([h[3] for h in tr.history]), "radial": np.array([h[4] for h in tr.history])}
         tr.fitted_frame = self._frame
         try:
-            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id)
+            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id, **doppler)
         except InsufficientDataError:  # e.g. an axis-aligned noiseless path: nothing to identify
             tr.identified, tr.motion = None, CV
             return

@@ -23,6 +23,16 @@ Identification (``identify_motion``):
 4. Ensemble: bagging (pysindy STLSQ at the chosen threshold on seeded bootstrap resamples); each
    member keeps its own Ξ_m and refits (p₀, v₀) with covariance σ² (JᵀJ)⁻¹.
 
+Doppler (``direction``, ``radial``). A hidden point's radial velocity y_i = ĝ_iᵀ v(t_i) + noise (ĝ_i
+the unit mirrored line of sight, :mod:`estimators.trackers.measurements`) measures the velocity, and
+its change over the window the acceleration, directly, where the positions give them only through
+the second and third difference of a wandering centroid. When given (NaN marks a sample without one):
+the smoother adds the row y = ĝᵀv (variance σ_r² from the MAD of successive differences of y); every
+refit stacks λ (ĝ_iᵀ Φ_v(t_i) s − y_i) under the position residuals (Φ_v the velocity rows of the flow,
+λ = σ_p/σ_r [s] from the full candidate's residual RMS of each kind); and the BIC adds the radial
+term m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(2n + m). The covariance stays σ_p² (JᵀJ)⁻¹ of
+the weighted Jacobian.
+
 Prediction (``MotionModel.predict``) h ∈ [0, 3] s ahead: every member is integrated exactly (matrix
 exponential of the affine system); the predictive distribution is the mixture over members of
 N(μ_m(h), J_h C_m J_hᵀ + σ² I) — ensemble spread, initial-state uncertainty and the measurement
@@ -121,9 +131,11 @@ def _xi(theta: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return xi
 
 
-def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Position rows Φ(dt)[:2] (K, 2, 4) of Φ(dt) = expm(A(Ξ) dt) and their derivatives (K, 2, k, 4)
-    with respect to the k coefficients Ξ[mask] (row-major order), for dts (K,) [s].
+def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True,
+          rows: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``rows`` rows Φ(dt)[:rows] (K, rows, 4) of Φ(dt) = expm(A(Ξ) dt) — 2: the position
+    rows, 4: position and velocity — and their derivatives (K, rows, k, 4) with respect to the k
+    coefficients Ξ[mask] (row-major order), for dts (K,) [s].
 
     The derivatives come with Φ from one exponential (Van Loan 1978): for B = [[A, E_1 … E_k],
     [0, A ⊕ … ⊕ A]] (E_j = ∂A/∂ξ_j, a single 1), the top block row of expm(B dt) is
@@ -139,67 +151,105 @@ def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True) -> tu
     if k:
         for j, (r, c) in enumerate(zip(*np.nonzero(mask))):
             B[2 + r, 4 * (j + 1) + 2 + c] = 1.0
-    rows = _top_rows(B, np.asarray(dts, dtype=np.float64))              # (K, 2, n)
-    return rows[:, :, :4], rows[:, :, 4:].reshape(len(rows), 2, k, 4)
+    top = _top_rows(B, np.asarray(dts, dtype=np.float64), rows)        # (K, rows, n)
+    return top[:, :, :4], top[:, :, 4:].reshape(len(top), rows, k, 4)
 
 
 MAX_GRID = 2000  # longest integer grid taken by repeated products
 
 
-def _top_rows(B: np.ndarray, dts: np.ndarray) -> np.ndarray:
-    """The first two rows (K, 2, n) of expm(B dt) for dts (K,) [s]: by repeated products of expm(B δ)
+def _top_rows(B: np.ndarray, dts: np.ndarray, rows: int = 2) -> np.ndarray:
+    """The first ``rows`` rows (K, rows, n) of expm(B dt) for dts (K,) [s]: by repeated products of expm(B δ)
     when every dt is an integer multiple (same sign) of the smallest |dt| ≠ 0, else one exponential each."""
     n = len(B)
     nonzero = np.abs(dts[dts != 0])
     if len(nonzero) == 0:
-        return np.broadcast_to(np.eye(n)[:2], (len(dts), 2, n)).copy()
+        return np.broadcast_to(np.eye(n)[:rows], (len(dts), rows, n)).copy()
     delta = nonzero.min() * (1.0 if dts.max() > 0 else -1.0)
     idx = dts / delta
     steps = np.rint(idx)
     if idx.min() >= 0 and np.allclose(idx, steps, rtol=0, atol=1e-6) and steps.max() <= MAX_GRID:
-        step, top = expm(B * delta), np.eye(n)[:2]
-        grid = np.empty((int(steps.max()) + 1, 2, n))
+        step, top = expm(B * delta), np.eye(n)[:rows]
+        grid = np.empty((int(steps.max()) + 1, rows, n))
         grid[0] = top
         for i in range(1, len(grid)):
             grid[i] = top = top @ step
         return grid[steps.astype(np.int64)]
-    return expm(B[None] * dts[:, None, None])[:, :2]
+    return expm(B[None] * dts[:, None, None])[:, :rows]
 
 
-def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray):
-    """Refit (p, v at t[-1]) and Ξ on its support (|Ξ_ij| ≤ XI_MAX) to the positions by least squares
-    (scipy's trust-region reflective with the exact Jacobian of :func:`_flow`).
+@dataclass(frozen=True)
+class _Radial:
+    """A track's Doppler samples for the refit: idx (m,) the samples that carry one, g (m, 2) their
+    unit directions, y (m,) [m/s] the radial velocities y = gᵀv, lam = σ_p/σ_r [s] the weight that
+    puts a radial residual [m/s] on the scale of a position residual [m]."""
 
-    Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ²], residual sum of squares [m²])."""
+    idx: np.ndarray
+    g: np.ndarray
+    y: np.ndarray
+    lam: float
+
+
+def _residuals(phi: np.ndarray, th: np.ndarray, z: np.ndarray, radial: _Radial | None) -> np.ndarray:
+    """Stacked residuals: positions (Φ[:2] s − z) (2n,) [m], then λ (gᵀ Φ[2:4] s − y) (m,) (Doppler)."""
+    r = (phi[:, :2] @ th[:4] - z).ravel()
+    if radial is None:
+        return r
+    v = phi[radial.idx, 2:4] @ th[:4]
+    return np.r_[r, radial.lam * (np.sum(radial.g * v, axis=1) - radial.y)]
+
+
+def _design(phi: np.ndarray, dphi: np.ndarray | None, th: np.ndarray, radial: _Radial | None) -> np.ndarray:
+    """d residuals / dθ (2n [+ m], P) from the flow rows Φ (K, 2|4, 4) and dΦ (K, 2|4, k, 4)."""
+    n = len(phi)
+    cols = [phi[:, :2]] if dphi is None else [phi[:, :2], dphi[:, :2] @ th[:4]]
+    jac = np.concatenate(cols, axis=2).reshape(2 * n, -1)
+    if radial is None:
+        return jac
+    i, g = radial.idx, radial.g[:, :, None]
+    vcols = [phi[i, 2:4]] if dphi is None else [phi[i, 2:4], dphi[i, 2:4] @ th[:4]]
+    return np.r_[jac, radial.lam * np.sum(g * np.concatenate(vcols, axis=2), axis=1)]
+
+
+def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None = None):
+    """Refit (p, v at t[-1]) and Ξ on its support (|Ξ_ij| ≤ XI_MAX) by least squares to the positions
+    and, with ``radial``, the radial velocities weighted by λ (scipy's trust-region reflective with the
+    exact Jacobian of :func:`_flow`).
+
+    Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ_p²], position RSS [m²], radial RSS [m²/s²] (0 without))."""
     mask = xi != 0
     dts = t - t[-1]
     xi0 = np.clip(xi, -XI_MAX, XI_MAX)
-    if not mask.any():
-        Phi = _flow(xi0, mask, dts, derivatives=False)[0].reshape(-1, 4)   # CV: linear in (p, v)
-        theta, *_ = np.linalg.lstsq(Phi, z.ravel(), rcond=None)
-        rss = float(np.sum((Phi @ theta - z.ravel()) ** 2))
-        return mask, theta, np.linalg.pinv(Phi.T @ Phi), rss
+    rows = 2 if radial is None else 4
+
+    def parts(th, r):
+        n2 = 2 * len(t)
+        return float(np.sum(r[:n2] ** 2)), (float(np.sum(r[n2:] ** 2)) / radial.lam ** 2 if radial else 0.0)
+
+    Phi0 = _flow(xi0, mask, dts, derivatives=False, rows=rows)[0]
+    D0 = _design(Phi0, None, np.zeros(4), radial)                     # linear in (p, v) at Ξ fixed
+    target = np.r_[z.ravel(), radial.lam * radial.y] if radial else z.ravel()
+    s0, *_ = np.linalg.lstsq(D0, target, rcond=None)
+    if not mask.any():  # CV: that linear fit is the refit
+        return (mask, s0, np.linalg.pinv(D0.T @ D0), *parts(s0, _residuals(Phi0, s0, z, radial)))
     cache = {}
 
     def flow(th):  # fun and jac are asked at the same θ: one exponential serves both
         key = th.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = _flow(_xi(th, mask), mask, dts)
+            cache[key] = _flow(_xi(th, mask), mask, dts, rows=rows)
         return cache[key]
 
     def fun(th):
-        return (flow(th)[0] @ th[:4] - z).ravel()
+        return _residuals(flow(th)[0], th, z, radial)
 
     def jac(th):
-        phi, dphi = flow(th)
-        return np.concatenate([phi, dphi @ th[:4]], axis=2).reshape(-1, len(th))
+        return _design(*flow(th), th, radial)
 
-    Phi0 = _flow(xi0, mask, dts, derivatives=False)[0].reshape(-1, 4)  # the initial-state guess
-    s0, *_ = np.linalg.lstsq(Phi0, z.ravel(), rcond=None)
     lo = np.r_[np.full(4, -np.inf), np.full(mask.sum(), -XI_MAX)]
     fit = least_squares(fun, np.r_[s0, xi0[mask]], jac=jac, bounds=(lo, -lo), x_scale="jac", max_nfev=MAX_NFEV)
-    return mask, fit.x, np.linalg.pinv(fit.jac.T @ fit.jac), float(2 * fit.cost)
+    return (mask, fit.x, np.linalg.pinv(fit.jac.T @ fit.jac), *parts(fit.x, fit.fun))
 
 
 def _system(xi: np.ndarray) -> np.ndarray:
@@ -208,8 +258,11 @@ def _system(xi: np.ndarray) -> np.ndarray:
     return M
 
 
-def _rts_white_jerk(t: np.ndarray, z: np.ndarray, sigma: float, q: float) -> np.ndarray:
-    """RTS-smoothed (p, v, a) (n, 6) of positions z (n, 2) [m] at t (n,) [s]; jerk PSD q [m²/s⁵]."""
+def _rts_white_jerk(t: np.ndarray, z: np.ndarray, sigma: float, q: float, radial: tuple | None = None) -> np.ndarray:
+    """RTS-smoothed (p, v, a) (n, 6) of positions z (n, 2) [m] at t (n,) [s]; jerk PSD q [m²/s⁵].
+
+    radial: (g (n, 2), y (n,) [m/s], σ_r [m/s]): each sample with a finite y adds the Doppler row
+    y = gᵀv of variance σ_r² to its update."""
     n, eye = len(t), np.eye(2)
     H = np.hstack([eye, np.zeros((2, 4))])
     x, P = np.r_[z[0], np.zeros(4)], np.diag([sigma ** 2] * 2 + [1e2] * 2 + [1e2] * 2)
@@ -221,8 +274,12 @@ def _rts_white_jerk(t: np.ndarray, z: np.ndarray, sigma: float, q: float) -> np.
                                   [dt ** 3 / 6, dt ** 2 / 2, dt]]), eye)
         x, P = F @ x, F @ P @ F.T + Q
         xp.append(x), Pp.append(P), Fs.append(F)
-        K = np.linalg.solve(H @ P @ H.T + sigma ** 2 * eye, H @ P).T
-        x, P = x + K @ (z[k] - H @ x), (np.eye(6) - K @ H) @ P
+        Hk, zk, Rk = H, z[k], sigma ** 2 * eye
+        if radial is not None and np.isfinite(radial[1][k]):
+            Hk = np.vstack([H, np.r_[0.0, 0.0, radial[0][k], 0.0, 0.0]])
+            zk, Rk = np.r_[z[k], radial[1][k]], np.diag([sigma ** 2, sigma ** 2, radial[2] ** 2])
+        K = np.linalg.solve(Hk @ P @ Hk.T + Rk, Hk @ P).T
+        x, P = x + K @ (zk - Hk @ x), (np.eye(6) - K @ Hk) @ P
         xs.append(x), Ps.append(P)
     out = np.array(xs)
     for k in range(n - 2, -1, -1):
@@ -267,12 +324,43 @@ def _sindy_fit(optimizer, v, a) -> np.ndarray:
     return np.asarray(optimizer.coef_, dtype=np.float64)
 
 
-def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, jerk_psd: float = 1.0,
-                    seed: int = 0) -> MotionModel:
+def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.ndarray] | None:
+    """Validated (g (n, 2) unit, y (n,) [m/s] with NaN where a sample has no Doppler), or None."""
+    if direction is None and radial is None:
+        return None
+    if direction is None or radial is None:
+        raise InputError("identify_motion: direction and radial come together (the Doppler samples y = gᵀv)")
+    y = np.array(as_array("identify_motion: radial", radial, shape=(len(t),), finite=False), dtype=np.float64)
+    g = np.array(as_array("identify_motion: direction", direction, shape=(len(t), 2), finite=False),
+                 dtype=np.float64)
+    ok = np.isfinite(y)
+    norm = np.linalg.norm(g[ok], axis=1)
+    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
+        raise InputError("identify_motion: each sample with a radial velocity needs a finite, nonzero "
+                         "direction (2,)")
+    g[ok] = g[ok] / norm[:, None]
+    y[np.isinf(y)] = np.nan
+    if np.count_nonzero(np.isfinite(y)) < 2:
+        return None
+    return g, y
+
+
+def _radial_sigma(t: np.ndarray, y: np.ndarray) -> float:
+    """Robust σ_r [m/s] of the radial velocities: the MAD of differences of successive samples (a
+    frame's change of gᵀv is far below the noise), or 0.1 m/s when too few samples follow each other."""
+    ok = np.flatnonzero(np.isfinite(y))
+    d = np.diff(y[ok])
+    return float(1.4826 * np.median(np.abs(d)) / np.sqrt(2)) if len(d) >= 3 else 0.1
+
+
+def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial=None, n_models: int = 20,
+                    jerk_psd: float = 1.0, seed: int = 0) -> MotionModel:
     """Identify one track's motion model from samples t (n,) [s] (increasing) and xy (n, 2) [m].
 
     sigma [m]: per-axis measurement standard deviation; None profiles it out of the selection and
     estimates it from the selected model's residuals, σ² = RSS / (2n − k). n_models: bagging ensemble size. jerk_psd [m²/s⁵]: the smoother's jerk PSD.
+    direction (n, 2), radial (n,) [m/s]: optional Doppler samples y_i = ĝ_iᵀ v(t_i) (NaN: sample i
+    has none); they enter the smoother, the refits and the selection (module docstring, Doppler).
     seed: the bagging draws (numpy.random.default_rng(seed); numpy's global RNG is never touched).
     """
     t = as_array("identify_motion: t", t, ndim=1)
@@ -283,10 +371,12 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
         raise InputError("identify_motion: t must be strictly increasing [s]")
     if sigma is not None and not (np.isfinite(sigma) and sigma > 0):
         raise InputError(f"identify_motion: sigma must be a positive standard deviation [m], got {sigma}")
+    doppler = _doppler_samples(t, direction, radial)
     # The smoother needs a noise level; when none is given, white noise's second difference has
     # variance 6σ² (robust scale via the MAD). The model selection below profiles σ out instead.
     sigma_smooth = sigma or float(1.4826 * np.median(np.abs(np.diff(z, 2, axis=0))) / np.sqrt(6)) or 1e-3
-    smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd)
+    sigma_r = None if doppler is None else max(_radial_sigma(t, doppler[1]), 1e-3)
+    smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
     v, a = smooth[:, 2:4], smooth[:, 4:6]
     if np.linalg.norm(v, axis=0).min() < 1e-9:  # a velocity component ≡ 0 (noise-free axis-aligned path)
         raise InsufficientDataError("identify_motion: a velocity component is identically zero; the "
@@ -298,18 +388,33 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
     thresholds = (cuts[:-1] + cuts[1:])[::-1] / 2  # sparsest first; threshold 0 is the full fit itself
     candidates = ([(np.inf, np.zeros((2, 2)))] + [(th, _sindy_fit(_stlsq(th), v, a)) for th in thresholds]
                   + [(0.0, full)])
+    n2 = 2 * len(t)
+    rad = None
+    if doppler is not None:  # λ = σ_p/σ_r from the richest candidate's residuals (the least biased noise levels)
+        ok = np.flatnonzero(np.isfinite(doppler[1]))
+        rad = _Radial(ok, doppler[0][ok], doppler[1][ok], sigma_smooth / sigma_r)
+        _, _, _, rss_p, rss_r = _refit(full, t, z, rad)
+        sp, sr = sigma or np.sqrt(rss_p / n2), np.sqrt(rss_r / len(ok))
+        rad = _Radial(ok, rad.g, rad.y, float(sp / max(sr, 1e-9)) if sp > 0 else 1.0)
     cache = {}  # support → refit: the nonlinear refit depends on Ξ only through its support and start
     for _, xi in candidates:
-        cache.setdefault((xi != 0).tobytes(), _refit(xi, t, z))
+        key = (xi != 0).tobytes()
+        if key not in cache:
+            cache[key] = _refit(xi, t, z, rad)
     refits = [cache[(xi != 0).tobytes()] for _, xi in candidates]
-    n2, k = 2 * len(t), np.array([4 + mask.sum() for mask, *_ in refits])
+    k = np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
+    tiny = np.finfo(np.float64).tiny
     if sigma is None:  # Gaussian likelihood with the variance profiled out
-        bic = n2 * np.log(rss / n2) + k * np.log(n2)
+        bic = n2 * np.log(np.maximum(rss, tiny) / n2)
     else:
-        bic = rss / sigma ** 2 + k * np.log(n2)
+        bic = rss / sigma ** 2
+    if rad is not None:  # the radial velocities' own variance, profiled out likewise
+        m = len(rad.idx)
+        bic = bic + m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
+    bic = bic + k * np.log(n2 + (0 if rad is None else len(rad.idx)))
     best = int(np.argmin(bic))  # candidates run sparsest-first (CV, then decreasing threshold): ties → sparser
-    threshold, (mask, theta, _, _) = candidates[best][0], refits[best]
+    threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:
         sigma = float(np.sqrt(rss[best] / (n2 - k[best])))
     if np.isinf(threshold):
@@ -320,7 +425,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, n_models: int = 20, je
     for m in ensemble:
         key = (m != 0).tobytes()
         if key not in by_support:
-            msk, th, jtj_inv, _ = cache[key] if key in cache else _refit(m, t, z)
+            msk, th, jtj_inv, *_ = cache[key] if key in cache else _refit(m, t, z, rad)
             by_support[key] = (msk, th, sigma ** 2 * jtj_inv)
     fits = tuple(by_support[(m != 0).tobytes()] for m in ensemble)
     xi = np.zeros((2, 2))

@@ -141,3 +141,16 @@ def test_a_tracker_without_a_checkpoint_says_so():
         Plain().state()
     with pytest.raises(PluginError, match="no checkpoint"):
         Plain().load_state({})
+
+
+def test_sindy_history_keeps_its_doppler_samples_and_reads_the_older_three_field_form(sindy_state):
+    # Each history sample is [t, z, R, ĝ, y]: y null where the measurement had no Doppler (the birth
+    # sample). A checkpoint written before the identification used Doppler ([t, z, R]) still loads.
+    hist = next(t["history"] for t in sindy_state["tracks"] if len(t["history"]) > 3)
+    assert all(len(h) == 5 for h in hist) and hist[0][4] is None and all(isinstance(h[4], float) for h in hist[1:])
+    old = json.loads(json.dumps(sindy_state))
+    for t in old["tracks"]:
+        t["history"] = [h[:3] for h in t["history"]]
+    tr = SindyTracker(PARAMS["sindy"])
+    tr.load_state(old)
+    assert all(all(h[4] is None for h in t["history"]) for t in tr.state()["tracks"])

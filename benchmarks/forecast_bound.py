@@ -1,0 +1,166 @@
+"""How far a better motion model could take the 2 s forecast of hidden cars: the tracker's forecast
+and constant velocity (CV) against the *true* manoeuvre applied to the same track states (issue 28).
+
+Runs one case of ``configs/ablations/tracking.toml`` (default: "oracle → sindy + Doppler") on the
+``hidden_car_approach`` sequences of a dataset split, and matches each confirmed track to the nearest
+mirror-visible car within ``match_radius`` per frame. For every match with the car's truth 2 s ahead:
+
+* CV: p̂ + 2 v̂ from the track state (p̂, v̂); tracker: its own 2 s forecast;
+* true Ξ: the track state integrated 2 s under the car's true manoeuvre at that instant, Ξ = αI + ωJ
+  with α = aᵀv/|v|², ω = aᵀJv/|v|² (a the true acceleration, central difference of the true
+  velocities) — the forecast of a perfect identification from the same state. Its ratio to CV is the
+  most any motion model can gain on these tracks;
+* the state errors: position, velocity, and the velocity error along the car's heading by track age
+  (frames since the track's birth), and the speed of the hidden points' centroid (points within
+  ``centroid_radius`` of the car) against the car's speed.
+
+Writes benchmarks/forecast_bound.md.
+
+    python benchmarks/forecast_bound.py [--dataset out/data/sequences_large] [--split test] [--case 6]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import expm
+
+J = np.array([[0.0, -1.0], [1.0, 0.0]])
+FAMILY = "hidden_car_approach"
+AGES = ((0, 5), (5, 10), (10, 20), (20, 40), (40, 10_000))
+
+
+def run(config: str, case: int, dataset: str, split: str):
+    """[(case name, per sequence: [frame dicts])] of the hidden-car sequences of the split."""
+    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.pipeline import Pipeline
+
+    r = plan_runs(config)[case]
+    c = r["config"]
+    params = {**c.backend.params, "path": str(Path(dataset).resolve()), "split": split}
+    c = c.model_copy(update={"backend": c.backend.model_copy(update={"params": params})})
+    pipe = Pipeline(c, source=r["source"])
+    backend = pipe.stages["backend"]
+    backend.open(pipe.radar)
+    seqs, key = [], None
+    for f in backend.frames():
+        if f.meta.get("family") != FAMILY:
+            continue
+        if int(f.meta["scene_index"]) != key:
+            pipe.stages["tracker"].reset()
+            key = int(f.meta["scene_index"])
+            seqs.append([])
+        res = pipe.process(f)
+        ot, tr = f.meta["object_truth"], res.tracks
+        seqs[-1].append({"t": f.timestamp, "ids": np.asarray(tr.track_id), "pos": np.asarray(tr.position),
+                         "vel": np.asarray(tr.velocity), "hz": tr.horizons, "fc": tr.forecast,
+                         "points": np.asarray(res.hidden.mean),
+                         "truth": {int(i): (np.asarray(p, float), np.asarray(v, float), bool(m), str(k))
+                                   for i, p, v, m, k in zip(ot["id"], ot["position"], ot["velocity"], ot["mirror"],
+                                                            ot["motion"])}})
+    return r["name"], seqs, c.run.match_radius
+
+
+def score(seqs, radius: float, centroid_radius: float = 3.5, horizon: float = 2.0) -> dict:
+    """Per motion kind: lists of the quantities of the module docstring."""
+    out = defaultdict(lambda: defaultdict(list))
+    for s in seqs:
+        times, born = np.array([f["t"] for f in s]), {}
+        for k, f in enumerate(s):
+            for tid in f["ids"]:
+                born.setdefault(int(tid), k)
+            for i, (p, v, seen, kind) in f["truth"].items():
+                speed = np.linalg.norm(v)
+                if not seen or speed < 0.5:
+                    continue
+                o = out[kind]
+                near = np.linalg.norm(f["points"] - p, axis=1) < centroid_radius if len(f["points"]) else []
+                if k and np.count_nonzero(near) >= 2 and i in s[k - 1]["truth"]:
+                    prev = s[k - 1]
+                    pn = np.linalg.norm(prev["points"] - prev["truth"][i][0], axis=1) < centroid_radius \
+                        if len(prev["points"]) else []
+                    if np.count_nonzero(pn) >= 2:
+                        step = f["points"][near].mean(0) - prev["points"][pn].mean(0)
+                        o["centroid_deficit"].append(step @ v / speed / (f["t"] - prev["t"]) - speed)
+                if not len(f["ids"]):
+                    continue
+                d = np.linalg.norm(f["pos"] - p, axis=1)
+                j = int(d.argmin())
+                if d[j] > radius:
+                    continue
+                tp, tv = f["pos"][j], f["vel"][j]
+                age = k - born[int(f["ids"][j])]
+                o["pos_err"].append(d[j])
+                o["vel_err"].append(np.linalg.norm(tv - v))
+                o["along"].append(((tv - v) @ v / speed, age))
+                nb = [q for q in (k - 1, k + 1) if 0 <= q < len(s) and i in s[q]["truth"]]
+                jf = int(np.argmin(np.abs(times - (times[k] + horizon))))
+                if len(nb) < 2 or abs(times[jf] - times[k] - horizon) > 0.05 or i not in s[jf]["truth"]:
+                    continue
+                a = (s[nb[1]]["truth"][i][1] - s[nb[0]]["truth"][i][1]) / (times[nb[1]] - times[nb[0]])
+                A = np.zeros((4, 4))
+                A[:2, 2:] = np.eye(2)
+                A[2:, 2:] = (a @ v) / speed ** 2 * np.eye(2) + (a @ (J @ v)) / speed ** 2 * J
+                future = s[jf]["truth"][i][0]
+                o["cv"].append(np.linalg.norm(tp + horizon * tv - future))
+                o["true_xi"].append(np.linalg.norm((expm(A * horizon) @ np.r_[tp, tv])[:2] - future))
+                if f["fc"] is not None and len(f["hz"]):
+                    h = int(np.argmin(np.abs(np.asarray(f["hz"]) - horizon)))
+                    o["tracker"].append(np.linalg.norm(f["fc"][j, h] - future))
+    return out
+
+
+def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
+    kinds = [k for k in ("straight", "turning", "braking") if k in out]
+    lines = [f"# Forecast bound: hidden cars, 2 s ahead ({name}, {n_seq} sequences)", "",
+             "Ratios are to CV from the same track states; 'true Ξ': the car's true manoeuvre applied to "
+             "those states (the most a motion model can gain on them). Errors [m], velocities [m/s].", "",
+             "| motion | forecasts | CV FDE@2s | tracker FDE@2s | tracker / CV | true Ξ FDE@2s | true Ξ / CV | "
+             "position error | velocity error | centroid speed − car speed (median) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for k in kinds:
+        o = out[k]
+        cv, tx, trk = np.mean(o["cv"]), np.mean(o["true_xi"]), np.mean(o["tracker"]) if o["tracker"] else np.nan
+        lines.append(f"| {k} | {len(o['cv'])} | {cv:.2f} | {trk:.2f} | {trk / cv:.2f} | {tx:.2f} | {tx / cv:.2f} | "
+                     f"{np.mean(o['pos_err']):.2f} | {np.mean(o['vel_err']):.2f} | "
+                     f"{np.median(o['centroid_deficit']):+.2f} |")
+    pooled = [out[k] for k in ("turning", "braking") if k in out]
+    if pooled:
+        cv = np.concatenate([o["cv"] for o in pooled]).mean()
+        tx = np.concatenate([o["true_xi"] for o in pooled]).mean()
+        trk = np.concatenate([o["tracker"] for o in pooled]).mean()
+        lines += ["", f"Turning and braking pooled: tracker / CV {trk / cv:.2f}, true Ξ / CV {tx / cv:.2f}."]
+    lines += ["", "Velocity error along the car's heading [m/s] (mean ± SD) by track age [frames]:", "",
+              "| motion | " + " | ".join(f"{lo}–{hi if hi < 10_000 else '…'}" for lo, hi in AGES) + " |",
+              "|---|" + "---|" * len(AGES)]
+    for k in kinds:
+        al = np.array(out[k]["along"])
+        cells = []
+        for lo, hi in AGES:
+            sel = al[(al[:, 1] >= lo) & (al[:, 1] < hi), 0]
+            cells.append(f"{sel.mean():+.2f} ± {sel.std():.2f} ({len(sel)})" if len(sel) else "–")
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += ["", f"`{cmd}` ({seconds:.0f} s)"]
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", default="configs/ablations/tracking.toml")
+    ap.add_argument("--case", type=int, default=6, help="index of the sweep case (6: oracle → sindy + Doppler)")
+    ap.add_argument("--dataset", default="out/data/sequences_large")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--out", default=str(Path(__file__).with_name("forecast_bound.md")))
+    a = ap.parse_args()
+    t0 = time.perf_counter()
+    name, seqs, radius = run(a.config, a.case, a.dataset, a.split)
+    text = report(name, score(seqs, radius), f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split "
+                                             f"{a.split} --case {a.case}", time.perf_counter() - t0, len(seqs))
+    print(text)
+    Path(a.out).write_text(text)
+
+
+if __name__ == "__main__":
+    main()
