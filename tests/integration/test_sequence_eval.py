@@ -84,6 +84,29 @@ def test_a_tracker_without_forecast_reports_model_errors_as_missing_not_zero():
     assert s["motions"]["straight"]["cv"]["fde@1s"] == pytest.approx(0.2)
 
 
+def test_radial_velocity_rmse_with_and_without_gross_errors_in_closed_form():
+    # Two hidden points at 20 m of a car moving at (0, 5) m/s, seen along ĝ = ŷ: radial errors 0.2 m/s
+    # and 3 m/s (a point mirrored through the wrong wall). RMSE √((0.04 + 9)/2); without the gross
+    # one 0.2 m/s, gross share ½. A record of the older [sse, n] form pools into the RMSE alone.
+    from xnlos_core.types import GroundTruth
+
+    ref = np.array([[20.0, 0.0], [20.0, 1.0]])
+    gt = GroundTruth(los_points=np.empty((0, 2)), mnlos_points=ref + [10.0, 0.0], hidden_points=ref,
+                     mnlos_object=np.array([0, 0]), object_names=("car",), hidden_velocity=np.array([[0.0, 5.0]] * 2),
+                     mnlos_velocity=np.array([[0.0, 5.0]] * 2))
+    hp = HiddenPoints(ref, np.tile(0.01 * np.eye(2), (2, 1, 1)), [0, 1], [0, 0],
+                      velocity=np.array([[0.0, 5.2], [0.0, 8.0]]), velocity_cov=np.tile(0.01 * np.eye(2), (2, 1, 1)))
+    steps = _steps(n=1)
+    steps[0] = Step(0.0, steps[0].truth, steps[0].tracks, hp, gt)
+    rec = {**score_sequence(steps, 1.0), "family": "f"}
+    cell = pool([rec])["radial_velocity"]["15–25 m"]
+    assert cell["points"] == 2 and cell["rmse"] == pytest.approx(np.sqrt((0.04 + 9.0) / 2))
+    assert cell["rmse_without_gross"] == pytest.approx(0.2) and cell["gross_share"] == 0.5
+    old = {**rec, "radial": {k: v[:2] for k, v in rec["radial"].items()}}
+    both = pool([rec, old])["radial_velocity"]["15–25 m"]
+    assert both["points"] == 4 and both["rmse"] == pytest.approx(cell["rmse"]) and both["gross_share"] == 0.5
+
+
 # --- a tiny sequence dataset, end to end ----------------------------------------------------------
 
 @pytest.fixture(scope="module")
