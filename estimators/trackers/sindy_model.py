@@ -19,7 +19,12 @@ Identification (``identify_motion``):
    linear least squares; BIC = χ² + k ln(2n) with χ² = Σ |z − p(t)|²/σ² and k = 4 + nnz(Ξ). The
    sparsest model wins ties (CV when nothing more is supported). ``MotionModel.evidence`` is
    BIC(CV) − BIC(selected) ≥ 0, for a caller that demands stronger evidence than the BIC's own.
-   Candidates with the same support share one refit.
+   Candidates with the same support share one refit. Correlated errors: the wander of a car's
+   centroid (which parts of the body reflect) lasts many frames, and n correlated residuals carry the
+   evidence of far fewer independent ones, so a BIC that counts them all finds turns in the wander.
+   The log-likelihood terms are weighted by the effective share n_eff/n = (1 − ρ)/(1 + ρ) (AR(1)
+   errors, ρ ≥ 0 the lag-1 autocorrelation of the richest candidate's residuals, which carry the
+   noise and not an unmodelled manoeuvre), and the penalty counts n_eff samples.
 4. Ensemble: bagging (pysindy STLSQ at the chosen threshold on seeded bootstrap resamples); each
    member keeps its own Ξ_m and refits (p₀, v₀) with covariance σ² (JᵀJ)⁻¹.
 
@@ -216,22 +221,23 @@ def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None 
     and, with ``radial``, the radial velocities weighted by λ (scipy's trust-region reflective with the
     exact Jacobian of :func:`_flow`).
 
-    Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ_p²], position RSS [m²], radial RSS [m²/s²] (0 without))."""
+    Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ_p²], position RSS [m²], radial RSS [m²/s²] (0 without),
+    the residuals (2n [+ m],) as fitted: positions [m], then λ-weighted radial ones)."""
     mask = xi != 0
     dts = t - t[-1]
     xi0 = np.clip(xi, -XI_MAX, XI_MAX)
     rows = 2 if radial is None else 4
 
-    def parts(th, r):
+    def parts(r):
         n2 = 2 * len(t)
-        return float(np.sum(r[:n2] ** 2)), (float(np.sum(r[n2:] ** 2)) / radial.lam ** 2 if radial else 0.0)
+        return float(np.sum(r[:n2] ** 2)), (float(np.sum(r[n2:] ** 2)) / radial.lam ** 2 if radial else 0.0), r
 
     Phi0 = _flow(xi0, mask, dts, derivatives=False, rows=rows)[0]
     D0 = _design(Phi0, None, np.zeros(4), radial)                     # linear in (p, v) at Ξ fixed
     target = np.r_[z.ravel(), radial.lam * radial.y] if radial else z.ravel()
     s0, *_ = np.linalg.lstsq(D0, target, rcond=None)
     if not mask.any():  # CV: that linear fit is the refit
-        return (mask, s0, np.linalg.pinv(D0.T @ D0), *parts(s0, _residuals(Phi0, s0, z, radial)))
+        return (mask, s0, np.linalg.pinv(D0.T @ D0), *parts(_residuals(Phi0, s0, z, radial)))
     cache = {}
 
     def flow(th):  # fun and jac are asked at the same θ: one exponential serves both
@@ -249,7 +255,7 @@ def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None 
 
     lo = np.r_[np.full(4, -np.inf), np.full(mask.sum(), -XI_MAX)]
     fit = least_squares(fun, np.r_[s0, xi0[mask]], jac=jac, bounds=(lo, -lo), x_scale="jac", max_nfev=MAX_NFEV)
-    return (mask, fit.x, np.linalg.pinv(fit.jac.T @ fit.jac), *parts(fit.x, fit.fun))
+    return (mask, fit.x, np.linalg.pinv(fit.jac.T @ fit.jac), *parts(fit.fun))
 
 
 def _system(xi: np.ndarray) -> np.ndarray:
@@ -324,6 +330,26 @@ def _sindy_fit(optimizer, v, a) -> np.ndarray:
     return np.asarray(optimizer.coef_, dtype=np.float64)
 
 
+def _share(num: float, den: float, count: int) -> float:
+    """n_eff/n = (1 − ρ)/(1 + ρ) of AR(1) errors with lag-1 autocorrelation ρ = num/den (ρ ≤ 0 → 1), ≥ 1/count."""
+    rho = num / den if den > 1e-24 * max(count, 1) else 0.0
+    rho = min(max(rho, 0.0), 1.0)
+    return max((1.0 - rho) / (1.0 + rho), 1.0 / max(count, 1))
+
+
+def _effective_share(resid: np.ndarray, n: int, radial: _Radial | None) -> tuple[float, float]:
+    """(f_p, f_r): the share of independent samples among the position residuals (n, 2) and the radial
+    ones of the richest candidate (module docstring, selection), from their lag-1 autocorrelation
+    (pooled over both axes; radial: over samples of adjacent frames)."""
+    pos = resid[:2 * n].reshape(n, 2)
+    f_p = _share(float(np.sum(pos[:-1] * pos[1:])), float(np.sum(pos ** 2)), n)
+    if radial is None:
+        return f_p, 1.0
+    r = resid[2 * n:]
+    adjacent = np.flatnonzero(np.diff(radial.idx) == 1)
+    return f_p, _share(float(np.sum(r[adjacent] * r[adjacent + 1])), float(np.sum(r ** 2)), len(r))
+
+
 def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.ndarray] | None:
     """Validated (g (n, 2) unit, y (n,) [m/s] with NaN where a sample has no Doppler), or None."""
     if direction is None and radial is None:
@@ -393,7 +419,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     if doppler is not None:  # λ = σ_p/σ_r from the richest candidate's residuals (the least biased noise levels)
         ok = np.flatnonzero(np.isfinite(doppler[1]))
         rad = _Radial(ok, doppler[0][ok], doppler[1][ok], sigma_smooth / sigma_r)
-        _, _, _, rss_p, rss_r = _refit(full, t, z, rad)
+        _, _, _, rss_p, rss_r, _ = _refit(full, t, z, rad)
         sp, sr = sigma or np.sqrt(rss_p / n2), np.sqrt(rss_r / len(ok))
         rad = _Radial(ok, rad.g, rad.y, float(sp / max(sr, 1e-9)) if sp > 0 else 1.0)
     cache = {}  # support → refit: the nonlinear refit depends on Ξ only through its support and start
@@ -405,14 +431,15 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     k = np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
     tiny = np.finfo(np.float64).tiny
+    f_p, f_r = _effective_share(cache[(full != 0).tobytes()][5], len(t), rad)
     if sigma is None:  # Gaussian likelihood with the variance profiled out
-        bic = n2 * np.log(np.maximum(rss, tiny) / n2)
+        bic = f_p * n2 * np.log(np.maximum(rss, tiny) / n2)
     else:
-        bic = rss / sigma ** 2
-    if rad is not None:  # the radial velocities' own variance, profiled out likewise
-        m = len(rad.idx)
-        bic = bic + m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
-    bic = bic + k * np.log(n2 + (0 if rad is None else len(rad.idx)))
+        bic = f_p * rss / sigma ** 2
+    m = 0 if rad is None else len(rad.idx)
+    if m:  # the radial velocities' own variance, profiled out likewise
+        bic = bic + f_r * m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
+    bic = bic + k * np.log(f_p * n2 + f_r * m)
     best = int(np.argmin(bic))  # candidates run sparsest-first (CV, then decreasing threshold): ties → sparser
     threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:

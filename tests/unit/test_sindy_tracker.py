@@ -138,3 +138,34 @@ def test_forecast_beats_cv_on_turns_and_braking_not_worse_on_straight():
     ratio = {k: np.nanmean(r["sindy"][0]) / np.nanmean(r["kalman"][0]) for k, r in res.items()}
     assert ratio["cv"] <= 1.05
     assert ratio["turn"] <= 0.7 and ratio["brake"] <= 0.7
+
+
+def test_radial_velocities_let_sindy_see_braking_behind_a_wandering_centroid():
+    # Braking cars (9 m/s, −2 m/s²) seen as one hidden point with 1 m of noise and a radial velocity with
+    # 0.1 m/s along the line of sight from a mirrored radar: fitting the radial velocities identifies
+    # the braking on more tracks and cuts the 2 s forecast error against the positions alone.
+    from xnlos_core.motion import ConstantAcceleration
+
+    rng = np.random.default_rng(4)
+    n, dt = 35, 0.1
+    t = np.arange(n) * dt
+    err = {True: [], False: []}
+    models = {True: 0, False: 0}
+    for car in range(6):
+        heading = rng.uniform(0, 2 * np.pi)
+        st = ConstantAcceleration(speed=9.0, acceleration=-2.0).state(np.r_[t, t[-1] + 2.0], (25.0, 10.0), heading)
+        z = st.position[:n] + rng.standard_normal((n, 2))
+        g = st.position[:n] - [60.0, 40.0]
+        g /= np.linalg.norm(g, axis=1, keepdims=True)
+        y = np.sum(g * st.velocity[:n], axis=1) + 0.1 * rng.standard_normal(n)
+        for fit_radial in (False, True):
+            tr = SindyTracker({"min_evidence": 30.0, "identify_doppler": fit_radial, "seed": car})
+            for k in range(n):
+                out = tr.update(HiddenPoints(z[k][None], np.eye(2)[None], [0], [0], velocity=(y[k] * g[k])[None],
+                                             velocity_cov=(0.01 * np.outer(g[k], g[k]))[None]), t[k])
+            assert len(out) == 1
+            j = int(np.argmin(np.abs(out.horizons - 2.0)))
+            err[fit_radial].append(np.linalg.norm(out.forecast[0, j] - st.position[-1]))
+            models[fit_radial] += out.model[0] != "cv"
+    assert models[True] >= 5 and models[True] > models[False], models
+    assert np.mean(err[True]) < 0.8 * np.mean(err[False]), err
