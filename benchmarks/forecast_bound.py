@@ -3,7 +3,9 @@ and constant velocity (CV) against the *true* manoeuvre applied to the same trac
 
 Runs one case of ``configs/ablations/tracking.toml`` (default: "oracle → sindy + Doppler") on the
 ``hidden_car_approach`` sequences of a dataset split, and matches each confirmed track to the nearest
-mirror-visible car within ``match_radius`` per frame. For every match with the car's truth 2 s ahead:
+mirror-visible car within ``match_radius`` per frame (frame by frame, not CLEAR-MOT's one-to-one
+matching that keeps identities: the forecast counts differ from ``xnlos eval``'s). For every match with
+the car's truth 2 s ahead:
 
 * CV: p̂ + 2 v̂ from the track state (p̂, v̂); tracker: its own 2 s forecast;
 * true Ξ: the track state integrated 2 s under the car's true manoeuvre at that instant, Ξ = αI + ωJ
@@ -117,7 +119,9 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
     kinds = [k for k in ("straight", "turning", "braking") if k in out]
     lines = [f"# Forecast bound: hidden cars, 2 s ahead ({name}, {n_seq} sequences)", "",
              "Ratios are to CV from the same track states; 'true Ξ': the car's true manoeuvre applied to "
-             "those states (the most a motion model can gain on them). Errors [m], velocities [m/s].", "",
+             "those states (the most a motion model can gain on them). Errors [m], velocities [m/s]. Each track is "
+             "matched to the nearest visible car frame by frame (not `xnlos eval`'s CLEAR-MOT matching: other "
+             "forecast counts).", "",
              "| motion | forecasts | CV FDE@2s | tracker FDE@2s | tracker / CV | true Ξ FDE@2s | true Ξ / CV | "
              "position error | velocity error | centroid speed − car speed (median) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for k in kinds:
