@@ -19,15 +19,13 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
    tracks). Otherwise, and until the first fit, the track stays CV: it then behaves exactly as
    ``kalman``.
-4. Invariant form. SINDy's library is the world-frame (v_x, v_y), so over a short arc it often keeps only
-   part of a turn (e.g. dv_y/dt = c v_x on a path heading along x), which extrapolates as a different
-   motion once the heading changes. The tracker therefore reads each identified Ξ at the track's
-   velocity v̂ as a tangential and a normal acceleration per speed, α = v̂ᵀΞv̂/|v̂|² [1/s] (braking
-   < 0) and ω = (Jv̂)ᵀΞv̂/|v̂|² [rad/s] (J the +90° rotation), and forecasts with the rotation-invariant
-   Ξ' = αI + ωJ: a car that turns keeps turning at ω, one that brakes keeps slowing by e^{αh} — the
-   same two motions whatever the road's direction. Ξ' = Ξ for an exact turn or along-path braking.
-   α is clipped to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no exponential blow-up from a
-   track that is nearly at rest, where Ξ is unconstrained); below ``min_speed`` the track stays CV.
+4. Invariant form. SINDy's library is the rotation-invariant (v, Jv) (sindy_model), so every
+   identified Ξ is αI + ωJ: a tangential acceleration per speed α [1/s] (braking < 0) and a turn rate ω
+   [rad/s] — a car that turns keeps turning at ω, one that brakes keeps slowing by e^{αh}, whatever the
+   road's direction. The forecast reads them at the track's velocity v̂ (α = v̂ᵀΞv̂/|v̂|²,
+   ω = (Jv̂)ᵀΞv̂/|v̂|², exact for that form) and clips α to [−``XI_MAX``, ``max_growth``] and ω to
+   ±``XI_MAX`` (no exponential blow-up from a track that is nearly at rest, where Ξ is unconstrained);
+   below ``min_speed`` the track stays CV.
 5. With a model, the track's filter predicts with Φ(Δt) = expm(A(Ξ)Δt) (:mod:`estimators.trackers.forecast`)
    and the forecast is the mixture over M = ``n_models`` members Ξ_m: member m takes the refitted
    coefficients of the m-th bagging model's support (model uncertainty: which terms) plus one seeded
@@ -57,7 +55,7 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
 from .state import StateReader
-from .sindy_model import MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
+from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
 MODEL_ACCEL_PSD = 6.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
@@ -123,9 +121,19 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     for m, (mask, theta, cov) in enumerate(model.fits):
         if mask.any():
             lam, vec = np.linalg.eigh(cov[4:, 4:])  # a pseudo-inverse covariance: PSD, maybe singular
-            members[m][mask] = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
+            draw = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
+            members[m] = np.tensordot(draw, GENERATORS[mask], 1)
     return fc.LinearMotion(invariant(model.coefficients, v, p.max_growth), invariant(members, v, p.max_growth),
                            " ".join(terms))
+
+
+def _legacy(identified) -> bool:
+    """Whether a checkpoint's identified model is of the world-frame library (support masks (2, 2)),
+    from before the rotation-invariant one: it is dropped on load (the track keeps its forecast model,
+    and is identified afresh at its next refit)."""
+    fits = identified.get("fits") if isinstance(identified, dict) else None
+    mask = fits[0].get("mask") if isinstance(fits, list) and fits and isinstance(fits[0], dict) else None
+    return isinstance(mask, list) and len(mask) == 2 and all(isinstance(row, list) and len(row) == 2 for row in mask)
 
 
 class SindyTracker(KalmanTracker):
@@ -171,12 +179,12 @@ class SindyTracker(KalmanTracker):
         m = r.sub("motion")
         motion = fc.LinearMotion(m.array("xi", (2, 2)), m.array("members", (None, 2, 2)), m.text("label"))
         identified = None
-        if r.data.get("identified") is not None:
+        if r.data.get("identified") is not None and not _legacy(r.data["identified"]):
             d = r.sub("identified")
             fits = []
             for i, f in enumerate(d.items("fits")):
                 e = StateReader(f, f"{d.where}: fits[{i}]")
-                mask = e.array("mask", (2, 2), dtype=bool)
+                mask = e.array("mask", (len(GENERATORS),), dtype=bool)
                 theta = e.array("theta", (4 + int(mask.sum()),))
                 fits.append((mask, theta, e.array("cov", (len(theta), len(theta)))))
             identified = MotionModel(d.array("coefficients", (2, 2)), d.array("ensemble", (None, 2, 2)), tuple(fits),

@@ -1,22 +1,25 @@
 """Motion identification of one track with ensemble (bagging) SINDy, and prediction with intervals.
 
 Model. State s = (x, y, v_x, v_y) [m, m/s]; the kinematics dx/dt = v_x, dy/dt = v_y are fixed and
-SINDy identifies the acceleration dv/dt = Ξ θ(v) over the library θ(v) = (v_x, v_y), Ξ (2, 2) [1/s]:
-the off-diagonal terms are a turn (dv_x/dt = −ω v_y, dv_y/dt = ω v_x, ω [rad/s]), the diagonal ones
-an acceleration along the velocity (dv/dt = α v, α > 0 speeding up, < 0 braking). Ξ = 0 is constant
-velocity (CV). No constant (bias) term: a fixed-direction world acceleration is unphysical for ground
-targets, and over a short arc it is nearly collinear with v_x, v_y, which spoiled turn identification.
+SINDy identifies the acceleration over the rotation-invariant library θ(v) = (v, Jv) (J the +90°
+rotation): dv/dt = α v + ω Jv, i.e. Ξ = αI + ωJ (2, 2) [1/s] — α [1/s] an acceleration along the
+velocity (α > 0 speeding up, < 0 braking), ω [rad/s] a turn (dv_x/dt = −ω v_y, dv_y/dt = ω v_x). Ξ = 0
+is constant velocity (CV). A ground vehicle's motion does not depend on how the world axes are laid:
+the world-frame library (v_x, v_y) of four terms also offered shears (e.g. dv_y/dt = c v_y alone), which
+over a short arc fit part of a turn or of a braking and extrapolate as neither — a car that speeds up
+along one axis. No constant (bias) term: a fixed-direction world acceleration is unphysical for ground
+targets, and over a short arc it is nearly collinear with v, which spoiled turn identification.
 
 Identification (``identify_motion``):
 1. Velocities and accelerations from a Rauch–Tung–Striebel (RTS) smoother of a white-jerk
    (nearly-constant-acceleration) Kalman model over the samples — not finite differences, which
    amplify the position noise twice.
-2. Candidate supports: sequentially thresholded least squares (pysindy STLSQ, columns normalised)
-   at every threshold between successive normalised coefficient magnitudes of the full fit, plus
-   CV (Ξ = 0).
+2. Candidate supports: sequentially thresholded least squares (pysindy STLSQ, columns normalised;
+   both components of each sample are rows of one regression a = α v + ω Jv) at every threshold
+   between successive normalised coefficient magnitudes of the full fit, plus CV (Ξ = 0).
 3. Selection by the Bayesian information criterion on the *positions*: each candidate Ξ is an
    affine linear ODE, so the positions are affine in the initial state (p₀, v₀), which is fitted by
-   linear least squares; BIC = χ² + k ln(2n) with χ² = Σ |z − p(t)|²/σ² and k = 4 + nnz(Ξ). The
+   linear least squares; BIC = χ² + k ln(2n) with χ² = Σ |z − p(t)|²/σ² and k = 4 + the terms (α, ω). The
    sparsest model wins ties (CV when nothing more is supported). ``MotionModel.evidence`` is
    BIC(CV) − BIC(selected) ≥ 0, for a caller that demands stronger evidence than the BIC's own.
    Candidates with the same support share one refit. Correlated errors: the wander of a car's
@@ -62,7 +65,8 @@ if TYPE_CHECKING:
 FEATURES = ("vx", "vy")
 MIN_SAMPLES = 8
 MAX_NFEV = 60  # refit budget: ill-posed supports (turn terms on a straight path) would crawl on
-XI_MAX = 2.0  # [1/s] bound on |Ξ_ij|: turn rates ≤ 2 rad/s, speed e-folding ≥ 0.5 s
+XI_MAX = 2.0  # [1/s] bound on |α|, |ω|: turn rates ≤ 2 rad/s, speed e-folding ≥ 0.5 s
+GENERATORS = np.array([np.eye(2), [[0.0, -1.0], [1.0, 0.0]]])  # Ξ = α I + ω J; the library (v, Jv)
 
 
 @dataclass(frozen=True)
@@ -79,11 +83,11 @@ class Prediction:
 
 @dataclass(frozen=True)
 class MotionModel:
-    """An identified motion model: coefficients Ξ (2, 2) [1/s] (rows dv_x/dt, dv_y/dt; columns
-    FEATURES) of the selected model refitted on the positions; ensemble (M, 2, 2) the bagging members'
-    SINDy coefficients; fits (M,) per member (support mask (2, 2), θ = (p, v at ``t_last``, Ξ on the
-    support), covariance of θ); t_last [s]; sigma [m] the per-axis measurement noise; evidence the
-    BIC difference BIC(CV) − BIC(this model) ≥ 0 (0 for CV)."""
+    """An identified motion model: coefficients Ξ = αI + ωJ (2, 2) [1/s] (rows dv_x/dt, dv_y/dt;
+    columns FEATURES) of the selected model refitted on the positions; ensemble (M, 2, 2) the bagging
+    members' SINDy Ξ; fits (M,) per member (support (2,) bool over (α, ω), θ = (p, v at ``t_last``,
+    the supported ones of α, ω), covariance of θ); t_last [s]; sigma [m] the per-axis measurement noise;
+    evidence the BIC difference BIC(CV) − BIC(this model) ≥ 0 (0 for CV)."""
 
     coefficients: np.ndarray
     ensemble: np.ndarray
@@ -118,7 +122,8 @@ class MotionModel:
 
 
 def _positions(theta: np.ndarray, mask: np.ndarray, dts: np.ndarray) -> np.ndarray:
-    """Positions (K, 2) [m] at ``dts`` (K,) [s] from the state θ[:4] = (p, v) under Ξ[mask] = θ[4:]:
+    """Positions (K, 2) [m] at ``dts`` (K,) [s] from the state θ[:4] = (p, v) under Ξ = Σ θ[4:] G (the
+    supported generators G of (I, J)):
     d(p, v)/dt = [[0, I], [0, Ξ]] (p, v), integrated exactly by the matrix exponential."""
     phi, _ = _flow(_xi(theta, mask), mask, dts, derivatives=False)
     return phi @ theta[:4]
@@ -131,19 +136,25 @@ def _jacobian(theta: np.ndarray, mask: np.ndarray, dts: np.ndarray) -> np.ndarra
 
 
 def _xi(theta: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    xi = np.zeros((2, 2))
-    xi[mask] = theta[4:]
-    return xi
+    """Ξ (2, 2) = Σ_j c_j G_j with the coefficients (α, ω) θ[4:] on ``mask`` (2,) and 0 elsewhere."""
+    coef = np.zeros(len(GENERATORS))
+    coef[mask] = theta[4:]
+    return np.tensordot(coef, GENERATORS, 1)
+
+
+def _coefficients(xi: np.ndarray) -> np.ndarray:
+    """(α, ω) (2,) of Ξ (2, 2): its projection on the generators (exact for Ξ = αI + ωJ)."""
+    return np.array([np.trace(xi) / 2, (xi[1, 0] - xi[0, 1]) / 2])
 
 
 def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True,
           rows: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """The first ``rows`` rows Φ(dt)[:rows] (K, rows, 4) of Φ(dt) = expm(A(Ξ) dt) — 2: the position
     rows, 4: position and velocity — and their derivatives (K, rows, k, 4) with respect to the k
-    coefficients Ξ[mask] (row-major order), for dts (K,) [s].
+    supported coefficients of (α, ω) (``mask`` (2,)), for dts (K,) [s].
 
     The derivatives come with Φ from one exponential (Van Loan 1978): for B = [[A, E_1 … E_k],
-    [0, A ⊕ … ⊕ A]] (E_j = ∂A/∂ξ_j, a single 1), the top block row of expm(B dt) is
+    [0, A ⊕ … ⊕ A]] (E_j = ∂A/∂c_j, the generator G_j in the velocity block), the top block row of expm(B dt) is
     [Φ(dt), ∂Φ/∂ξ_1, …, ∂Φ/∂ξ_k] — exact, where finite differences cost 2k more exponentials.
     On a grid whose times are integer multiples of one step δ (the tracker's frames, missed ones
     included), expm(B nδ) = expm(B δ)ⁿ by repeated products of one exponential (:func:`_top_rows`)."""
@@ -154,8 +165,8 @@ def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True,
     for b in range(k + 1):
         B[4 * b:4 * b + 4, 4 * b:4 * b + 4] = A
     if k:
-        for j, (r, c) in enumerate(zip(*np.nonzero(mask))):
-            B[2 + r, 4 * (j + 1) + 2 + c] = 1.0
+        for j, g in enumerate(GENERATORS[mask]):
+            B[2:4, 4 * (j + 1) + 2:4 * (j + 1) + 4] = g
     top = _top_rows(B, np.asarray(dts, dtype=np.float64), rows)        # (K, rows, n)
     return top[:, :, :4], top[:, :, 4:].reshape(len(top), rows, k, 4)
 
@@ -216,16 +227,18 @@ def _design(phi: np.ndarray, dphi: np.ndarray | None, th: np.ndarray, radial: _R
     return np.r_[jac, radial.lam * np.sum(g * np.concatenate(vcols, axis=2), axis=1)]
 
 
-def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None = None):
-    """Refit (p, v at t[-1]) and Ξ on its support (|Ξ_ij| ≤ XI_MAX) by least squares to the positions
+def _refit(coef: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None = None):
+    """Refit (p, v at t[-1]) and the coefficients (α, ω) ``coef`` (2,) on their support (|·| ≤ XI_MAX)
+    by least squares to the positions
     and, with ``radial``, the radial velocities weighted by λ (scipy's trust-region reflective with the
     exact Jacobian of :func:`_flow`).
 
-    Returns (mask (2, 2), θ, (JᵀJ)⁻¹ [cov(θ)/σ_p²], position RSS [m²], radial RSS [m²/s²] (0 without),
+    Returns (support (2,), θ, (JᵀJ)⁻¹ [cov(θ)/σ_p²], position RSS [m²], radial RSS [m²/s²] (0 without),
     the residuals (2n [+ m],) as fitted: positions [m], then λ-weighted radial ones)."""
-    mask = xi != 0
+    mask = coef != 0
     dts = t - t[-1]
-    xi0 = np.clip(xi, -XI_MAX, XI_MAX)
+    c0 = np.clip(coef, -XI_MAX, XI_MAX)
+    xi0 = np.tensordot(c0, GENERATORS, 1)
     rows = 2 if radial is None else 4
 
     def parts(r):
@@ -254,7 +267,7 @@ def _refit(xi: np.ndarray, t: np.ndarray, z: np.ndarray, radial: _Radial | None 
         return _design(*flow(th), th, radial)
 
     lo = np.r_[np.full(4, -np.inf), np.full(mask.sum(), -XI_MAX)]
-    fit = least_squares(fun, np.r_[s0, xi0[mask]], jac=jac, bounds=(lo, -lo), x_scale="jac", max_nfev=MAX_NFEV)
+    fit = least_squares(fun, np.r_[s0, c0[mask]], jac=jac, bounds=(lo, -lo), x_scale="jac", max_nfev=MAX_NFEV)
     return (mask, fit.x, np.linalg.pinv(fit.jac.T @ fit.jac), *parts(fit.fun))
 
 
@@ -305,9 +318,10 @@ def _stlsq(threshold: float) -> ps.STLSQ:
 
 
 def _bagging(threshold: float, v, a, n_models: int, rng: np.random.Generator) -> np.ndarray:
-    """Ξ_m (n_models, 2, 2): STLSQ at ``threshold`` on n_models bootstrap resamples of the (v, a) rows.
+    """(α, ω)_m (n_models, 2): STLSQ at ``threshold`` on n_models bootstrap resamples of the samples
+    (v_i, a_i) (each sample's two component rows together).
 
-    The bagging of pysindy's EnsembleOptimizer(bagging=True) (n rows drawn with replacement per
+    The bagging of pysindy's EnsembleOptimizer(bagging=True) (n samples drawn with replacement per
     member), with the draws from ``rng``: EnsembleOptimizer draws from numpy's global RNG, which
     library code must neither seed nor advance."""
     n = len(v)
@@ -318,16 +332,21 @@ def _bagging(threshold: float, v, a, n_models: int, rng: np.random.Generator) ->
     return np.array(members)
 
 
-def _sindy_fit(optimizer, v, a) -> np.ndarray:
-    """Ξ (2, 2) of dv/dt = Ξ θ(v) on the library θ(v) = (v_x, v_y) (FEATURES).
+def _library(v: np.ndarray) -> np.ndarray:
+    """The rows (2n, 2) of θ(v) = (v, Jv) for velocities v (n, 2): row 2i + c is (v_i[c], (Jv_i)[c])."""
+    return np.stack([v, v @ GENERATORS[1].T], axis=-1).reshape(-1, 2)
 
-    The library is the identity (pysindy's PolynomialLibrary(degree=1, include_bias=False) of v), so
-    the optimizer is fitted on (v, a) directly: a SINDy model object around it would add only its
-    library transform and input checks (a third of the time of a fit on 30 samples)."""
+
+def _sindy_fit(optimizer, v, a) -> np.ndarray:
+    """(α, ω) (2,) of dv/dt = α v + ω Jv on the rows of :func:`_library` (both components of each
+    sample are rows of one regression: the coefficients are shared by the two equations).
+
+    The optimizer is fitted on the library rows directly: a SINDy model object would fit each
+    component's equation with its own coefficients, which the rotation invariance ties together."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # pysindy warns when a threshold removes every term
-        optimizer.fit(v, a)
-    return np.asarray(optimizer.coef_, dtype=np.float64)
+        optimizer.fit(_library(v), a.reshape(-1, 1))
+    return np.asarray(optimizer.coef_, dtype=np.float64).reshape(-1)
 
 
 def _share(num: float, den: float, count: int) -> float:
@@ -404,15 +423,15 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     sigma_r = None if doppler is None else max(_radial_sigma(t, doppler[1]), 1e-3)
     smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
     v, a = smooth[:, 2:4], smooth[:, 4:6]
-    if np.linalg.norm(v, axis=0).min() < 1e-9:  # a velocity component ≡ 0 (noise-free axis-aligned path)
-        raise InsufficientDataError("identify_motion: a velocity component is identically zero; the "
-                                    "library columns cannot be normalised (add the measurement noise)")
+    if np.linalg.norm(v) < 1e-9:  # a track at rest: the library columns cannot be normalised
+        raise InsufficientDataError("identify_motion: the velocity is identically zero (a track at rest); "
+                                    "its turn and acceleration are unobservable")
     full = _sindy_fit(_stlsq(0.0), v, a)
-    norms = np.linalg.norm(v, axis=0)
-    cuts = np.unique(np.abs(full * norms).ravel())
+    norms = np.linalg.norm(_library(v), axis=0)  # |v| = |Jv|: both columns have the same norm
+    cuts = np.unique(np.abs(full * norms))
     cuts = cuts[cuts > 0]
     thresholds = (cuts[:-1] + cuts[1:])[::-1] / 2  # sparsest first; threshold 0 is the full fit itself
-    candidates = ([(np.inf, np.zeros((2, 2)))] + [(th, _sindy_fit(_stlsq(th), v, a)) for th in thresholds]
+    candidates = ([(np.inf, np.zeros(2))] + [(th, _sindy_fit(_stlsq(th), v, a)) for th in thresholds]
                   + [(0.0, full)])
     n2 = 2 * len(t)
     rad = None
@@ -445,7 +464,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     if sigma is None:
         sigma = float(np.sqrt(rss[best] / (n2 - k[best])))
     if np.isinf(threshold):
-        ensemble = np.zeros((n_models, 2, 2))
+        ensemble = np.zeros((n_models, 2))
     else:
         ensemble = _bagging(threshold, v, a, n_models, np.random.default_rng(seed))
     by_support = {}  # members sharing a support share its refit
@@ -455,6 +474,5 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
             msk, th, jtj_inv, *_ = cache[key] if key in cache else _refit(m, t, z, rad)
             by_support[key] = (msk, th, sigma ** 2 * jtj_inv)
     fits = tuple(by_support[(m != 0).tobytes()] for m in ensemble)
-    xi = np.zeros((2, 2))
-    xi[mask] = theta[4:]
-    return MotionModel(xi, ensemble, fits, float(t[-1]), float(sigma), float(bic[0] - bic[best]))
+    return MotionModel(_xi(theta, mask), np.tensordot(ensemble, GENERATORS, 1), fits, float(t[-1]), float(sigma),
+                       float(bic[0] - bic[best]))

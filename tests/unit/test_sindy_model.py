@@ -61,7 +61,9 @@ def test_errors():
     with pytest.raises(InputError, match="xy"):
         identify_motion(T, np.zeros((39, 2)))
     with pytest.raises(InsufficientDataError, match="identically zero"):
-        identify_motion(T, turn(T, 0.0, 5.0), 0.1)
+        identify_motion(T, np.tile([3.0, 4.0], (len(T), 1)), 0.1)     # a track at rest
+    # an axis-aligned path is fine: the invariant library's columns (v, Jv) never vanish while it moves
+    assert identify_motion(T, turn(T, 0.0, 5.0), 0.1, n_models=5).terms() == []
     model = identify_motion(T, turn(T, 0.0, 5.0, heading=1.0), 0.1, n_models=5)
     with pytest.raises(InputError, match=r"within \[0, 3\] s"):
         model.predict([4.0])
@@ -81,18 +83,21 @@ def test_noiseless_constant_turn_coefficients_within_1e3():
 def test_flow_jacobian_matches_finite_differences_and_expm():
     # The refit's exact Jacobian (one augmented exponential, Van Loan) against central differences of
     # positions computed by scipy's expm per time — on the integer grid (repeated products) and off it.
+    for mask, theta in ((np.array([True, True]), np.array([1.0, -2.0, 8.0, 3.0, -0.2, 0.3])),
+                        (np.array([False, True]), np.array([1.0, -2.0, 8.0, 3.0, -0.35]))):
+        _check_flow(mask, theta)
+
+
+def _check_flow(mask, theta):
+    """Positions and their Jacobian under the support ``mask`` (2,) over (α, ω) against expm per time."""
     from scipy.linalg import expm
 
     from estimators.trackers.sindy_model import _jacobian, _positions, _system
 
-    mask = np.array([[True, True], [True, False]])
-    theta = np.array([1.0, -2.0, 8.0, 3.0, -0.2, -0.3, 0.25])
-    xi = np.zeros((2, 2))
-    xi[mask] = theta[4:]
-
     def direct(th, dts):
-        x = np.zeros((2, 2))
-        x[mask] = th[4:]
+        coef = np.zeros(2)
+        coef[mask] = th[4:]
+        x = coef[0] * np.eye(2) + coef[1] * np.array([[0.0, -1.0], [1.0, 0.0]])   # Ξ = αI + ωJ
         return np.array([expm(_system(x) * d)[:2] @ th[:4] for d in dts])
 
     for dts in (-0.1 * np.array([29, 20, 7, 3, 0]), np.array([0.37, 1.0, 2.9])):
@@ -177,8 +182,8 @@ def test_doppler_input_errors():
 def test_refit_design_matches_finite_differences_of_the_residuals():
     from estimators.trackers.sindy_model import _Radial, _design, _flow, _residuals, _xi
 
-    mask = np.array([[True, False], [True, True]])
-    theta = np.array([1.0, -2.0, 8.0, 3.0, -0.2, 0.3, -0.1])
+    mask = np.array([True, True])
+    theta = np.array([1.0, -2.0, 8.0, 3.0, -0.2, 0.3])
     dts = -0.1 * np.arange(12)[::-1]
     rng = np.random.default_rng(0)
     g = rng.standard_normal((5, 2))
