@@ -58,8 +58,8 @@ from .state import StateReader
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 J = np.array([[0.0, -1.0], [1.0, 0.0]])
-MODEL_ACCEL_PSD = 6.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
-MEMBER_SPREAD = 1.5
+MODEL_ACCEL_PSD = 2.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
+MEMBER_SPREAD = 0.0
 
 
 class SindyParams(KalmanParams):
