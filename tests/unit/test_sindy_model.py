@@ -219,7 +219,7 @@ def test_effective_share_of_ar1_residuals_closed_form():
 
 def test_a_straight_track_with_correlated_wander_stays_constant_velocity():
     # 3 s of a straight car whose centroid wanders (AR(1), ρ = 0.9 per frame, 0.7 m): counted as 60
-    # independent residuals the wander "supports" turns and accelerations (BIC evidence up to ≈ 66 on
+    # independent residuals the wander "supports" turns and accelerations (BIC evidence up to ≈ 74 on
     # these seeds); weighted by the effective share no identification reaches the tracking ablation's
     # min_evidence of 30.
     t = T[:30]
