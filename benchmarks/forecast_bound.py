@@ -28,9 +28,10 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import expm
 
-J = np.array([[0.0, -1.0], [1.0, 0.0]])
+from estimators.trackers.forecast import LinearMotion
+from estimators.trackers.sindy_model import GENERATORS
+
 FAMILY = "hidden_car_approach"
 AGES = ((0, 5), (5, 10), (10, 20), (20, 40), (40, 10_000))
 
@@ -39,31 +40,45 @@ def run(config: str, case: int, dataset: str, split: str):
     """[(case name, per sequence: [frame dicts])] of the hidden-car sequences of the split."""
     from xnlos_core.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
+    from xnlos_core.sequence_eval import sequences
 
-    r = plan_runs(config)[case]
-    c = r["config"]
-    params = {**c.backend.params, "path": str(Path(dataset).resolve()), "split": split}
-    c = c.model_copy(update={"backend": c.backend.model_copy(update={"params": params})})
-    pipe = Pipeline(c, source=r["source"])
+    r = plan_runs(config, dataset=dataset, split=split)[case]
+    pipe = Pipeline(r["config"], source=r["source"])
     backend = pipe.stages["backend"]
     backend.open(pipe.radar)
-    seqs, key = [], None
-    for f in backend.frames():
-        if f.meta.get("family") != FAMILY:
-            continue
-        if int(f.meta["scene_index"]) != key:
-            pipe.stages["tracker"].reset()
-            key = int(f.meta["scene_index"])
-            seqs.append([])
-        res = pipe.process(f)
-        ot, tr = f.meta["object_truth"], res.tracks
-        seqs[-1].append({"t": f.timestamp, "ids": np.asarray(tr.track_id), "pos": np.asarray(tr.position),
-                         "vel": np.asarray(tr.velocity), "hz": tr.horizons, "fc": tr.forecast,
-                         "points": np.asarray(res.hidden.mean),
-                         "truth": {int(i): (np.asarray(p, float), np.asarray(v, float), bool(m), str(k))
-                                   for i, p, v, m, k in zip(ot["id"], ot["position"], ot["velocity"], ot["mirror"],
-                                                            ot["motion"])}})
-    return r["name"], seqs, c.run.match_radius
+    seqs = []
+    for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
+        pipe.stages["tracker"].reset()
+        seqs.append([_record(f, pipe.process(f)) for _, f in group])
+    return r["name"], seqs, r["config"].run.match_radius
+
+
+def _record(f, res) -> dict:
+    """What :func:`score` needs of one processed map."""
+    ot, tr = f.meta["object_truth"], res.tracks
+    truth = zip(ot["id"], ot["position"], ot["velocity"], ot["mirror"], ot["motion"])
+    return {"t": f.timestamp, "ids": np.asarray(tr.track_id), "pos": np.asarray(tr.position),
+            "vel": np.asarray(tr.velocity), "hz": tr.horizons, "fc": tr.forecast, "points": np.asarray(res.hidden.mean),
+            "truth": {int(i): (np.asarray(p, float), np.asarray(v, float), bool(m), str(k)) for i, p, v, m, k in truth}}
+
+
+def _centroid(f: dict, i: int, radius: float) -> np.ndarray | None:
+    """Centroid (2,) [m] of the hidden points within ``radius`` of object i's centre (None: < 2 points)."""
+    if i not in f["truth"] or not len(f["points"]):
+        return None
+    near = np.linalg.norm(f["points"] - f["truth"][i][0], axis=1) < radius
+    return f["points"][near].mean(0) if np.count_nonzero(near) >= 2 else None
+
+
+def _true_manoeuvre(s: list, times: np.ndarray, k: int, i: int, v: np.ndarray) -> LinearMotion | None:
+    """Ξ = αI + ωJ of object i at frame k from its true acceleration (central difference of the true
+    velocities): α = aᵀv/|v|², ω = aᵀJv/|v|² (None at a sequence's ends)."""
+    nb = [q for q in (k - 1, k + 1) if 0 <= q < len(s) and i in s[q]["truth"]]
+    if len(nb) < 2:
+        return None
+    a = (s[nb[1]]["truth"][i][1] - s[nb[0]]["truth"][i][1]) / (times[nb[1]] - times[nb[0]])
+    coef = np.array([a @ v, a @ (GENERATORS[1] @ v)]) / (v @ v)
+    return LinearMotion(np.tensordot(coef, GENERATORS, 1))
 
 
 def score(seqs, radius: float, centroid_radius: float = 3.5, horizon: float = 2.0) -> dict:
@@ -74,41 +89,30 @@ def score(seqs, radius: float, centroid_radius: float = 3.5, horizon: float = 2.
         for k, f in enumerate(s):
             for tid in f["ids"]:
                 born.setdefault(int(tid), k)
+            jf = int(np.argmin(np.abs(times - (times[k] + horizon))))
+            reaches = abs(times[jf] - times[k] - horizon) <= 0.05
             for i, (p, v, seen, kind) in f["truth"].items():
                 speed = np.linalg.norm(v)
                 if not seen or speed < 0.5:
                     continue
                 o = out[kind]
-                near = np.linalg.norm(f["points"] - p, axis=1) < centroid_radius if len(f["points"]) else []
-                if k and np.count_nonzero(near) >= 2 and i in s[k - 1]["truth"]:
-                    prev = s[k - 1]
-                    pn = np.linalg.norm(prev["points"] - prev["truth"][i][0], axis=1) < centroid_radius \
-                        if len(prev["points"]) else []
-                    if np.count_nonzero(pn) >= 2:
-                        step = f["points"][near].mean(0) - prev["points"][pn].mean(0)
-                        o["centroid_deficit"].append(step @ v / speed / (f["t"] - prev["t"]) - speed)
-                if not len(f["ids"]):
-                    continue
-                d = np.linalg.norm(f["pos"] - p, axis=1)
+                c, c_prev = _centroid(f, i, centroid_radius), _centroid(s[k - 1], i, centroid_radius) if k else None
+                if c is not None and c_prev is not None:
+                    o["centroid_deficit"].append((c - c_prev) @ v / speed / (f["t"] - s[k - 1]["t"]) - speed)
+                d = np.linalg.norm(f["pos"] - p, axis=1) if len(f["ids"]) else np.array([np.inf])
                 j = int(d.argmin())
                 if d[j] > radius:
                     continue
                 tp, tv = f["pos"][j], f["vel"][j]
-                age = k - born[int(f["ids"][j])]
                 o["pos_err"].append(d[j])
                 o["vel_err"].append(np.linalg.norm(tv - v))
-                o["along"].append(((tv - v) @ v / speed, age))
-                nb = [q for q in (k - 1, k + 1) if 0 <= q < len(s) and i in s[q]["truth"]]
-                jf = int(np.argmin(np.abs(times - (times[k] + horizon))))
-                if len(nb) < 2 or abs(times[jf] - times[k] - horizon) > 0.05 or i not in s[jf]["truth"]:
+                o["along"].append(((tv - v) @ v / speed, k - born[int(f["ids"][j])]))
+                truth = _true_manoeuvre(s, times, k, i, v)
+                if truth is None or not reaches or i not in s[jf]["truth"]:
                     continue
-                a = (s[nb[1]]["truth"][i][1] - s[nb[0]]["truth"][i][1]) / (times[nb[1]] - times[nb[0]])
-                A = np.zeros((4, 4))
-                A[:2, 2:] = np.eye(2)
-                A[2:, 2:] = (a @ v) / speed ** 2 * np.eye(2) + (a @ (J @ v)) / speed ** 2 * J
                 future = s[jf]["truth"][i][0]
                 o["cv"].append(np.linalg.norm(tp + horizon * tv - future))
-                o["true_xi"].append(np.linalg.norm((expm(A * horizon) @ np.r_[tp, tv])[:2] - future))
+                o["true_xi"].append(np.linalg.norm((truth.transition(horizon) @ np.r_[tp, tv])[:2] - future))
                 if f["fc"] is not None and len(f["hz"]):
                     h = int(np.argmin(np.abs(np.asarray(f["hz"]) - horizon)))
                     o["tracker"].append(np.linalg.norm(f["fc"][j, h] - future))

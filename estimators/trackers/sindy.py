@@ -22,10 +22,9 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
 4. Invariant form. SINDy's library is the rotation-invariant (v, Jv) (sindy_model), so every
    identified Ξ is αI + ωJ: a tangential acceleration per speed α [1/s] (braking < 0) and a turn rate ω
    [rad/s] — a car that turns keeps turning at ω, one that brakes keeps slowing by e^{αh}, whatever the
-   road's direction. The forecast reads them at the track's velocity v̂ (α = v̂ᵀΞv̂/|v̂|²,
-   ω = (Jv̂)ᵀΞv̂/|v̂|², exact for that form) and clips α to [−``XI_MAX``, ``max_growth``] and ω to
-   ±``XI_MAX`` (no exponential blow-up from a track that is nearly at rest, where Ξ is unconstrained);
-   below ``min_speed`` the track stays CV.
+   road's direction. The forecast clips α to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no
+   exponential blow-up from a track that is nearly at rest, where Ξ is unconstrained); below
+   ``min_speed`` the track stays CV.
 5. With a model, the track's filter predicts with Φ(Δt) = expm(A(Ξ)Δt) (:mod:`estimators.trackers.forecast`)
    and the forecast is the mixture over M = ``n_models`` members Ξ_m: member m takes the refitted
    coefficients of the m-th bagging model's support (model uncertainty: which terms) plus one seeded
@@ -55,9 +54,8 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
 from .state import StateReader
-from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
+from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, generator_coefficients, identify_motion
 
-J = np.array([[0.0, -1.0], [1.0, 0.0]])
 MODEL_ACCEL_PSD = 2.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
 
@@ -101,12 +99,13 @@ class _SindyTrack(_Track):
     identified: MotionModel | None = None
 
 
-def invariant(xi, v, max_growth: float) -> np.ndarray:
-    """Ξ' = αI + ωJ (…, 2, 2) [1/s] of Ξ (…, 2, 2) read at velocity v (2,) [m/s] (module docstring, 4)."""
-    xv = np.asarray(xi) @ v
-    alpha = np.clip(xv @ v / (v @ v), -XI_MAX, max_growth)
-    omega = np.clip(xv @ (J @ v) / (v @ v), -XI_MAX, XI_MAX)
-    return alpha[..., None, None] * np.eye(2) + omega[..., None, None] * J
+def bounded(coef, max_growth: float) -> np.ndarray:
+    """Ξ' = αI + ωJ (…, 2, 2) [1/s] of the coefficients (α, ω) (…, 2), α clipped to [−XI_MAX,
+    max_growth] and ω to ±XI_MAX (module docstring, 4)."""
+    c = np.asarray(coef, dtype=np.float64)
+    alpha = np.clip(c[..., 0], -XI_MAX, max_growth)
+    omega = np.clip(c[..., 1], -XI_MAX, XI_MAX)
+    return alpha[..., None, None] * GENERATORS[0] + omega[..., None, None] * GENERATORS[1]
 
 
 def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotion:
@@ -117,14 +116,13 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     if not terms or model.evidence < p.min_evidence or np.linalg.norm(v) < max(p.min_speed, 1e-9):
         return CV
     rng = np.random.default_rng(seed)
-    members = np.zeros((len(model.fits), 2, 2))
+    members = np.zeros((len(model.fits), len(GENERATORS)))  # (α, ω) of each member
     for m, (mask, theta, cov) in enumerate(model.fits):
         if mask.any():
             lam, vec = np.linalg.eigh(cov[4:, 4:])  # a pseudo-inverse covariance: PSD, maybe singular
-            draw = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
-            members[m] = np.tensordot(draw, GENERATORS[mask], 1)
-    return fc.LinearMotion(invariant(model.coefficients, v, p.max_growth), invariant(members, v, p.max_growth),
-                           " ".join(terms))
+            members[m, mask] = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
+    return fc.LinearMotion(bounded(generator_coefficients(model.coefficients), p.max_growth),
+                           bounded(members, p.max_growth), " ".join(terms))
 
 
 def _legacy(identified) -> bool:

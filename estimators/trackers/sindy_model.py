@@ -142,9 +142,10 @@ def _xi(theta: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.tensordot(coef, GENERATORS, 1)
 
 
-def _coefficients(xi: np.ndarray) -> np.ndarray:
-    """(α, ω) (2,) of Ξ (2, 2): its projection on the generators (exact for Ξ = αI + ωJ)."""
-    return np.array([np.trace(xi) / 2, (xi[1, 0] - xi[0, 1]) / 2])
+def generator_coefficients(xi) -> np.ndarray:
+    """(α, ω) (…, 2) of Ξ (…, 2, 2): its projection on the generators (exact for Ξ = αI + ωJ)."""
+    xi = np.asarray(xi, dtype=np.float64)
+    return np.stack([(xi[..., 0, 0] + xi[..., 1, 1]) / 2, (xi[..., 1, 0] - xi[..., 0, 1]) / 2], axis=-1)
 
 
 def _flow(xi: np.ndarray, mask: np.ndarray, dts, derivatives: bool = True,
@@ -390,7 +391,7 @@ def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.n
     return g, y
 
 
-def _radial_sigma(t: np.ndarray, y: np.ndarray) -> float:
+def _radial_sigma(y: np.ndarray) -> float:
     """Robust σ_r [m/s] of the radial velocities: the MAD of differences of successive samples (a
     frame's change of gᵀv is far below the noise), or 0.1 m/s when too few samples follow each other."""
     ok = np.flatnonzero(np.isfinite(y))
@@ -420,7 +421,7 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     # The smoother needs a noise level; when none is given, white noise's second difference has
     # variance 6σ² (robust scale via the MAD). The model selection below profiles σ out instead.
     sigma_smooth = sigma or float(1.4826 * np.median(np.abs(np.diff(z, 2, axis=0))) / np.sqrt(6)) or 1e-3
-    sigma_r = None if doppler is None else max(_radial_sigma(t, doppler[1]), 1e-3)
+    sigma_r = None if doppler is None else max(_radial_sigma(doppler[1]), 1e-3)
     smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
     v, a = smooth[:, 2:4], smooth[:, 4:6]
     if np.linalg.norm(v) < 1e-9:  # a track at rest: the library columns cannot be normalised
