@@ -5,7 +5,7 @@ identification (2 CPU cores).
 Ten cars (straight and turning, 10 m/s, 0.3 m noise, 10 Hz) are tracked for 60 frames; the time of
 the last 40 frames (all tracks confirmed, identification running for sindy) is reported as median and
 maximum per frame; and per frame without the time spent identifying (sindy identifies one track in
-almost every frame: ten tracks due every ``refit_every`` = 5 frames, ``max_fits_per_frame`` = 1), i.e.
+every frame: ten tracks due every ``refit_every`` = 2 frames, ``max_fits_per_frame`` = 1), i.e.
 the association, filter, forecast and bookkeeping alone, with the identification time per call.
 identify_motion alone: 3 s windows (30 samples) of straight, turning and braking tracks, from the
 positions and with their radial velocities too (0.2 m/s noise, seen from the origin). The hidden
