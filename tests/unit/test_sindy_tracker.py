@@ -171,7 +171,6 @@ def test_radial_velocities_let_sindy_see_braking_behind_a_wandering_centroid():
     assert np.mean(err[True]) < 0.8 * np.mean(err[False]), err
 
 
-
 def test_defaults_follow_braking_cars_early():
     # The defaults identify from a track's 8th sample and refit every 2 frames (chosen on the sequence
     # val split, configs/ablations/tracking.toml): of 12 braking cars (9 m/s, −2 m/s², 1 m position
