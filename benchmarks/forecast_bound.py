@@ -14,7 +14,12 @@ the car's truth 2 s ahead:
   most any motion model can gain on these tracks;
 * the state errors: position, velocity, and the velocity error along the car's heading by track age
   (frames since the track's birth), and the speed of the hidden points' centroid (points within
-  ``centroid_radius`` of the car) against the car's speed.
+  ``centroid_radius`` of the car) against the car's speed;
+* for a ``sindy`` tracker, where its turning and braking forecasts come from: the matched track's state
+  when it forecast (from :meth:`Tracker.state`: its samples in the window and the evidence of its last
+  identification) — following a model; CV because it has fewer than ``min_samples`` samples; CV with
+  evidence below ``min_evidence``; CV otherwise (not yet identified, nothing identified, or slower than
+  ``min_speed``) — with each group's share of CV's error and its ratios.
 
 Writes benchmarks/forecast_bound.md.
 
@@ -46,20 +51,55 @@ def run(config: str, case: int, dataset: str, split: str):
     pipe = Pipeline(r["config"], source=r["source"])
     backend = pipe.stages["backend"]
     backend.open(pipe.radar)
+    tracker = pipe.stages["tracker"]
     seqs = []
     for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-        pipe.stages["tracker"].reset()
-        seqs.append([_record(f, pipe.process(f)) for _, f in group])
-    return r["name"], seqs, r["config"].run.match_radius
+        tracker.reset()
+        seqs.append([_record(f, pipe.process(f), tracker) for _, f in group])
+    return r["name"], seqs, r["config"].run.match_radius, _thresholds(tracker)
 
 
-def _record(f, res) -> dict:
+def _thresholds(tracker) -> tuple[int, float] | None:
+    """(min_samples, min_evidence) of a sindy tracker, None for another."""
+    p = tracker.params
+    return (p.min_samples, p.min_evidence) if hasattr(p, "min_samples") and hasattr(p, "min_evidence") else None
+
+
+def _identification(tracker) -> dict:
+    """{track id: (samples in its window, evidence of its last identification or None)} of a sindy
+    tracker, from its checkpoint (:meth:`Tracker.state`); {} for another tracker."""
+    if _thresholds(tracker) is None:
+        return {}
+    out = {}
+    for d in tracker.state()["tracks"]:
+        ident = d.get("identified")
+        out[int(d["id"])] = (len(d.get("history", [])), None if ident is None else float(ident["evidence"]))
+    return out
+
+
+def _record(f, res, tracker) -> dict:
     """What :func:`score` needs of one processed map."""
     ot, tr = f.meta["object_truth"], res.tracks
     truth = zip(ot["id"], ot["position"], ot["velocity"], ot["mirror"], ot["motion"])
     return {"t": f.timestamp, "ids": np.asarray(tr.track_id), "pos": np.asarray(tr.position),
             "vel": np.asarray(tr.velocity), "hz": tr.horizons, "fc": tr.forecast, "points": np.asarray(res.hidden.mean),
+            "model": tuple(tr.model), "ident": _identification(tracker),
             "truth": {int(i): (np.asarray(p, float), np.asarray(v, float), bool(m), str(k)) for i, p, v, m, k in truth}}
+
+
+GROUPS = ("follows a model", "CV: fewer than min_samples samples", "CV: evidence below min_evidence", "CV: otherwise")
+
+
+def _group(f: dict, j: int, thresholds: tuple[int, float]) -> str:
+    """Which of GROUPS track j of map f was in when it forecast (module docstring)."""
+    if f["model"][j] != "cv":
+        return GROUPS[0]
+    n, evidence = f["ident"].get(int(f["ids"][j]), (0, None))
+    if n < thresholds[0]:
+        return GROUPS[1]
+    if evidence is not None and evidence < thresholds[1]:
+        return GROUPS[2]
+    return GROUPS[3]
 
 
 def _centroid(f: dict, i: int, radius: float) -> np.ndarray | None:
@@ -81,8 +121,10 @@ def _true_manoeuvre(s: list, times: np.ndarray, k: int, i: int, v: np.ndarray) -
     return LinearMotion(np.tensordot(coef, GENERATORS, 1))
 
 
-def score(seqs, radius: float, centroid_radius: float = 3.5, horizon: float = 2.0) -> dict:
-    """Per motion kind: lists of the quantities of the module docstring."""
+def score(seqs, radius: float, thresholds: tuple[int, float] | None = None, centroid_radius: float = 3.5,
+          horizon: float = 2.0) -> dict:
+    """Per motion kind: lists of the quantities of the module docstring (``thresholds``: a sindy
+    tracker's (min_samples, min_evidence), for the grouping)."""
     out = defaultdict(lambda: defaultdict(list))
     for s in seqs:
         times, born = np.array([f["t"] for f in s]), {}
@@ -116,7 +158,27 @@ def score(seqs, radius: float, centroid_radius: float = 3.5, horizon: float = 2.
                 if f["fc"] is not None and len(f["hz"]):
                     h = int(np.argmin(np.abs(np.asarray(f["hz"]) - horizon)))
                     o["tracker"].append(np.linalg.norm(f["fc"][j, h] - future))
+                    if thresholds is not None:
+                        o["groups"].append((_group(f, j, thresholds), o["cv"][-1], o["tracker"][-1], o["true_xi"][-1]))
     return out
+
+
+def _groups_table(out: dict, kinds: list[str]) -> list[str]:
+    """The 'where the forecasts come from' table (module docstring), [] without groups."""
+    if not any(out[k]["groups"] for k in kinds):
+        return []
+    lines = ["", "Where the tracker's forecasts come from: the matched track when it forecast (share: of CV's "
+             "summed error over that motion's forecasts):", "",
+             "| motion | track | forecasts | share of CV's error | tracker / CV | true Ξ / CV |", "|---|---|---|---|---|---|"]
+    for k in kinds:
+        g = out[k]["groups"]
+        total = sum(row[1] for row in g)
+        for name in GROUPS:
+            rows = np.array([row[1:] for row in g if row[0] == name])
+            if len(rows):
+                cv, trk, tx = rows.sum(0)
+                lines.append(f"| {k} | {name} | {len(rows)} | {cv / total:.2f} | {trk / cv:.2f} | {tx / cv:.2f} |")
+    return lines
 
 
 def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
@@ -150,6 +212,7 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
             sel = al[(al[:, 1] >= lo) & (al[:, 1] < hi), 0]
             cells.append(f"{sel.mean():+.2f} ± {sel.std():.2f} ({len(sel)})" if len(sel) else "–")
         lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += _groups_table(out, [k for k in ("turning", "braking") if k in out])
     lines += ["", f"`{cmd}` ({seconds:.0f} s)"]
     return "\n".join(lines) + "\n"
 
@@ -163,8 +226,8 @@ def main():
     ap.add_argument("--out", default=str(Path(__file__).with_name("forecast_bound.md")))
     a = ap.parse_args()
     t0 = time.perf_counter()
-    name, seqs, radius = run(a.config, a.case, a.dataset, a.split)
-    text = report(name, score(seqs, radius), f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split "
+    name, seqs, radius, thresholds = run(a.config, a.case, a.dataset, a.split)
+    text = report(name, score(seqs, radius, thresholds), f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split "
                                              f"{a.split} --case {a.case}", time.perf_counter() - t0, len(seqs))
     print(text)
     Path(a.out).write_text(text)
