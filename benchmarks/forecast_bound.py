@@ -227,8 +227,8 @@ def main():
     a = ap.parse_args()
     t0 = time.perf_counter()
     name, seqs, radius, thresholds = run(a.config, a.case, a.dataset, a.split)
-    text = report(name, score(seqs, radius, thresholds), f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split "
-                                             f"{a.split} --case {a.case}", time.perf_counter() - t0, len(seqs))
+    cmd = f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split {a.split} --case {a.case}"
+    text = report(name, score(seqs, radius, thresholds), cmd, time.perf_counter() - t0, len(seqs))
     print(text)
     Path(a.out).write_text(text)
 
