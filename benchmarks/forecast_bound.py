@@ -54,7 +54,7 @@ def run(config: str, case: int, dataset: str, split: str):
     tracker = pipe.stages["tracker"]
     seqs = []
     for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-        tracker.reset()
+        pipe.reset()  # the tracks and a wall estimator's history
         seqs.append([_record(f, pipe.process(f), tracker) for _, f in group])
     return r["name"], seqs, r["config"].run.match_radius, _thresholds(tracker)
 

@@ -27,6 +27,7 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.sparse.csgraph import minimum_spanning_tree, shortest_path
 from scipy.spatial.distance import pdist, squareform
 
+from estimators.history import LOSHistory
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
 from xnlos_core.interfaces import WallEstimator
@@ -58,7 +59,11 @@ class ClusterParams(BaseModel):
 
 
 class LSQParams(ClusterParams):
-    """Parameters of lsq: the clustering only."""
+    """Parameters of lsq: the clustering and the frames pooled."""
+
+    history_frames: int = Field(1, ge=1, le=100, description="frames whose LOS detections each fit pools: 1 fits "
+                                "each frame alone; K > 1 adds the LOS detections of the K − 1 frames before "
+                                "(estimators.history), for a radar that stands still (positions are in its frame)")
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
@@ -294,18 +299,27 @@ def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPos
 
 
 class LSQWallEstimator(WallEstimator):
-    """Total-least-squares line per single-linkage cluster of LOS points, with (φ, b) covariance."""
+    """Total-least-squares line per single-linkage cluster of LOS points, with (φ, b) covariance;
+    with ``history_frames`` K > 1, of this frame's LOS points and those of the K − 1 frames before."""
 
     Params = LSQParams
+
+    def __init__(self, params=None):
+        super().__init__(params)
+        self.history = LOSHistory(self.params.history_frames)
 
     def estimate(self, detections: Detections) -> list[WallPosterior]:
         """One 'line' WallPosterior per cluster with ≥ min_points LOS points, largest cluster first.
 
-        info: residual_rms [m], cluster_size, sigma2 [m²], detection_index (indices into
-        ``detections``). If no cluster reaches min_points, the largest cluster is fitted if it has
-        ≥ 2 points. Raises InsufficientDataError with < 2 LOS points or no usable cluster.
+        info: residual_rms [m], cluster_size (LOS points of the pooled frames), sigma2 [m²],
+        detection_index (indices into ``detections``, this frame's rows only), history_points (the
+        cluster's points from earlier frames). If no cluster reaches min_points, the largest cluster
+        is fitted if it has ≥ 2 points. Raises InsufficientDataError with < 2 LOS points (pooled
+        over the frames held) or no usable cluster; this frame's LOS points are held all the same.
         """
-        idx, pts, cov, chosen = los_clusters(detections, self.params, "LSQWallEstimator")
+        n = len(detections) if isinstance(detections, Detections) else 0
+        pooled = self.history.pool(detections, "LSQWallEstimator")
+        idx, pts, cov, chosen = los_clusters(pooled, self.params, "LSQWallEstimator")
         walls, skipped = [], []
         for members in chosen:
             try:
@@ -313,11 +327,29 @@ class LSQWallEstimator(WallEstimator):
             except InsufficientDataError as exc:
                 skipped.append(str(exc))
                 continue
-            w.info["detection_index"] = idx[members].tolist()
+            w.info["detection_index"] = idx[members][idx[members] < n].tolist()
+            w.info["history_points"] = int(np.sum(idx[members] >= n))
             walls.append(w)
         if not walls:
             raise InsufficientDataError("LSQWallEstimator: no cluster gave a line: " + "; ".join(skipped))
         return walls
+
+    @property
+    def carries_state(self) -> bool:
+        """True with ``history_frames`` > 1: a fit then uses earlier frames' LOS detections."""
+        return self.params.history_frames > 1
+
+    def reset(self) -> None:
+        """Forget the LOS detections of earlier frames (the start of a run or a sequence)."""
+        self.history.reset()
+
+    def state(self) -> dict:
+        """The LOS detections held from earlier frames, JSON-able (:meth:`LOSHistory.state`)."""
+        return self.history.state()
+
+    def load_state(self, state: dict) -> None:
+        """Restore :meth:`state`; InputError naming the key for anything else (the history is then empty)."""
+        self.history.load_state(state, type(self).__name__)
 
 
 def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, np.ndarray, np.ndarray,

@@ -49,8 +49,8 @@ class PipelineWarning(XnlosWarning):
 
 
 class CheckpointWarning(XnlosWarning):
-    """A resumable run's checkpoint (``tracker_state.json``) cannot be used — not JSON, another
-    configuration's, refused by the tracker — so the run falls back to the slower way that needs none
+    """A resumable run's checkpoint (``stage_state.json``) cannot be used — not JSON, another
+    configuration's, refused by a stage — so the run falls back to the slower way that needs none
     (replaying its frames from 0); the results are the same."""
 
 

@@ -21,7 +21,7 @@ rather than mixed with the old records),
 ``run-NNN/run.json`` (config and provenance), ``run-NNN/map_MMMMM.png`` (Fig. 6-style panels of
 the first ``figures`` maps), ``eval.json`` (atomic) and ``eval.md``.
 
-Sequences (issue 28): a pipeline with a tracker is scored sequence by sequence, the tracker reset at
+Sequences (issue 28): a pipeline with a tracker is scored sequence by sequence, the pipeline reset at
 each sequence start, with tracking and prediction metrics per run, family and motion kind beside the
 map metrics (:mod:`xnlos_core.sequence_eval`; ``run-NNN/sequences.jsonl``, resumed per whole sequence).
 """
@@ -261,7 +261,7 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
         # e.g. an earlier --no-figures pass scored these maps: draw them now.
         backend.open(pipe.radar)
         if tracking:  # a tracked figure map is drawn with the tracks of its sequence's first map
-            pipe.stages["tracker"].reset()
+            pipe.reset()
         try:
             for frame in backend.frames(figures):
                 path = out / f"map_{frame.index:05d}.png"

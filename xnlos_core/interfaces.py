@@ -10,7 +10,8 @@ nothing else: no module, no function. :data:`BASES` (kind → interface) is the 
 Each interface declares everything its callers use. Optional capabilities have a default that
 says "not available": :attr:`Backend.n_frames` (None), :meth:`Detector.heatmap` (None),
 :meth:`ForwardModel.simulate_adc` (PluginError; :attr:`ForwardModel.supports_adc` asks first),
-:meth:`Tracker.state` / :meth:`Tracker.load_state` (PluginError; :attr:`Tracker.supports_state`),
+:meth:`FrameState.state` / :meth:`FrameState.load_state` of a tracker or a wall estimator (PluginError;
+:attr:`FrameState.supports_state`),
 :meth:`WallEstimator.warm_up` and :meth:`Detector.warm_up` (build nothing). Input checks every implementation needs live
 here once (:meth:`Backend.check_max_frames`, :meth:`Detector.check_frame`).
 """
@@ -75,6 +76,45 @@ class Plugin:
         never resumed or reported as current.
         """
         return None
+
+
+class FrameState:
+    """What a stage carries from frame to frame (a tracker's tracks, a wall estimator's history of
+    LOS detections), and its checkpoint. :class:`xnlos_core.pipeline.Pipeline` resets every stage
+    whose :attr:`carries_state` is True at the start of a run and of each sequence
+    (:meth:`~xnlos_core.pipeline.Pipeline.reset`), replays a resumed run from frame 0 unless all of
+    them have a checkpoint (:attr:`supports_state`), and ``xnlos run`` writes those checkpoints with
+    each frame (:mod:`xnlos_core.checkpoint`)."""
+
+    @property
+    def carries_state(self) -> bool:
+        """True when an output depends on earlier frames (a tracker always; the default: True)."""
+        return True
+
+    def reset(self) -> None:
+        """Forget everything earlier frames left (the default: nothing to forget)."""
+
+    def state(self) -> dict[str, Any]:
+        """Optional: everything the stage carries from frame to frame, as a JSON-able dict
+        (numbers, strings, lists; arrays as nested lists, floats exact through ``json``), so that
+        ``xnlos run`` can checkpoint it with each frame and resume without replaying the frames
+        before (:mod:`xnlos_core.checkpoint`). ``load_state(state())`` on a fresh instance with
+        the same parameters must give bit-identical outputs afterwards. The default raises
+        :class:`xnlos_core.errors.PluginError`: the stage has no checkpoint, and a resumed run
+        replays every frame from 0 (:attr:`supports_state` asks first)."""
+        raise PluginError(f"{type(self).__name__}.state: this {self.kind} has no checkpoint; a resumed run "
+                          "replays its frames from 0")
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Optional: restore what :meth:`state` returned (it replaces everything held). Raises
+        :class:`xnlos_core.errors.InputError` naming the key for a state that is not one this stage
+        wrote; the default raises :class:`xnlos_core.errors.PluginError` (no checkpoint)."""
+        raise PluginError(f"{type(self).__name__}.load_state: this {self.kind} has no checkpoint")
+
+    @property
+    def supports_state(self) -> bool:
+        """True when the stage overrides :meth:`state` and :meth:`load_state` (checkpointable)."""
+        return type(self).state is not FrameState.state and type(self).load_state is not FrameState.load_state
 
 
 class ForwardModel(Plugin, abc.ABC):
@@ -177,8 +217,12 @@ class Detector(Plugin, abc.ABC):
             raise InputError(f"{type(self).__name__}.detect: expected a Frame, got {type(frame).__name__}")
 
 
-class WallEstimator(Plugin, abc.ABC):
-    """LOS detections → relay walls with uncertainty."""
+class WallEstimator(FrameState, Plugin, abc.ABC):
+    """LOS detections → relay walls with uncertainty.
+
+    A wall estimator may pool the LOS detections of earlier frames (a static radar sees the same
+    facades frame after frame): it then says so through :attr:`carries_state` and forgets them on
+    :meth:`reset`. The default is one frame at a time (no state)."""
 
     kind: ClassVar[str] = "wall_estimator"
 
@@ -192,6 +236,11 @@ class WallEstimator(Plugin, abc.ABC):
         the solve alone; returns how many were built. The default builds nothing: 0."""
         return 0
 
+    @property
+    def carries_state(self) -> bool:
+        """Whether :meth:`estimate` uses earlier frames' detections; the default: False."""
+        return False
+
 
 class Reconstructor(Plugin, abc.ABC):
     """mNLOS detections + walls → hidden points (Eq. 7)."""
@@ -203,7 +252,7 @@ class Reconstructor(Plugin, abc.ABC):
         """Mirror each mNLOS detection across its wall; rows reference ``detections`` by index."""
 
 
-class Tracker(Plugin, abc.ABC):
+class Tracker(FrameState, Plugin, abc.ABC):
     """Hidden points over frames → tracks with predictions."""
 
     kind: ClassVar[str] = "tracker"
@@ -213,29 +262,7 @@ class Tracker(Plugin, abc.ABC):
         """Ingest one frame's hidden points at ``timestamp`` [s]; return the current tracks."""
 
     def reset(self) -> None:
-        """Forget all tracks (called at the start of a run)."""
-
-    def state(self) -> dict[str, Any]:
-        """Optional: everything :meth:`update` carries from frame to frame, as a JSON-able dict
-        (numbers, strings, lists; arrays as nested lists, floats exact through ``json``), so that
-        ``xnlos run`` can checkpoint it with each frame and resume without replaying the frames
-        before (:mod:`xnlos_core.tracker_state`). ``load_state(state())`` on a fresh instance with
-        the same parameters must give bit-identical outputs afterwards. The default raises
-        :class:`xnlos_core.errors.PluginError`: the tracker has no checkpoint, and a resumed run
-        replays every frame from 0 (:attr:`supports_state` asks first)."""
-        raise PluginError(f"{type(self).__name__}.state: this tracker has no checkpoint; a resumed run replays "
-                          "its frames from 0")
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Optional: restore what :meth:`state` returned (it replaces every track). Raises
-        :class:`xnlos_core.errors.InputError` naming the key for a state that is not one this tracker
-        wrote; the default raises :class:`xnlos_core.errors.PluginError` (no checkpoint)."""
-        raise PluginError(f"{type(self).__name__}.load_state: this tracker has no checkpoint")
-
-    @property
-    def supports_state(self) -> bool:
-        """True when the tracker overrides :meth:`state` and :meth:`load_state` (checkpointable)."""
-        return type(self).state is not Tracker.state and type(self).load_state is not Tracker.load_state
+        """Forget all tracks (called at the start of a run and of each sequence)."""
 
 
 class SceneGenerator(Plugin, abc.ABC):

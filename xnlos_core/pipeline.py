@@ -17,6 +17,7 @@ from . import metrics
 from .config import PipelineConfig
 from .errors import ConfigError, InsufficientDataError, PipelineWarning
 from .frame_record import SCHEMA_VERSION, detections_record, hidden_record, wall_record
+from .interfaces import FrameState
 from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
@@ -309,15 +310,30 @@ class Pipeline:
             out["los_points"] = {name: int(np.sum(gt.los_object == k)) for k, name in enumerate(gt.object_names)}
         return out
 
+    def stateful(self) -> dict[str, Any]:
+        """kind → stage for the stages whose output depends on earlier frames
+        (:attr:`xnlos_core.interfaces.FrameState.carries_state`): the tracker, and a wall estimator
+        that pools earlier frames' LOS detections. Empty: every frame stands alone."""
+        return {kind: stage for kind, stage in self.stages.items()
+                if isinstance(stage, FrameState) and stage.carries_state}
+
+    def reset(self) -> None:
+        """Forget what earlier frames left in every stage (the tracks, a wall estimator's history):
+        the start of a run or of a sequence."""
+        for stage in self.stages.values():
+            if isinstance(stage, FrameState):
+                stage.reset()
+
     def run(self, start: int = 0, skip: Collection[int] = (), restored: bool = False) -> Iterator[FrameResult]:
         """Yield results of frames ``start`` … in order, except those whose index is in ``skip``
         (the frames a resumed run already holds); the source's time is stage 'source'.
 
-        A tracker carries state from frame to frame, so with one configured every frame from 0 is
-        replayed through all stages and only the wanted ones are yielded: a resumed or gap-filled
-        frame gets the tracks an uninterrupted run would have given it. ``restored``: the tracker
-        already holds its state after the frames in ``skip`` (loaded from a checkpoint,
-        :mod:`xnlos_core.tracker_state`; the caller guarantees ``skip`` is every frame before the
+        A tracker (and a wall estimator with a history) carries state from frame to frame
+        (:meth:`stateful`), so with one configured every frame from 0 is replayed through all stages
+        and only the wanted ones are yielded: a resumed or gap-filled frame gets the walls and tracks
+        an uninterrupted run would have given it. ``restored``: those stages already hold their state
+        after the frames in ``skip`` (loaded from a checkpoint, :mod:`xnlos_core.checkpoint`; the
+        caller guarantees ``skip`` is every frame before the
         first wanted one): it is not reset and nothing is replayed. With a simulated source and every
         frame ``start`` … ``run.frames`` − 1 in ``skip`` nothing runs at all (a finished run).
         """
@@ -325,9 +341,9 @@ class Pipeline:
         if "forward_model" in self.stages and skip.issuperset(range(start, self.config.run.frames)):
             return
         self.warm_up()  # before the first frame is drawn: not in the source's or the detector's time
-        replay = "tracker" in self.stages and not restored
+        replay = bool(self.stateful()) and not restored
         if replay:
-            self.stages["tracker"].reset()
+            self.reset()
         frames = self.frames(0) if replay else self.frames(start, skip)
         for frame, src in timed_frames(frames):
             res = self.process(frame)

@@ -14,10 +14,11 @@ from child k of the seed, so it is the frame an uninterrupted run computes) and 
 line are repaired; a line that is not a JSON object, bytes that are not UTF-8, a frame index out
 of range or two different records of one frame are refused with an InputError naming the line.
 
-With a tracker that has a checkpoint (:attr:`xnlos_core.interfaces.Tracker.supports_state`), its
-state is written after each recorded frame to ``tracker_state.json`` (:mod:`xnlos_core.tracker_state`)
-and a resume restores it instead of replaying the recorded frames; otherwise (no checkpoint, a gap,
-an unusable file) every frame from 0 is replayed through the tracker. A finished run runs no stage,
+When the stages that carry state from frame to frame (a tracker, a wall estimator with a history)
+all have a checkpoint (:attr:`xnlos_core.interfaces.FrameState.supports_state`), their states are
+written after each recorded frame to ``stage_state.json`` (:mod:`xnlos_core.checkpoint`) and a resume
+restores them instead of replaying the recorded frames; otherwise (no checkpoint, a gap, an unusable
+file) every frame from 0 is replayed. A finished run runs no stage,
 and rewrites its summary, figures and GIF only when they are not those of this config and these
 results (``outputs.json``, :mod:`xnlos_core.run_outputs`).
 """
@@ -39,7 +40,7 @@ from .pipeline import Pipeline
 from .run_outputs import STAMP, outputs_current, outputs_key, write_outputs_stamp
 from .rundir import claim, write_record
 from .track_record import track_history
-from .tracker_state import STATE_FILE, restore_tracker_state, write_tracker_state
+from .checkpoint import STATE_FILE, restore_checkpoint, write_checkpoint
 
 GIF = "sequence.gif"
 
@@ -75,11 +76,13 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     # it are complete); one still missing at the end is recomputed for its figure.
     simulated = "forward_model" in pipe.stages
     early = set(config.run.figure_frames(range(n))) if simulated or config.run.figures != "last" else set()
-    # A tracker with a checkpoint: restored after the last recorded frame, nothing is replayed
-    # (xnlos_core.tracker_state); without one (or an unusable one) Pipeline.run replays from frame 0.
-    tracker = pipe.stages.get("tracker")
-    checkpoint = tracker is not None and tracker.supports_state
-    restored = checkpoint and restore_tracker_state(out, tracker, done, prov["config_sha256"], config.tracker.name)
+    # Stages that carry state (a tracker, a wall estimator with a history), all with a checkpoint:
+    # restored after the last recorded frame, nothing is replayed (xnlos_core.checkpoint); otherwise
+    # (or with an unusable checkpoint) Pipeline.run replays from frame 0.
+    stateful = pipe.stateful()
+    names = {kind: config.stages()[kind].name for kind in stateful}
+    checkpoint = bool(stateful) and all(stage.supports_state for stage in stateful.values())
+    restored = checkpoint and restore_checkpoint(out, stateful, names, done, prov["config_sha256"])
     # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
     for res in pipe.run(skip=done, restored=restored):
         if animate:  # before the record: a recorded frame always has its snapshot
@@ -87,8 +90,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         rec = json.loads(json.dumps(res.record(), default=json_default))
         append_jsonl(res_path, rec)
         records[rec["frame"]] = rec
-        if checkpoint and rec["frame"] == max(records):  # the tracker has seen every recorded frame
-            write_tracker_state(out, tracker, rec["frame"], len(records), prov["config_sha256"], config.tracker.name)
+        if checkpoint and rec["frame"] == max(records):  # the stages have seen every recorded frame
+            write_checkpoint(out, stateful, names, rec["frame"], len(records), prov["config_sha256"])
         if res.frame.index in early:
             plot_result(pipe, res, out, list(records.values()))
         bar.update(1)

@@ -1,10 +1,11 @@
 """``xnlos eval`` on sequence datasets (issue 28): tracking and prediction metrics per sequence.
 
 When the pipeline has a tracker, :func:`evaluate_sequences` reads the split's maps in order, groups
-consecutive maps of one scene (``frame.meta["scene_index"]``) into a *sequence*, resets the tracker at
-each sequence start and runs the frames through :meth:`Pipeline.process`. Truth is the per-map object
-truth of sequence datasets (``frame.meta["object_truth"]``, :mod:`sims.dataset.truth`). Per sequence
-(:func:`score_sequence`, match threshold ``run.match_radius`` [m]):
+consecutive maps of one scene (``frame.meta["scene_index"]``) into a *sequence*, resets the pipeline at
+each sequence start (:meth:`Pipeline.reset`: the tracks and a wall estimator's history) and runs the
+frames through :meth:`Pipeline.process`. Truth is the per-map object truth of sequence datasets
+(``frame.meta["object_truth"]``, :mod:`sims.dataset.truth`). Per sequence (:func:`score_sequence`,
+match threshold ``run.match_radius`` [m]):
 
 * MOTA, MOTP [m], IDF1 (:func:`xnlos_core.tracking_metrics.mot_matches`) of the tracks' positions
   against the road users' centres. A road user without a mirror path in a frame cannot be seen: it is
@@ -348,7 +349,6 @@ def evaluate_sequences(pipe, frames: Iterable[Frame], out: Path, done: list[dict
     write_jsonl(log, maps)
     write_jsonl(slog, finished.values())
     bar.update(len(maps))
-    tracker = pipe.stages["tracker"]
     threshold = pipe.config.run.match_radius
     region = pipe.config.tracker.params.get("region")
     seqs = list(finished.values())
@@ -361,7 +361,7 @@ def evaluate_sequences(pipe, frames: Iterable[Frame], out: Path, done: list[dict
             seqs = [q for q in seqs if q["sequence"] != key]
             write_jsonl(log, maps)
             write_jsonl(slog, seqs)
-        tracker.reset()
+        pipe.reset()  # the tracks and a wall estimator's history of LOS detections
         steps, recs = [], []
         for (pos, frame), (_, src) in zip(group, timed_frames(f for _, f in group)):
             if frame.ground_truth is None or "object_truth" not in frame.meta:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError, InputError, InsufficientDataError
+from .frame_record import wall_record
 from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
 from .interfaces import (BASES, Backend, Detector, ForwardModel, NLOSSolver, Reconstructor, SceneGenerator,
                          Tracker, WallEstimator)
@@ -135,8 +136,12 @@ def _line_detections(points: np.ndarray, label: int) -> Detections:
 
 def check_wall_estimator(estimator: WallEstimator) -> None:
     """Recovers a wall from noisy LOS points (2°, 0.3 m), ignores mNLOS points, and raises
-    InsufficientDataError for fewer than two LOS points."""
+    InsufficientDataError for fewer than two LOS points (after :meth:`~WallEstimator.reset`). One that
+    pools earlier frames (:attr:`~xnlos_core.interfaces.FrameState.carries_state`) forgets them on reset
+    and, with a checkpoint, resumes from ``load_state(state())`` with the uninterrupted walls
+    (:func:`check_frame_state`)."""
     _assert(isinstance(estimator, WallEstimator), estimator, "is not a xnlos_core.WallEstimator")
+    estimator.reset()
     rng = np.random.default_rng(0)
     t = np.linspace(0.1, 0.8, 25)[:, None]
     pts = KIT_WALL.start + t * (KIT_WALL.end - KIT_WALL.start) + rng.normal(0, 0.05, (25, 2))
@@ -153,12 +158,44 @@ def check_wall_estimator(estimator: WallEstimator) -> None:
         _assert(ang < 2.0 and abs(w.offset - b_true) < 0.3, estimator,
                 f"wall off by {ang:.2f}° / {abs(w.offset - b_true):.2f} m (allowed 2°, 0.3 m)")
     for few in (Detections.empty(), _line_detections(pts[:1], LOS), mn):
+        estimator.reset()
         try:
             estimator.estimate(few)
         except InsufficientDataError:
             continue
         raise AssertionError(f"{type(estimator).__name__}: {len(few)} detections with < 2 LOS did not raise "
                              "InsufficientDataError")
+    estimator.reset()
+    if estimator.carries_state:
+        frames = [Detections.concat(_line_detections(pts[k::3] + rng.normal(0, 0.05, pts[k::3].shape), LOS), mn)
+                  for k in (0, 1, 2, 0, 1, 2)]
+        check_frame_state(estimator, lambda k: [wall_record(w) for w in estimator.estimate(frames[k])], len(frames))
+
+
+def check_frame_state(stage, step, n: int = 6) -> list:
+    """A stage that carries state from frame to frame (:class:`xnlos_core.interfaces.FrameState`):
+    ``step(k)`` feeds it frame k and returns a JSON-able output. After :meth:`reset` frame 0 gives
+    the same output again; with a checkpoint (:attr:`supports_state`), the state after frame 2
+    survives ``json`` and, loaded after a reset, gives the uninterrupted outputs of frames 3 … n − 1.
+    Returns the uninterrupted outputs (through ``json``)."""
+    import json
+
+    stage.reset()
+    outs, state = [], None
+    for k in range(n):
+        outs.append(json.dumps(step(k)))
+        if k == 2 and stage.supports_state:
+            state = json.dumps(stage.state())
+    stage.reset()
+    _assert(json.dumps(step(0)) == outs[0], stage, "after reset() frame 0 gave another output than at first")
+    stage.reset()
+    if state is not None:
+        stage.load_state(json.loads(state))
+        for k in range(3, n):
+            _assert(json.dumps(step(k)) == outs[k], stage,
+                    f"after load_state(state()) frame {k} gave another output than the uninterrupted run")
+        stage.reset()
+    return [json.loads(o) for o in outs]
 
 
 def check_reconstructor(reconstructor: Reconstructor, atol: float = 0.5) -> None:
@@ -228,33 +265,20 @@ def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
 
 
 def check_tracker(tracker: Tracker) -> None:
-    """Keeps one track id for one point moving at constant velocity. With a checkpoint
-    (:attr:`Tracker.supports_state`): the state after 3 frames survives ``json`` and, loaded into the
-    same tracker after a reset, gives the same tracks for the next frames as the uninterrupted run."""
-    import json
-
+    """Keeps one track id for one point moving at constant velocity; forgets it on reset and, with a
+    checkpoint (:attr:`Tracker.supports_state`), resumes from ``load_state(state())`` with the
+    uninterrupted tracks (:func:`check_frame_state`)."""
     _assert(isinstance(tracker, Tracker), tracker, "is not a xnlos_core.Tracker")
-    tracker.reset()
-    ids, outs, state = set(), [], None
-    for k in range(6):
+
+    def step(k: int) -> dict:
         p = np.array([[20.0, -10.0 + 1.0 * k]])
         out = tracker.update(HiddenPoints(p, np.tile(np.eye(2) * 0.01, (1, 1, 1)), [0], [0]), 0.5 * k)
         _assert(isinstance(out, Tracks), tracker, "update() must return Tracks")
-        ids.update(out.track_id.tolist())
-        outs.append(out)
-        if k == 2 and tracker.supports_state:
-            state = json.dumps(tracker.state())
+        return {f: getattr(out, f).tolist() for f in ("track_id", "position", "velocity")}
+
+    outs = check_frame_state(tracker, step, 6)
+    ids = {i for out in outs for i in out["track_id"]}
     _assert(len(ids) == 1, tracker, f"one moving point produced track ids {sorted(ids)}")
-    tracker.reset()
-    if state is None:
-        return
-    tracker.load_state(json.loads(state))
-    for k in range(3, 6):
-        p = np.array([[20.0, -10.0 + 1.0 * k]])
-        out = tracker.update(HiddenPoints(p, np.tile(np.eye(2) * 0.01, (1, 1, 1)), [0], [0]), 0.5 * k)
-        same = all(np.array_equal(getattr(out, f), getattr(outs[k], f)) for f in ("track_id", "position", "velocity"))
-        _assert(same, tracker, f"after load_state(state()) frame {k} gave other tracks than the uninterrupted run")
-    tracker.reset()
 
 
 def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:

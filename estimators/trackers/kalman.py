@@ -50,7 +50,7 @@ from . import forecast as fc
 from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time, no_tracks
 from .measurements import Measurements, cluster
 from .region import Region, arrival
-from .state import FORMAT, StateReader, header
+from estimators.state import FORMAT, StateReader, header
 
 H = np.hstack([np.eye(2), np.zeros((2, 2))])
 CV = fc.LinearMotion()

@@ -28,7 +28,7 @@ from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
 from .frames import HORIZONS, HORIZONS_DOC, Horizons, frame_time
-from .state import FORMAT, StateReader, header
+from estimators.state import FORMAT, StateReader, header
 
 
 class NearestParams(BaseModel):

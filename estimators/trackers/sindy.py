@@ -53,7 +53,7 @@ from xnlos_core.errors import InputError, InsufficientDataError
 from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
-from .state import StateReader
+from estimators.state import StateReader
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, generator_coefficients, identify_motion
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)

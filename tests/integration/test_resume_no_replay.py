@@ -1,5 +1,5 @@
-"""Resume without replay (issue 31 item 4): ``xnlos run`` checkpoints the tracker with each frame
-(tracker_state.json), so a killed run resumes without recomputing the frames it holds, a finished run
+"""Resume without replay (issue 31 item 4): ``xnlos run`` checkpoints the tracker (and a wall
+estimator with a history) with each frame (stage_state.json), so a killed run resumes without recomputing the frames it holds, a finished run
 reruns no stage, and an unusable checkpoint falls back to the replay with a CheckpointWarning."""
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from xnlos_core.io import read_jsonl
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.runner import run_to_dir
 from xnlos_core.testing import small_pipeline_table
-from xnlos_core.tracker_state import STATE_FILE
+from xnlos_core.checkpoint import STATE_FILE
 
 N, K = 10, 8  # frames, frames done when the run is killed (sindy identifies a track at frame 7)
 TRACKERS = {"kalman": {}, "sindy": {"min_samples": 8, "refit_every": 2, "min_evidence": 0.0, "n_models": 3}}
@@ -27,11 +27,14 @@ class Killed(Exception):
     """Stands for the process being killed."""
 
 
-def _cfg(tracker: str, **run):
+def _cfg(tracker: str | None, history: int = 1, **run):
     t = small_pipeline_table(run={"frames": N, "frame_interval": 0.2, "figure": False, "animation": False, **run})
     t["scene"] = {"builtin": "corner", "objects": [{"name": "car", "center": [22.0, -16.0], "heading": 1.5708,
                                                     "velocity": [0.0, 4.0]}]}
-    t["tracker"] = {"name": tracker, "params": TRACKERS[tracker]}
+    if tracker is not None:
+        t["tracker"] = {"name": tracker, "params": TRACKERS[tracker]}
+    if history > 1:
+        t["wall_estimator"] = {"name": "lsq", "params": {"history_frames": history}}
     return parse_pipeline(t, "noreplay.toml")
 
 
@@ -55,7 +58,8 @@ def _spy(monkeypatch, cfg, kill_after: int | None = None) -> dict[str, list]:
 
     wrap("forward_model", "simulate", lambda a, kw: kw.get("index", a[4] if len(a) > 4 else None))
     wrap("detector", "detect", lambda a, kw: a[0].index)
-    wrap("tracker", "update", lambda a, kw: a[1])
+    if "tracker" in stages:
+        wrap("tracker", "update", lambda a, kw: a[1])
     return calls
 
 
@@ -89,7 +93,7 @@ def test_a_killed_run_resumes_without_recomputing_its_frames(reference, tmp_path
     state = json.loads((out / STATE_FILE).read_text())
     assert (state["frame"], state["frames_done"]) == (K - 1, K)
     if tracker == "sindy":  # the checkpoint holds an identified model, which must come back exactly
-        assert any(t["identified"] is not None for t in state["state"]["tracks"])
+        assert any(t["identified"] is not None for t in state["stages"]["tracker"]["state"]["tracks"])
     calls = _spy(monkeypatch, cfg)
     with warnings.catch_warnings():
         warnings.simplefilter("error", CheckpointWarning)
@@ -128,9 +132,9 @@ def _edit(state: dict, how: str) -> bytes:
     if how == "other config":
         state["config_sha256"] = "0" * 64
     elif how == "other tracker":
-        state["tracker"] = "nearest"
+        state["stages"]["tracker"]["name"] = "nearest"
     elif how == "bad track":
-        state["state"]["tracks"][0]["P"] = [[1.0]]
+        state["stages"]["tracker"]["state"]["tracks"][0]["P"] = [[1.0]]
     elif how == "stale frame":  # killed between a frame's results line and its state: no warning
         state["frame"], state["frames_done"] = K - 2, K - 1
     return json.dumps(state).encode()
@@ -138,12 +142,12 @@ def _edit(state: dict, how: str) -> bytes:
 
 @pytest.mark.parametrize("how, match", [
     ("not json", "not valid JSON"), ("other config", "another configuration"),
-    ("other tracker", "tracker 'nearest'"), ("bad track", r"tracks\[0\]: P = "), ("stale frame", None)])
+    ("other tracker", "tracker 'nearest'"), ("bad track", r"tracker: .*tracks\[0\]: P = "), ("stale frame", None)])
 def test_an_unusable_checkpoint_falls_back_to_the_replay(reference, killed_kalman, tmp_path, monkeypatch, how, match):
     out = tmp_path / "run"
     shutil.copytree(killed_kalman, out)
     state = json.loads((out / STATE_FILE).read_text())
-    assert state["state"]["tracks"], "the test needs a track to damage"
+    assert state["stages"]["tracker"]["state"]["tracks"], "the test needs a track to damage"
     (out / STATE_FILE).write_bytes(_edit(state, how))
     cfg = _cfg("kalman")
     calls = _spy(monkeypatch, cfg)
@@ -185,3 +189,28 @@ def test_a_finished_run_rerun_rewrites_no_output_unless_it_is_stale(tmp_path, mo
 
     run_to_dir(_cfg("kalman", frames=3, figure=True, animation=True, figures="all"), tmp_path, progress=False)
     assert all((tmp_path / f"frame_{k:04d}.png").exists() for k in range(3))
+
+
+@pytest.mark.parametrize("tracker", ["kalman", None])
+def test_a_wall_history_is_checkpointed_beside_the_tracker(tmp_path, monkeypatch, tracker):
+    """lsq with history_frames 4 carries the LOS detections of 3 frames: a killed run restores them
+    from stage_state.json (with the tracker's state, or alone) and gives the uninterrupted run's walls."""
+    cfg = _cfg(tracker, history=4)
+    run_to_dir(cfg, tmp_path / "ref", progress=False)
+    ref = _strip(read_jsonl(tmp_path / "ref" / "results.jsonl"))
+    single = tmp_path / "single"
+    run_to_dir(_cfg(tracker), single, progress=False)
+    walls = [[w["params"] for w in r["walls"]] for r in ref]
+    assert walls != [[w["params"] for w in r["walls"]] for r in read_jsonl(single / "results.jsonl")], \
+        "the history changed no wall: the test cannot tell a restored history from an empty one"
+    out = tmp_path / "run"
+    _killed(monkeypatch, cfg, out)
+    held = json.loads((out / STATE_FILE).read_text())["stages"]
+    assert sorted(held) == sorted(["wall_estimator"] + (["tracker"] if tracker else []))
+    assert len(held["wall_estimator"]["state"]["frames"]) == 3
+    calls = _spy(monkeypatch, cfg)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        run_to_dir(cfg, out, progress=False)
+    assert calls["detector"] == list(range(K, N))
+    assert _strip(read_jsonl(out / "results.jsonl")) == ref

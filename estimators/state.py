@@ -1,9 +1,10 @@
-"""Reading a tracker's checkpoint (``Tracker.state`` → JSON → ``Tracker.load_state``) back with checks.
+"""Reading a stage's checkpoint (``state()`` → JSON → ``load_state()``: the trackers, lsq's history of
+LOS detections) back with checks.
 
 A state is plain JSON: numbers, strings, lists (arrays as nested lists; Python's float repr makes
 every float64 exact through ``json``). It comes from a file, so nothing in it is trusted: each field
 is read by one of the functions here, which raise :class:`xnlos_core.errors.InputError` naming the
-tracker, the key and what was expected. Nothing is ever unpickled or evaluated.
+stage, the key and what was expected. Nothing is ever unpickled or evaluated.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ FORMAT = 1  # version of the state layout written by the built-in trackers
 
 
 class StateReader:
-    """Checked access to one dict of a tracker state; ``where`` names it in errors, e.g.
+    """Checked access to one dict of a stage's state; ``where`` names it in errors, e.g.
     "KalmanTracker.load_state: tracks[2]"."""
 
     def __init__(self, data: Any, where: str):
