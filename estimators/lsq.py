@@ -24,7 +24,9 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree, shortest_path
+from scipy.spatial import Delaunay, QhullError
 from scipy.spatial.distance import pdist, squareform
 
 from estimators.history import LOSHistory
@@ -199,13 +201,39 @@ def _straight(x: np.ndarray, tolerance: float) -> bool:
     return bool(np.abs(z @ normal).max() <= tolerance)
 
 
+DELAUNAY_FROM = 200  # points from which spanning_tree searches the Delaunay edges instead of all pairs
+
+
+def spanning_tree(x: np.ndarray):
+    """Euclidean minimum spanning tree of x (n, 2) [m] as a sparse (n, n) matrix of edge lengths.
+
+    Below DELAUNAY_FROM points, the tree of all n(n − 1)/2 pairs. From there, the tree of the Delaunay
+    triangulation's ≤ 3n edges, which holds every Euclidean MST edge (scipy.spatial.Delaunay, Qhull):
+    the same tree at O(n log n) instead of sorting n² pairs (1000 pooled LOS points: 91 → 5 ms). Points
+    that Qhull cannot triangulate (all on one line, exact duplicates: the tree would not span them)
+    fall back to all pairs. Edge lengths get 1e-12 m added: csgraph reads a 0 as "no edge".
+    """
+    n = len(x)
+    if n >= DELAUNAY_FROM:
+        try:
+            s = Delaunay(x).simplices
+        except QhullError:
+            s = None
+        if s is not None:
+            e = np.unique(np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1), axis=0)
+            w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + 1e-12
+            tree = minimum_spanning_tree(coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr())
+            if tree.nnz == n - 1:
+                return tree
+    return minimum_spanning_tree(squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(n)))
+
+
 def _chain_order(x: np.ndarray) -> np.ndarray:
     """Indices of x (n, 2) [m] by tree distance from one end of the longest path of their Euclidean
     minimum spanning tree (scipy.sparse.csgraph; the far end of a far end is an end of that path)."""
     if len(x) < 3:
         return np.arange(len(x))
-    d = squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(len(x)))  # csgraph reads a 0 as "no edge"
-    tree = minimum_spanning_tree(d)
+    tree = spanning_tree(x)
     end = int(np.argmax(shortest_path(tree, directed=False, indices=0)))
     return np.argsort(shortest_path(tree, directed=False, indices=end), kind="stable")
 

@@ -144,3 +144,28 @@ def test_collinear_facades_across_a_street_stay_two_walls_where_the_radar_sees_t
     walls = LSQWallEstimator().estimate(detections(np.concatenate([near, far, seen])))
     along_y8 = [w for w in walls if np.allclose(w.normal, [0, -1], atol=1e-6)]
     assert sorted(w.n_points for w in along_y8) == [17, 57]
+
+
+@pytest.mark.parametrize("shape", ["wall", "corner", "blob", "collinear", "duplicates"])
+def test_the_delaunay_spanning_tree_is_the_all_pairs_one(shape):
+    """From DELAUNAY_FROM points spanning_tree searches only the Delaunay edges: the same Euclidean
+    MST (every edge, not only its length) as the tree of all pairs, and all pairs where Qhull cannot
+    triangulate (points on one line, exact duplicates)."""
+    from scipy.sparse.csgraph import minimum_spanning_tree
+    from scipy.spatial.distance import pdist, squareform
+
+    from estimators.lsq import DELAUNAY_FROM, spanning_tree
+
+    rng = np.random.default_rng(11)
+    n = DELAUNAY_FROM + 150
+    t = rng.uniform(0.0, 20.0, n)
+    x = {"wall": np.c_[t, 0.3 * t + rng.normal(0, 0.1, n)],
+         "corner": np.where((t < 10)[:, None], np.c_[t, 0 * t], np.c_[10 + 0 * t, t - 10]) + rng.normal(0, 0.05, (n, 2)),
+         "blob": rng.normal(0.0, 5.0, (n, 2)),
+         "collinear": np.c_[t, 2.0 * t],
+         "duplicates": np.r_[rng.normal(0.0, 5.0, (n - 3, 2)), np.zeros((3, 2))]}[shape]
+    fast = spanning_tree(x)
+    full = minimum_spanning_tree(squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(n)))
+    edges = lambda tree: {tuple(sorted(e)) for e in zip(*tree.nonzero())}  # noqa: E731
+    assert fast.nnz == n - 1 and edges(fast) == edges(full)
+    assert fast.sum() == pytest.approx(full.sum(), rel=1e-12)
