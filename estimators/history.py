@@ -7,6 +7,13 @@ radar's frame, so this holds only while the radar stands still) gives every fram
 K frames saw. With independent noise per frame the (φ, b) covariance of a wall seen in all K frames
 shrinks about K-fold (:mod:`estimators.lsq`, Var φ = σ²/Σt_i²).
 
+Only what stands still is held: a road user in line of sight leaves an LOS echo in every frame, and
+those of K frames line up along its path into a "wall" that is not there (a car driving out of the
+cross street, 5 m/s over 5 frames of 0.2 s: a 4 m segment). With Doppler, a detection is held only if
+its radial velocity |v_r| ≤ ``max_speed`` [m/s] (a wall's is 0 up to the noise; the default X-band
+Doppler bin is 0.57 m/s wide); a road user moving across the line of sight (v_r ≈ 0) still passes.
+Without Doppler every LOS detection is held.
+
 Held here: the LOS rows (range, azimuth, label, confidence, range_std, azimuth_std) of up to K − 1
 earlier frames, newest first. The estimator's state (``WallEstimator.state``) is these rows as JSON
 lists, exact through ``json``; nothing in a loaded state is trusted (:class:`StateReader`).
@@ -24,16 +31,19 @@ FORMAT = 1
 
 
 class LOSHistory:
-    """The LOS detections of the ``frames`` − 1 frames before the current one (``frames`` ≥ 1)."""
+    """The static LOS detections of the ``frames`` − 1 frames before the current one (``frames`` ≥ 1;
+    with Doppler, static: |radial velocity| ≤ ``max_speed`` [m/s])."""
 
-    def __init__(self, frames: int):
+    def __init__(self, frames: int, max_speed: float = np.inf):
         self.frames = int(frames)
-        self.held: list[Detections] = []  # newest first, LOS rows only
+        self.max_speed = float(max_speed)
+        self.held: list[Detections] = []  # newest first, static LOS rows only
 
     def pool(self, detections: Detections, who: str) -> Detections:
         """``detections`` (all rows, in order) followed by the held LOS rows, newest frame first; then
         remembers this frame's LOS rows and forgets the oldest frame beyond ``frames`` − 1. With
-        ``frames`` = 1 returns ``detections`` itself. Rows 0 … len(detections) − 1 of the result are
+        ``frames`` = 1 returns ``detections`` itself. Of this frame's LOS rows only the static ones are
+        remembered (module docstring); this frame's fit uses them all. Rows 0 … len(detections) − 1 of the result are
         ``detections``' rows, so indices below len(detections) point into it. InputError (naming
         ``who``) for anything but Detections."""
         if not isinstance(detections, Detections):
@@ -41,7 +51,10 @@ class LOSHistory:
         if self.frames == 1:
             return detections
         pooled = Detections.concat(detections, *self.held) if self.held else detections
-        self.held = [detections.select(detections.of_class(LOS)), *self.held][: self.frames - 1]
+        keep = detections.label == LOS
+        if detections.velocity is not None:
+            keep &= np.abs(detections.velocity) <= self.max_speed
+        self.held = [detections.select(np.flatnonzero(keep)), *self.held][: self.frames - 1]
         return pooled
 
     def reset(self) -> None:

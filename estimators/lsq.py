@@ -66,6 +66,10 @@ class LSQParams(ClusterParams):
     history_frames: int = Field(1, ge=1, le=100, description="frames whose LOS detections each fit pools: 1 fits "
                                 "each frame alone; K > 1 adds the LOS detections of the K − 1 frames before "
                                 "(estimators.history), for a radar that stands still (positions are in its frame)")
+    history_max_speed: float = Field(0.5, gt=0, le=100, description="only LOS detections with |radial velocity| ≤ "
+                                     "this [m/s] are held for later frames: walls stand still, and a road user's LOS "
+                                     "echoes of K frames line up along its path into a wall that is not there "
+                                     "(detections without Doppler are all held)")
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
@@ -334,7 +338,7 @@ class LSQWallEstimator(WallEstimator):
 
     def __init__(self, params=None):
         super().__init__(params)
-        self.history = LOSHistory(self.params.history_frames)
+        self.history = LOSHistory(self.params.history_frames, self.params.history_max_speed)
 
     def estimate(self, detections: Detections) -> list[WallPosterior]:
         """One 'line' WallPosterior per cluster with ≥ min_points LOS points, largest cluster first.

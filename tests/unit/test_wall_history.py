@@ -154,3 +154,30 @@ def test_a_loaded_state_gives_the_uninterrupted_walls():
         wa, wb = a.estimate(f)[0], b.estimate(f)[0]
         np.testing.assert_array_equal(wa.mean, wb.mean)
         np.testing.assert_array_equal(wa.cov, wb.cov)
+
+
+def _with_velocity(det: Detections, v) -> Detections:
+    v = np.broadcast_to(np.asarray(v, dtype=np.float64), (len(det),))
+    return Detections(det.range, det.azimuth, det.label, det.confidence, det.range_std, det.azimuth_std, v,
+                      np.full(len(det), 0.01))
+
+
+def test_a_road_users_los_echoes_are_not_held():
+    """A car in line of sight drives 1 m a frame along y = 5 m (5 m/s radial, 4 echoes a frame): with
+    Doppler its echoes are not held, so after 5 frames only the facade pools earlier frames (the car's
+    own echoes of this frame give what one frame gives); without Doppler they line up into a 'wall' of
+    20 points along its path."""
+    rng = np.random.default_rng(10)
+    frames = []
+    for k in range(5):
+        car = np.array([[26.0 - k, 5.0]]) + rng.normal(0.0, 0.1, (4, 2))
+        facade = _with_velocity(_frame(_wall_points(rng, 6)), 0.0)
+        frames.append(Detections.concat(facade, _with_velocity(_frame(car), -5.0)))
+    doppler, blind = LSQWallEstimator({"history_frames": 5}), LSQWallEstimator({"history_frames": 5})
+    fields = ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std")
+    for f in frames:
+        seen = doppler.estimate(f)
+        unseen = blind.estimate(Detections(*(getattr(f, a) for a in fields)))
+    assert sorted(w.n_points for w in unseen) == [20, 30], "without Doppler the car's path reads as a wall"
+    assert sorted((w.n_points, w.info["history_points"]) for w in seen) == [(4, 0), (30, 24)]
+    assert sum(len(d) for d in doppler.history.held) == 4 * 6
