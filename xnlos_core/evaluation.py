@@ -288,7 +288,11 @@ def _tracking(seqs: list[dict]) -> dict[str, Any] | None:
 
 def _score_maps(pipe, backend, log: Path, done: list[dict], bar, figures: int, out: Path,
                 source: str) -> tuple[list[dict], int]:
-    """Score the maps not in ``done`` one by one (no tracker); returns (records, maps read)."""
+    """Score the maps not in ``done`` one by one (no tracker); returns (records, maps read). Each map
+    stands alone: the pipeline is reset before it (:meth:`Pipeline.reset`), so a wall estimator that
+    pools earlier frames (``lsq``'s ``history_frames``) fits each map's own LOS detections, as a resumed
+    eval, which skips the maps it holds, must. Walls pooled over frames are scored on sequences, with
+    a tracker (:mod:`xnlos_core.sequence_eval`)."""
     from .pipeline import timed_frames
 
     have = {r["position"] for r in done}
@@ -298,6 +302,7 @@ def _score_maps(pipe, backend, log: Path, done: list[dict], bar, figures: int, o
         if position not in have:
             if frame.ground_truth is None:
                 raise InputError(f"{source}: map {frame.index} has no ground truth; eval needs a simulated dataset")
+            pipe.reset()
             res = pipe.process(frame)
             res.timings = {"source": src, **res.timings}
             if position < figures:

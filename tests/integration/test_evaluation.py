@@ -183,3 +183,19 @@ def test_table2_sweep_end_to_end_on_a_tiny_dataset(tiny_dataset, tmp_path):
 
 def test_table2_config_checks():
     assert main(["check", str(ROOT / "configs/ablations/table2.toml")]) == 0
+
+
+def test_maps_are_scored_alone_whatever_a_stage_carries(tiny_dataset, tmp_path, eval_config):
+    """A map eval resets the pipeline before each map: lsq pooling 4 frames scores every map as it
+    scores it alone (the tiny dataset's maps are four different scenes)."""
+    plain = eval_config(tmp_path, tiny_dataset)
+    pooled = tmp_path / "pooled.toml"
+    pooled.write_text(plain.read_text().replace('[wall_estimator]\nname = "lsq"\n',
+                                                '[wall_estimator]\nname = "lsq"\nparams = { history_frames = 4 }\n'))
+    assert "history_frames" in pooled.read_text()
+    a = run_eval(plain, tmp_path / "a", figures=0, progress=False)
+    b = run_eval(pooled, tmp_path / "b", figures=0, progress=False)
+    assert b["runs"][0]["overall"]["maps"] == 4
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "timings_ms"} for r in rows]  # noqa: E731
+    assert strip(read_jsonl(tmp_path / "a" / "run-000" / "frames.jsonl")) == \
+        strip(read_jsonl(tmp_path / "b" / "run-000" / "frames.jsonl"))
