@@ -15,7 +15,7 @@ the car's truth 2 s ahead:
 * the state errors: position, velocity, and the velocity error along the car's heading by track age
   (frames since the track's birth), and the speed of the hidden points' centroid (points within
   ``centroid_radius`` of the car) against the car's speed;
-* for a ``sindy`` tracker, where its turning and braking forecasts come from: the matched track's state
+* for a ``sindy`` tracker, where its forecasts of each motion come from: the matched track's state
   when it forecast (from :meth:`Tracker.state`: its samples in the window and the evidence of its last
   identification) — following a model; CV because it has fewer than ``min_samples`` samples; CV with
   evidence below ``min_evidence``; CV otherwise (not yet identified, nothing identified, or slower than
@@ -212,7 +212,7 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
             sel = al[(al[:, 1] >= lo) & (al[:, 1] < hi), 0]
             cells.append(f"{sel.mean():+.2f} ± {sel.std():.2f} ({len(sel)})" if len(sel) else "–")
         lines.append(f"| {k} | " + " | ".join(cells) + " |")
-    lines += _groups_table(out, [k for k in ("turning", "braking") if k in out])
+    lines += _groups_table(out, [k for k in ("straight", "turning", "braking") if k in out])
     lines += ["", f"`{cmd}` ({seconds:.0f} s)"]
     return "\n".join(lines) + "\n"
 
