@@ -15,11 +15,12 @@ body reads as a car slower than it is by −do/dt), the lag-1 autocorrelation of
 """
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
+
+from tracking_case import case_parser
 
 from forecast_bound import _centroid, run
 
@@ -97,11 +98,7 @@ def plot(tracks: list[np.ndarray], path: Path, n: int = 8) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--config", default="configs/ablations/tracking.toml")
-    ap.add_argument("--case", type=int, default=6, help="index of the sweep case (6: oracle → sindy + Doppler)")
-    ap.add_argument("--dataset", default="out/data/sequences_large")
-    ap.add_argument("--split", default="test")
+    ap = case_parser(__doc__, case=6, split="test")
     ap.add_argument("--radius", type=float, default=3.5)
     ap.add_argument("--figure", default=str(Path(__file__).with_name("centroid_offset.png")))
     a = ap.parse_args()

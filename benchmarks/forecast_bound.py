@@ -27,12 +27,13 @@ Writes benchmarks/forecast_bound.md.
 """
 from __future__ import annotations
 
-import argparse
 import time
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
+from tracking_case import case_parser
 
 from estimators.trackers.forecast import LinearMotion
 from estimators.trackers.sindy_model import GENERATORS
@@ -218,11 +219,7 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--config", default="configs/ablations/tracking.toml")
-    ap.add_argument("--case", type=int, default=6, help="index of the sweep case (6: oracle → sindy + Doppler)")
-    ap.add_argument("--dataset", default="out/data/sequences_large")
-    ap.add_argument("--split", default="test")
+    ap = case_parser(__doc__, case=6, split="test")
     ap.add_argument("--out", default=str(Path(__file__).with_name("forecast_bound.md")))
     a = ap.parse_args()
     t0 = time.perf_counter()

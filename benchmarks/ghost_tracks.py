@@ -12,11 +12,12 @@ not their relay wall — and by its speed (< 1, 1–4, ≥ 4 m/s). ``--history``
 """
 from __future__ import annotations
 
-import argparse
 import time
 from collections import Counter
 
 import numpy as np
+
+from tracking_case import case_parser
 
 FAMILY = "hidden_car_approach"
 DISTANCES = ((2.0, "< 2 m"), (4.0, "2–4 m"), (10.0, "4–10 m"), (np.inf, "≥ 10 m"))
@@ -57,11 +58,7 @@ def count(config: str, case: int, dataset: str, split: str, history: int | None)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--config", default="configs/ablations/tracking.toml")
-    ap.add_argument("--case", type=int, default=4, help="index of the sweep case (4: sindy + Doppler)")
-    ap.add_argument("--dataset", default="out/data/sequences_large")
-    ap.add_argument("--split", default="val")
+    ap = case_parser(__doc__, case=4, split="val")
     ap.add_argument("--history", type=int, default=None, help="lsq history_frames (default: the config's)")
     a = ap.parse_args()
     t0 = time.perf_counter()

@@ -14,11 +14,12 @@ of one sequence frame by frame, for each K.
 """
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
 import numpy as np
+
+from tracking_case import case_parser
 
 FAMILY = "hidden_car_approach"
 
@@ -109,11 +110,7 @@ def plot(runs: dict[int, list], path: Path, sequence: int, most: int = 4) -> Non
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--config", default="configs/ablations/tracking.toml")
-    ap.add_argument("--case", type=int, default=4, help="index of the sweep case (4: sindy + Doppler behind nlos_cfar)")
-    ap.add_argument("--dataset", default="out/data/sequences_large")
-    ap.add_argument("--split", default="val")
+    ap = case_parser(__doc__, case=4, split="val")
     ap.add_argument("--k", type=int, nargs="+", default=[1, 5], help="history_frames to compare")
     ap.add_argument("--tolerance", type=float, nargs=2, default=[10.0, 1.5], metavar=("DEG", "M"))
     ap.add_argument("--sequence", type=int, default=0, help="the sequence drawn")
