@@ -111,6 +111,9 @@ def timed_frames(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float]]:
         yield frame, time.perf_counter() - t0
 
 
+SEQUENCE_FRAME = "frame_in_scene"  # Frame.meta key: the frame's position in its sequence (0: it starts one)
+
+
 class Pipeline:
     """Builds the configured plugins from a registry and runs frames through them."""
 
@@ -237,8 +240,15 @@ class Pipeline:
     def process(self, frame: Frame) -> FrameResult:
         """Run detection, wall estimation, reconstruction and tracking on one frame (and score it),
         with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`).
-        The first call warms the detector up first (:meth:`warm_up`, outside the stage timings)."""
+        The first call warms the detector up first (:meth:`warm_up`, outside the stage timings).
+
+        A frame that starts a sequence (``frame.meta["frame_in_scene"] == 0``, as a sequence dataset's
+        frames carry: its timestamps start again at 0) resets the stages first (:meth:`reset`): no
+        track or wall history carries over from the sequence before, and a run over a dataset of
+        several sequences tracks each on its own."""
         self.warm_up()
+        if frame.meta.get(SEQUENCE_FRAME) == 0:
+            self.reset()
         with blas_limit(self.config.run.blas_threads):
             return self._process(frame)
 

@@ -217,7 +217,12 @@ class GroundTruth(_ReadOnlyArrays):
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """One radar measurement: an RA map, its timestamp [s], and ground truth when simulated."""
+    """One radar measurement: an RA map, its timestamp [s], and ground truth when simulated.
+
+    meta: what the source knows besides (free-form). A sequence dataset's frames carry
+    ``frame_in_scene`` (int), the frame's position in its sequence: 0 starts a new one, whose
+    timestamps start again, and :meth:`xnlos_core.pipeline.Pipeline.process` then resets the stages
+    that carry state (tracks, a wall estimator's history)."""
 
     ra_map: RAMap
     timestamp: float = 0.0

@@ -188,3 +188,32 @@ def test_a_larger_limit_redoes_a_sequence_the_smaller_one_cut(seq_dataset, tmp_p
     grown = run_eval(cfg, tmp_path / "b", figures=0, progress=False)["runs"][0]
     assert json.dumps(grown["tracking"], sort_keys=True) == json.dumps(full, sort_keys=True)
     assert sorted(r["position"] for r in read_jsonl(tmp_path / "b" / "run-000" / "frames.jsonl")) == list(range(10))
+
+
+def test_a_run_over_several_sequences_tracks_each_on_its_own(seq_dataset, tmp_path):
+    """`xnlos run` over a split of 2 sequences (timestamps start again at 0 in the second): the
+    pipeline resets its tracker and wall history at the second sequence's first frame, so the run
+    finishes (the tracker refused the decreasing time before) and the second sequence's tracks are
+    those of a pipeline that sees that sequence alone."""
+    from xnlos_core.config import parse_pipeline
+    from xnlos_core.pipeline import Pipeline
+    from xnlos_core.runner import run_to_dir
+
+    table = {"name": "two-sequences", "backend": {"name": "dataset", "params": {"path": str(seq_dataset),
+                                                                               "split": "test"}},
+             "detector": {"name": "oracle"}, "wall_estimator": {"name": "lsq", "params": {"history_frames": 3}},
+             "reconstructor": {"name": "mirror"}, "tracker": {"name": "kalman"},
+             "run": {"frames": 10, "figure": False}}
+    cfg = parse_pipeline(table, str(tmp_path / "two.toml"))
+    run_to_dir(cfg, tmp_path / "run", progress=False)
+    rows = read_jsonl(tmp_path / "run" / "results.jsonl")
+    assert len(rows) == 10
+    pipe = Pipeline(cfg)
+    frames = list(pipe.frames())
+    assert [f.meta["frame_in_scene"] for f in frames] == [0, 1, 2, 3, 4] * 2
+    alone = Pipeline(cfg)
+    tracks = [alone.process(f).tracks for f in frames[5:]]
+    for row, t in zip(rows[5:], tracks):
+        assert row["tracks"]["id"] == t.track_id.tolist()
+        np.testing.assert_allclose(row["tracks"]["position"], t.position.reshape(-1, 2).tolist())
+    assert any(len(t.track_id) for t in tracks), "no track in the second sequence: the test cannot tell"
