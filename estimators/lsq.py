@@ -349,8 +349,8 @@ class LSQWallEstimator(WallEstimator):
         is fitted if it has ≥ 2 points. Raises InsufficientDataError with < 2 LOS points (pooled
         over the frames held) or no usable cluster; this frame's LOS points are held all the same.
         """
-        n = len(detections) if isinstance(detections, Detections) else 0
-        pooled = self.history.pool(detections, "LSQWallEstimator")
+        pooled = self.history.pool(detections, "LSQWallEstimator")  # InputError for anything but Detections
+        n = len(detections)
         idx, pts, cov, chosen = los_clusters(pooled, self.params, "LSQWallEstimator")
         walls, skipped = [], []
         for members in chosen:

@@ -24,7 +24,7 @@ from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
 from .threads import blas_limit
 from .track_record import tracks_record
-from .types import MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
+from .types import FRAME_IN_SCENE, MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
 
 
 @dataclass
@@ -109,9 +109,6 @@ def timed_frames(frames: Iterable[Frame]) -> Iterator[tuple[Frame, float]]:
         except StopIteration:
             return
         yield frame, time.perf_counter() - t0
-
-
-SEQUENCE_FRAME = "frame_in_scene"  # Frame.meta key: the frame's position in its sequence (0: it starts one)
 
 
 class Pipeline:
@@ -247,7 +244,7 @@ class Pipeline:
         track or wall history carries over from the sequence before, and a run over a dataset of
         several sequences tracks each on its own."""
         self.warm_up()
-        if frame.meta.get(SEQUENCE_FRAME) == 0:
+        if frame.meta.get(FRAME_IN_SCENE) == 0:
             self.reset()
         with blas_limit(self.config.run.blas_threads):
             return self._process(frame)

@@ -215,6 +215,9 @@ class GroundTruth(_ReadOnlyArrays):
                            los_object=None if self.los_object is None else self.los_object[keep_l])
 
 
+FRAME_IN_SCENE = "frame_in_scene"  # Frame.meta key: the frame's position in its sequence (0 starts one)
+
+
 @dataclass(frozen=True, eq=False)
 class Frame:
     """One radar measurement: an RA map, its timestamp [s], and ground truth when simulated.

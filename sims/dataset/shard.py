@@ -64,7 +64,7 @@ import numpy as np
 from xnlos_core.errors import XnlosError
 from xnlos_core.io import json_default
 from xnlos_core.radar import RadarConfig
-from xnlos_core.types import Frame, GroundTruth, RAMap, WallSegment
+from xnlos_core.types import FRAME_IN_SCENE, Frame, GroundTruth, RAMap, WallSegment
 
 from .config import DatasetConfig, scene_generators
 from .outlines import outline_meta, scene_objects
@@ -259,7 +259,7 @@ def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Fra
         doppler = (z["ra_velocity"][i], z["ra_velocity_std"][i]) if "ra_velocity" in z else ()
         ra = RAMap(z["ra"][i], z["range_axis"], z["azimuth_axis"], radar, *doppler)
         meta = {**metas[i], "shard": name, "split": split, "scene_index": int(z["scene_index"][i]),
-                "frame_in_scene": int(z["frame"][i]), "scene_seed": int(z["scene_seed"][i]),
+                FRAME_IN_SCENE: int(z["frame"][i]), "scene_seed": int(z["scene_seed"][i]),
                 "noise_seed": int(z["noise_seed"][i]), "family": str(z["family"][i])}
         objects = meta_from_arrays(z, i)
         if objects is not None:
