@@ -38,7 +38,14 @@ the second and third difference of a wandering centroid. When given (NaN marks a
 the smoother adds the row y = ĝᵀv (variance σ_r² from the MAD of successive differences of y); every
 refit stacks λ (ĝ_iᵀ Φ_v(t_i) s − y_i) under the position residuals (Φ_v the velocity rows of the flow,
 λ = σ_p/σ_r [s] from the full candidate's residual RMS of each kind); and the BIC adds the radial
-term m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(2n + m). The covariance stays σ_p² (JᵀJ)⁻¹ of
+term m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(n_eff + m), n_eff = f_p·2n. The m radial
+residuals count in full, not by their own lag-1 autocorrelation: every scatterer of a rigid body shares
+its velocity, so the centroid's wander (which parts reflect) does not enter them, and each frame's
+Doppler noise is its own. Their correlation measures the model's mismatch instead: an exponential
+e^{αt} fitted to a constant deceleration leaves a smooth radial residual of a few 0.1 m/s against the
+oracle's 0.1 m/s noise, and its ρ ≈ 0.8 cut the radial evidence tenfold, so that braking cars stayed
+constant velocity (large val split, braking hidden cars 2 s ahead: 0.75 → 0.64 of CV's error behind
+nlos_cfar, 0.91 → 0.86 behind the oracle; straight ones unchanged). The covariance stays σ_p² (JᵀJ)⁻¹ of
 the weighted Jacobian.
 
 Prediction (``MotionModel.predict``) h ∈ [0, 3] s ahead: every member is integrated exactly (matrix
@@ -357,17 +364,12 @@ def _share(num: float, den: float, count: int) -> float:
     return max((1.0 - rho) / (1.0 + rho), 1.0 / max(count, 1))
 
 
-def _effective_share(resid: np.ndarray, n: int, radial: _Radial | None) -> tuple[float, float]:
-    """(f_p, f_r): the share of independent samples among the position residuals (n, 2) and the radial
-    ones of the richest candidate (module docstring, selection), from their lag-1 autocorrelation
-    (pooled over both axes; radial: over samples of adjacent frames)."""
+def _effective_share(resid: np.ndarray, n: int) -> float:
+    """f_p: the share of independent samples among the richest candidate's position residuals (the
+    first 2n of ``resid``, (n, 2)), from their lag-1 autocorrelation pooled over both axes (module
+    docstring, selection). The radial residuals that may follow count in full (module docstring, Doppler)."""
     pos = resid[:2 * n].reshape(n, 2)
-    f_p = _share(float(np.sum(pos[:-1] * pos[1:])), float(np.sum(pos ** 2)), n)
-    if radial is None:
-        return f_p, 1.0
-    r = resid[2 * n:]
-    adjacent = np.flatnonzero(np.diff(radial.idx) == 1)
-    return f_p, _share(float(np.sum(r[adjacent] * r[adjacent + 1])), float(np.sum(r ** 2)), len(r))
+    return _share(float(np.sum(pos[:-1] * pos[1:])), float(np.sum(pos ** 2)), n)
 
 
 def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.ndarray] | None:
@@ -451,15 +453,15 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     k = np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
     tiny = np.finfo(np.float64).tiny
-    f_p, f_r = _effective_share(cache[(full != 0).tobytes()][5], len(t), rad)
+    f_p = _effective_share(cache[(full != 0).tobytes()][5], len(t))
     if sigma is None:  # Gaussian likelihood with the variance profiled out
         bic = f_p * n2 * np.log(np.maximum(rss, tiny) / n2)
     else:
         bic = f_p * rss / sigma ** 2
     m = 0 if rad is None else len(rad.idx)
     if m:  # the radial velocities' own variance, profiled out likewise
-        bic = bic + f_r * m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
-    bic = bic + k * np.log(f_p * n2 + f_r * m)
+        bic = bic + m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
+    bic = bic + k * np.log(f_p * n2 + m)
     best = int(np.argmin(bic))  # candidates run sparsest-first (CV, then decreasing threshold): ties → sparser
     threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:
