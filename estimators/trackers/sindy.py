@@ -44,6 +44,7 @@ identification needs distinct sample times — where ``kalman`` takes it as a se
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -74,6 +75,10 @@ class SindyParams(KalmanParams):
                                                         "and cheaper to identify")
     identify_doppler: bool = Field(True, description="with use_doppler, the identification fits the track's "
                                                      "radial velocities too (sindy_model, Doppler)")
+    radial_share: Literal["ar1", "full"] = Field("ar1", description="how many independent samples the radial "
+                                                  "residuals count in the identification's evidence: 'ar1' from "
+                                                  "their lag-1 autocorrelation, 'full' all (sindy_model, Doppler: "
+                                                  "'full' finds braking sooner, and turns in wrong-relay Doppler)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
     min_speed: float = Field(0.5, ge=0, le=100, description="speed [m/s] below which a track stays constant "
@@ -234,7 +239,8 @@ class SindyTracker(KalmanTracker):
             doppler = {"direction": np.array([h[3] for h in tr.history]), "radial": np.array([h[4] for h in tr.history])}
         tr.fitted_frame = self._frame
         try:
-            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id, **doppler)
+            model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id,
+                                    radial_share=p.radial_share, **doppler)
         except InsufficientDataError:  # e.g. an axis-aligned noiseless path: nothing to identify
             tr.identified, tr.motion = None, CV
             return

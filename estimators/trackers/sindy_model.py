@@ -38,15 +38,22 @@ the second and third difference of a wandering centroid. When given (NaN marks a
 the smoother adds the row y = ĝᵀv (variance σ_r² from the MAD of successive differences of y); every
 refit stacks λ (ĝ_iᵀ Φ_v(t_i) s − y_i) under the position residuals (Φ_v the velocity rows of the flow,
 λ = σ_p/σ_r [s] from the full candidate's residual RMS of each kind); and the BIC adds the radial
-term m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(n_eff + m), n_eff = f_p·2n. The m radial
-residuals count in full, not by their own lag-1 autocorrelation: every scatterer of a rigid body shares
-its velocity, so the centroid's wander (which parts reflect) does not enter them, and each frame's
-Doppler noise is its own. Their correlation measures the model's mismatch instead: an exponential
-e^{αt} fitted to a constant deceleration leaves a smooth radial residual of a few 0.1 m/s against the
-oracle's 0.1 m/s noise, and its ρ ≈ 0.8 cut the radial evidence tenfold, so that braking cars stayed
-constant velocity (large val split, braking hidden cars 2 s ahead: 0.75 → 0.64 of CV's error behind
-nlos_cfar, 0.91 → 0.86 behind the oracle; straight ones unchanged). The covariance stays σ_p² (JᵀJ)⁻¹ of
-the weighted Jacobian.
+term f_r·m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(f_p·2n + f_r·m). ``radial_share`` says how
+many independent samples the m radial residuals hold:
+* "ar1" (default): f_r = (1 − ρ_r)/(1 + ρ_r) from their own lag-1 autocorrelation, like the positions'.
+  A point mirrored through a wrong or misplaced relay wall gets a wrong ĝ, and its radial residual
+  steps by 0.4–0.9 m/s for as long as that relay holds (train split, oracle detections): counted as
+  independent, such steps pass as turns of straight cars.
+* "full": f_r = 1. The scatterers of a rigid body share its velocity, so the centroid's wander does
+  not enter y, and each frame's Doppler noise is its own; the radial residuals' correlation is then
+  the model's mismatch, e.g. an exponential e^{αt} fitted to a constant deceleration (a smooth
+  residual of a few 0.1 m/s, ρ ≈ 0.8, which under "ar1" cuts the radial evidence about tenfold). It
+  suits scenes where every point's relay wall is right. On the large sequence dataset
+  (configs/ablations/tracking.toml, sindy + Doppler) "full" took braking hidden cars from 0.87 to 0.83
+  of CV's 2 s error behind nlos_cfar and from 0.98 to 0.92 behind the oracle, but the oracle's straight
+  ones from 1.05 to 1.11 (test split; val: braking 0.75 → 0.64 and 0.91 → 0.86, straight unchanged).
+
+The covariance stays σ_p² (JᵀJ)⁻¹ of the weighted Jacobian.
 
 Prediction (``MotionModel.predict``) h ∈ [0, 3] s ahead: every member is integrated exactly (matrix
 exponential of the affine system); the predictive distribution is the mixture over members of
@@ -364,12 +371,21 @@ def _share(num: float, den: float, count: int) -> float:
     return max((1.0 - rho) / (1.0 + rho), 1.0 / max(count, 1))
 
 
-def _effective_share(resid: np.ndarray, n: int) -> float:
-    """f_p: the share of independent samples among the richest candidate's position residuals (the
-    first 2n of ``resid``, (n, 2)), from their lag-1 autocorrelation pooled over both axes (module
-    docstring, selection). The radial residuals that may follow count in full (module docstring, Doppler)."""
+RADIAL_SHARES = ("ar1", "full")
+
+
+def _effective_share(resid: np.ndarray, n: int, radial: _Radial | None, radial_share: str = "ar1") -> tuple[float, float]:
+    """(f_p, f_r): the share of independent samples among the richest candidate's position residuals
+    (the first 2n of ``resid``, (n, 2)) and its radial ones (module docstring, selection and Doppler),
+    from their lag-1 autocorrelation (pooled over both axes; radial: over samples of adjacent frames);
+    f_r = 1 without Doppler or with ``radial_share`` "full"."""
     pos = resid[:2 * n].reshape(n, 2)
-    return _share(float(np.sum(pos[:-1] * pos[1:])), float(np.sum(pos ** 2)), n)
+    f_p = _share(float(np.sum(pos[:-1] * pos[1:])), float(np.sum(pos ** 2)), n)
+    if radial is None or radial_share == "full":
+        return f_p, 1.0
+    r = resid[2 * n:]
+    adjacent = np.flatnonzero(np.diff(radial.idx) == 1)
+    return f_p, _share(float(np.sum(r[adjacent] * r[adjacent + 1])), float(np.sum(r ** 2)), len(r))
 
 
 def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.ndarray] | None:
@@ -402,7 +418,7 @@ def _radial_sigma(y: np.ndarray) -> float:
 
 
 def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial=None, n_models: int = 20,
-                    jerk_psd: float = 1.0, seed: int = 0) -> MotionModel:
+                    jerk_psd: float = 1.0, seed: int = 0, radial_share: str = "ar1") -> MotionModel:
     """Identify one track's motion model from samples t (n,) [s] (increasing) and xy (n, 2) [m].
 
     sigma [m]: per-axis measurement standard deviation; None profiles it out of the selection and
@@ -410,6 +426,8 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     direction (n, 2), radial (n,) [m/s]: optional Doppler samples y_i = ĝ_iᵀ v(t_i) (NaN: sample i
     has none); they enter the smoother, the refits and the selection (module docstring, Doppler).
     seed: the bagging draws (numpy.random.default_rng(seed); numpy's global RNG is never touched).
+    radial_share: "ar1" or "full", how many independent samples the radial residuals count (module
+    docstring, Doppler).
     """
     t = as_array("identify_motion: t", t, ndim=1)
     z = as_array("identify_motion: xy", xy, shape=(len(t), 2))
@@ -417,6 +435,8 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
         raise InsufficientDataError(f"identify_motion: need ≥ {MIN_SAMPLES} samples, got {len(t)}")
     if np.any(np.diff(t) <= 0):
         raise InputError("identify_motion: t must be strictly increasing [s]")
+    if radial_share not in RADIAL_SHARES:
+        raise InputError(f"identify_motion: radial_share must be one of {RADIAL_SHARES}, got {radial_share!r}")
     if sigma is not None and not (np.isfinite(sigma) and sigma > 0):
         raise InputError(f"identify_motion: sigma must be a positive standard deviation [m], got {sigma}")
     doppler = _doppler_samples(t, direction, radial)
@@ -453,15 +473,15 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     k = np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
     tiny = np.finfo(np.float64).tiny
-    f_p = _effective_share(cache[(full != 0).tobytes()][5], len(t))
+    f_p, f_r = _effective_share(cache[(full != 0).tobytes()][5], len(t), rad, radial_share)
     if sigma is None:  # Gaussian likelihood with the variance profiled out
         bic = f_p * n2 * np.log(np.maximum(rss, tiny) / n2)
     else:
         bic = f_p * rss / sigma ** 2
     m = 0 if rad is None else len(rad.idx)
     if m:  # the radial velocities' own variance, profiled out likewise
-        bic = bic + m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
-    bic = bic + k * np.log(f_p * n2 + m)
+        bic = bic + f_r * m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
+    bic = bic + k * np.log(f_p * n2 + f_r * m)
     best = int(np.argmin(bic))  # candidates run sparsest-first (CV, then decreasing threshold): ties → sparser
     threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:

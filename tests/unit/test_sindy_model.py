@@ -211,9 +211,9 @@ def test_effective_share_of_ar1_residuals_closed_form():
 
     rng = np.random.default_rng(0)
     n = 20_000
-    f_p = _effective_share(wander(n, rng, rho=0.8).ravel(), n)
-    assert f_p == pytest.approx((1 - 0.8) / (1 + 0.8), rel=0.1)
-    f_white = _effective_share(rng.standard_normal(2 * n), n)
+    f_p, f_r = _effective_share(wander(n, rng, rho=0.8).ravel(), n, None)
+    assert f_p == pytest.approx((1 - 0.8) / (1 + 0.8), rel=0.1) and f_r == 1.0
+    f_white, _ = _effective_share(rng.standard_normal(2 * n), n, None)
     assert f_white == pytest.approx(1.0, abs=0.03)
 
 
@@ -234,15 +234,25 @@ def test_precise_radial_velocities_of_a_braking_car_count_in_full():
     # 1.4 s of a car braking at 2.5 m/s² from 6 m/s (a/v from −0.42 to −1.4 1/s), its centroid
     # wandering (AR(1), 0.7 m), radial velocities within 0.05 m/s: the exponential e^{αt} misses the
     # constant deceleration by a smooth radial residual whose lag-1 correlation (≈ 0.8) is the model's
-    # mismatch, not the noise's. Weighted by that correlation, the radial evidence fell tenfold and the
-    # car stayed constant velocity (evidence < 30 on these seeds); counted in full it is braking.
+    # mismatch, not the noise's. radial_share "ar1" takes that correlation for correlated noise, and the
+    # car stays constant velocity (evidence < 30, the ablation's min_evidence) on 2 of these 6 seeds;
+    # "full" counts every radial sample and finds the braking on all.
     t = T[:15]
     pos, vel = braking(t, v0=6.0)
     g, y = radial(pos, vel)
+    u = vel[-1] / np.linalg.norm(vel[-1])
+    below = 0
     for seed in range(6):
         rng = np.random.default_rng(seed)
         z = pos + wander(len(t), rng) + 0.1 * rng.standard_normal(pos.shape)
-        model = identify_motion(t, z, None, direction=g, radial=y + 0.05 * rng.standard_normal(len(t)),
-                                n_models=5, seed=seed)
-        u = vel[-1] / np.linalg.norm(vel[-1])
-        assert model.evidence > 30 and u @ model.coefficients @ u < -0.2, (seed, model.evidence, model.terms())
+        yn = y + 0.05 * rng.standard_normal(len(t))
+        full = identify_motion(t, z, None, direction=g, radial=yn, n_models=5, seed=seed, radial_share="full")
+        assert full.evidence > 30 and u @ full.coefficients @ u < -0.2, (seed, full.evidence, full.terms())
+        ar1 = identify_motion(t, z, None, direction=g, radial=yn, n_models=5, seed=seed)
+        below += ar1.evidence < 30
+    assert below >= 2
+
+
+def test_radial_share_must_be_named():
+    with pytest.raises(InputError, match="radial_share"):
+        identify_motion(T, turn(T, 0.0, 5.0), 0.1, radial_share="none")
