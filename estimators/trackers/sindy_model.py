@@ -42,8 +42,8 @@ term f_r·m ln(RSS_r/m) (σ_r profiled out like σ_p) with k ln(f_p·2n + f_r·m
 many independent samples the m radial residuals hold:
 * "ar1" (default): f_r = (1 − ρ_r)/(1 + ρ_r) from their own lag-1 autocorrelation, like the positions'.
   A point mirrored through a wrong or misplaced relay wall gets a wrong ĝ, and its radial residual
-  steps by 0.4–0.9 m/s for as long as that relay holds (train split, oracle detections): counted as
-  independent, such steps pass as turns of straight cars.
+  steps by up to 1–1.7 m/s for as long as that relay holds (``benchmarks/identifications.md``, oracle
+  detections): counted as independent, such steps pass as turns of straight cars.
 * "full": f_r = 1. The scatterers of a rigid body share its velocity, so the centroid's wander does
   not enter y, and each frame's Doppler noise is its own; the radial residuals' correlation is then
   the model's mismatch, e.g. an exponential e^{αt} fitted to a constant deceleration (a smooth
