@@ -19,10 +19,12 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
    tracks). Otherwise, and until the first fit, the track stays CV: it then behaves exactly as
    ``kalman``.
-4. Invariant form. SINDy's library is the rotation-invariant (v, Jv) (sindy_model), so every
-   identified Ξ is αI + ωJ: a tangential acceleration per speed α [1/s] (braking < 0) and a turn rate ω
-   [rad/s] — a car that turns keeps turning at ω, one that brakes keeps slowing by e^{αh}, whatever the
-   road's direction. The forecast clips α to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no
+4. Invariant form. SINDy's library is the rotation-invariant (v̂, Jv) (sindy_model): a tangential
+   acceleration β [m/s²] (braking < 0) and a turn rate ω [rad/s], whatever the road's direction. The
+   filter and the forecast take it at the track's speed s as Ξ = αI + ωJ, α = β/s [1/s] — a car that
+   turns keeps turning at ω, one that brakes slows by e^{αh} from its current deceleration on (each
+   identification, every ``refit_every`` frames, takes α afresh at the track's speed). The forecast
+   clips α to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no
    exponential blow-up from a track that is nearly at rest, where Ξ is unconstrained); below
    ``min_speed`` the track stays CV.
 5. With a model, the track's filter predicts with Φ(Δt) = expm(A(Ξ)Δt) (:mod:`estimators.trackers.forecast`)
@@ -55,7 +57,8 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
 from estimators.state import StateReader
-from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, generator_coefficients, identify_motion
+from .sindy_model import (GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, generator_coefficients, identify_motion,
+                          instantaneous_xi)
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
@@ -123,19 +126,23 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     if not terms or model.evidence < p.min_evidence or np.linalg.norm(v) < max(p.min_speed, 1e-9):
         return CV
     rng = np.random.default_rng(seed)
-    members = np.zeros((len(model.fits), len(GENERATORS)))  # (α, ω) of each member
+    members = np.zeros((len(model.fits), len(GENERATORS)))  # (β, ω) of each member
     for m, (mask, theta, cov) in enumerate(model.fits):
         if mask.any():
             lam, vec = np.linalg.eigh(cov[4:, 4:])  # a pseudo-inverse covariance: PSD, maybe singular
             members[m, mask] = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
-    return fc.LinearMotion(bounded(generator_coefficients(model.coefficients), p.max_growth),
-                           bounded(members, p.max_growth), " ".join(terms))
+    speed = float(np.linalg.norm(v))
+    return fc.LinearMotion(bounded(generator_coefficients(instantaneous_xi(model.rates, speed)), p.max_growth),
+                           bounded(generator_coefficients(instantaneous_xi(members, speed)), p.max_growth),
+                           " ".join(terms))
 
 
 def _legacy(identified) -> bool:
-    """Whether a checkpoint's identified model is of the world-frame library (support masks (2, 2)),
-    from before the rotation-invariant one: it is dropped on load (the track keeps its forecast model,
-    and is identified afresh at its next refit)."""
+    """Whether a checkpoint's identified model comes from an earlier library — the world-frame one
+    (support masks (2, 2)) or the exponential speed change dv/dt = αv (no ``rates``): it is dropped on
+    load (the track keeps its forecast model, and is identified afresh at its next refit)."""
+    if isinstance(identified, dict) and "rates" not in identified:
+        return True
     fits = identified.get("fits") if isinstance(identified, dict) else None
     mask = fits[0].get("mask") if isinstance(fits, list) and fits and isinstance(fits[0], dict) else None
     return isinstance(mask, list) and len(mask) == 2 and all(isinstance(row, list) and len(row) == 2 for row in mask)
@@ -168,7 +175,7 @@ class SindyTracker(KalmanTracker):
                                  "fits": [{"mask": mask.tolist(), "theta": theta.tolist(), "cov": cov.tolist()}
                                           for mask, theta, cov in ident.fits],
                                  "t_last": float(ident.t_last), "sigma": float(ident.sigma),
-                                 "evidence": float(ident.evidence)}
+                                 "evidence": float(ident.evidence), "rates": ident.rates.tolist()}
         return out
 
     def _track_from(self, r: StateReader) -> _SindyTrack:
@@ -193,7 +200,8 @@ class SindyTracker(KalmanTracker):
                 theta = e.array("theta", (4 + int(mask.sum()),))
                 fits.append((mask, theta, e.array("cov", (len(theta), len(theta)))))
             identified = MotionModel(d.array("coefficients", (2, 2)), d.array("ensemble", (None, 2, 2)), tuple(fits),
-                                     d.number("t_last"), d.number("sigma"), d.number("evidence"))
+                                     d.number("t_last"), d.number("sigma"), d.number("evidence"),
+                                     d.array("rates", (len(GENERATORS),)))
         return _SindyTrack(base.id, base.x, base.P, base.t, base.frames, base.hits, base.misses, base.confirmed,
                            history=history, motion=motion, fitted_frame=r.integer("fitted_frame", -1),
                            identified=identified)

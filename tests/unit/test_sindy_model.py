@@ -80,31 +80,73 @@ def test_noiseless_constant_turn_coefficients_within_1e3():
     assert model.evidence > 100
 
 
-def test_flow_jacobian_matches_finite_differences_and_expm():
-    # The refit's exact Jacobian (one augmented exponential, Van Loan) against central differences of
-    # positions computed by scipy's expm per time — on the integer grid (repeated products) and off it.
-    for mask, theta in ((np.array([True, True]), np.array([1.0, -2.0, 8.0, 3.0, -0.2, 0.3])),
-                        (np.array([False, True]), np.array([1.0, -2.0, 8.0, 3.0, -0.35]))):
+def test_flow_jacobian_matches_finite_differences_and_the_ode():
+    # Positions of the linear 6-state flow against scipy's ODE solver on the model's own definition,
+    # dv/dt = β v/|v| + ωJv, and the refit's exact Jacobian (one augmented exponential, Van Loan)
+    # against central differences — on the integer grid (repeated products), off it, and forward.
+    for mask, theta in ((np.array([True, True]), np.array([1.0, -2.0, 8.0, 3.0, -1.5, 0.3])),
+                        (np.array([False, True]), np.array([1.0, -2.0, 8.0, 3.0, -0.35])),
+                        (np.array([True, False]), np.array([1.0, -2.0, 8.0, 3.0, 2.0]))):
         _check_flow(mask, theta)
 
 
+def _ode_positions(theta, mask, dts):
+    """Positions (K, 2) at dts of dp/dt = v, dv/dt = β v/|v| + ωJv from (p, v) = θ[:4] (solve_ivp)."""
+    from scipy.integrate import solve_ivp
+
+    coef = np.zeros(2)
+    coef[mask] = theta[4:]
+    beta, omega = coef
+
+    def f(_, x):
+        v = x[2:]
+        return np.r_[v, beta * v / np.linalg.norm(v) + omega * np.array([-v[1], v[0]])]
+
+    out = []
+    for d in dts:
+        if d == 0:
+            out.append(theta[:2])
+            continue
+        sol = solve_ivp(f, (0.0, d), theta[:4], rtol=1e-12, atol=1e-12)
+        out.append(sol.y[:2, -1])
+    return np.array(out)
+
+
 def _check_flow(mask, theta):
-    """Positions and their Jacobian under the support ``mask`` (2,) over (α, ω) against expm per time."""
-    from scipy.linalg import expm
-
-    from estimators.trackers.sindy_model import _jacobian, _positions, _system
-
-    def direct(th, dts):
-        coef = np.zeros(2)
-        coef[mask] = th[4:]
-        x = coef[0] * np.eye(2) + coef[1] * np.array([[0.0, -1.0], [1.0, 0.0]])   # Ξ = αI + ωJ
-        return np.array([expm(_system(x) * d)[:2] @ th[:4] for d in dts])
+    """Positions and their Jacobian under the support ``mask`` (2,) over (β, ω)."""
+    from estimators.trackers.sindy_model import _jacobian, _positions
 
     for dts in (-0.1 * np.array([29, 20, 7, 3, 0]), np.array([0.37, 1.0, 2.9])):
-        assert np.allclose(_positions(theta, mask, dts), direct(theta, dts), atol=1e-10)
-        fd = np.stack([(direct(theta + e, dts) - direct(theta - e, dts)).ravel() / 2e-6
+        assert np.allclose(_positions(theta, mask, dts), _ode_positions(theta, mask, dts), atol=1e-8)
+        fd = np.stack([(_positions(theta + e, mask, dts) - _positions(theta - e, mask, dts)).ravel() / 2e-6
                        for e in 1e-6 * np.eye(len(theta))], axis=1)
         assert np.allclose(_jacobian(theta, mask, dts), fd, atol=1e-6)
+
+
+def test_a_braking_forecast_stops_where_the_car_stops():
+    # β = −2.5 m/s² from 5 m/s: the car stops after 2 s, 5 m on; a forecast further ahead stays there.
+    from estimators.trackers.sindy_model import _positions
+
+    theta, mask = np.array([0.0, 0.0, 3.0, 4.0, -2.5]), np.array([True, False])
+    pos = _positions(theta, mask, np.array([1.0, 2.0, 3.0]))
+    assert np.allclose(pos, [[3.0 * 0.75, 4.0 * 0.75], [3.0, 4.0], [3.0, 4.0]], atol=1e-9)
+
+
+def test_noiseless_constant_deceleration_within_1e3():
+    # A car braking at 2.5 m/s² from 9 m/s (constant deceleration, the scene generators' braking):
+    # the tangential acceleration β is identified exactly, from positions alone and with radial velocities.
+    t = T[:30]
+    pos, vel = braking(t)
+    g, y = radial(pos, vel)
+    for kw in ({}, {"direction": g, "radial": y}):
+        model = identify_motion(t, pos, 1e-3, n_models=5, **kw)
+        assert model.terms() == ["vx'=vx", "vy'=vy"]
+        assert np.allclose(model.rates, [-2.5, 0.0], atol=1e-3)
+        speed = np.linalg.norm(vel[-1])
+        assert np.allclose(model.coefficients, -2.5 / speed * np.eye(2), atol=1e-3)  # α = β/|v| at t_last
+        pred = model.predict([1.0, 3.0])
+        stop = pos[0] + 9.0 ** 2 / 5.0 * vel[0] / 9.0                               # v₀²/(2|β|) along the path
+        assert np.linalg.norm(pred.mean[1] - stop) < 1e-2
 
 
 # --- Doppler samples in the identification ------------------------------------------------------
@@ -136,9 +178,10 @@ def test_radial_velocities_reveal_braking_that_noisy_positions_hide():
         plain = identify_motion(t, z, None, n_models=5, seed=seed)
         with_doppler = identify_motion(t, z, None, direction=g, radial=yn, n_models=5, seed=seed)
         assert with_doppler.evidence > 30, with_doppler.evidence          # braking, and very strongly so
+        assert -3.5 < with_doppler.rates[0] < -1.5, with_doppler.rates    # β: the deceleration [m/s²]
         u = vel[-1] / np.linalg.norm(vel[-1])
         alpha = u @ with_doppler.coefficients @ u                          # dv/dt = α v along the path [1/s]
-        assert -0.8 < alpha < -0.15, alpha   # a/v runs from −0.28 to −1.4 1/s over the window
+        assert -2.0 < alpha < -1.0, alpha   # a/v at the window's end: −1.43 1/s
         better += with_doppler.evidence > plain.evidence
     assert better == 6
 
@@ -180,10 +223,10 @@ def test_doppler_input_errors():
 
 
 def test_refit_design_matches_finite_differences_of_the_residuals():
-    from estimators.trackers.sindy_model import _Radial, _design, _flow, _residuals, _xi
+    from estimators.trackers.sindy_model import _Radial, _design, _flow, _initial, _rates, _residuals
 
     mask = np.array([True, True])
-    theta = np.array([1.0, -2.0, 8.0, 3.0, -0.2, 0.3])
+    theta = np.array([1.0, -2.0, 8.0, 3.0, -1.2, 0.3])
     dts = -0.1 * np.arange(12)[::-1]
     rng = np.random.default_rng(0)
     g = rng.standard_normal((5, 2))
@@ -191,10 +234,10 @@ def test_refit_design_matches_finite_differences_of_the_residuals():
     z = rng.standard_normal((12, 2))
 
     def res(th):
-        return _residuals(_flow(_xi(th, mask), mask, dts, derivatives=False, rows=4)[0], th, z, rad)
+        return _residuals(_flow(_rates(th, mask)[1], False, dts, rows=4)[0], _initial(th, mask), z, rad)
 
     fd = np.stack([(res(theta + e) - res(theta - e)) / 2e-6 for e in 1e-6 * np.eye(len(theta))], axis=1)
-    assert np.allclose(_design(*_flow(_xi(theta, mask), mask, dts, rows=4), theta, rad), fd, atol=1e-6)
+    assert np.allclose(_design(*_flow(0.3, True, dts, rows=4), theta, mask, rad), fd, atol=1e-6)
 
 
 def wander(n, rng, rho=0.9, sd=0.7):

@@ -144,6 +144,17 @@ def test_a_world_frame_identification_of_an_older_checkpoint_is_dropped_not_misr
     assert loaded["identified"] is None and loaded["motion"] == state["tracks"][i]["motion"]
 
 
+def test_an_exponential_identification_of_an_older_checkpoint_is_dropped_not_misread(sindy_state):
+    # Before the constant-acceleration library a fit's θ[4] was the exponential rate α [1/s], not β
+    # [m/s²], and the identified model had no "rates": it loads as "not identified", the forecast kept.
+    tr, state = SindyTracker(PARAMS["sindy"]), json.loads(json.dumps(sindy_state))
+    i = next(i for i, t in enumerate(state["tracks"]) if t["identified"] is not None)
+    del state["tracks"][i]["identified"]["rates"]
+    tr.load_state(state)
+    loaded = tr.state()["tracks"][i]
+    assert loaded["identified"] is None and loaded["motion"] == state["tracks"][i]["motion"]
+
+
 def test_a_tracker_without_a_checkpoint_says_so():
     class Plain(Tracker):
         def update(self, points, timestamp):
