@@ -21,10 +21,11 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    ``kalman``.
 4. Invariant form. SINDy's library is the rotation-invariant (v̂, Jv) (sindy_model): a tangential
    acceleration β [m/s²] (braking < 0) and a turn rate ω [rad/s], whatever the road's direction. The
-   filter and the forecast take it at the track's speed s as Ξ = αI + ωJ, α = β/s [1/s] — a car that
-   turns keeps turning at ω, one that brakes slows by e^{αh} from its current deceleration on (each
-   identification, every ``refit_every`` frames, takes α afresh at the track's speed). The forecast
-   clips α to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no
+   filter and the forecast, linear in (p, v), take it at the track's speed s as Ξ = αI + ωJ with the α
+   whose exponential speed change covers the same distance in ``MATCH_HORIZON`` (2 s) as β does, a stop
+   included (:func:`matched_alpha`; β/s, the same acceleration at this instant, would overshoot a
+   speed-up and undershoot a braking). Each identification, every ``refit_every`` frames, takes α afresh
+   at the track's speed. The forecast clips α to [−``XI_MAX``, ``max_growth``] and ω to ±``XI_MAX`` (no
    exponential blow-up from a track that is nearly at rest, where Ξ is unconstrained); below
    ``min_speed`` the track stays CV.
 5. With a model, the track's filter predicts with Φ(Δt) = expm(A(Ξ)Δt) (:mod:`estimators.trackers.forecast`)
@@ -57,8 +58,7 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
 from .measurements import Measurements
 from estimators.state import StateReader
-from .sindy_model import (GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, generator_coefficients, identify_motion,
-                          instantaneous_xi)
+from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
@@ -118,6 +118,38 @@ def bounded(coef, max_growth: float) -> np.ndarray:
     return alpha[..., None, None] * GENERATORS[0] + omega[..., None, None] * GENERATORS[1]
 
 
+MATCH_HORIZON = 2.0  # [s] the horizon at which the linear form's path matches the identified one
+
+
+def matched_alpha(beta, speed: float, horizon: float = MATCH_HORIZON) -> np.ndarray:
+    """α [1/s] (…) of the exponential speed change dv/dt = αv that covers, from ``speed`` [m/s], the
+    distance the constant tangential acceleration ``beta`` [m/s²] (…) covers in ``horizon`` [s]:
+    s(e^{αH} − 1)/α = sH + βH²/2, or s²/(2|β|) when the car stops before H (module docstring, 4).
+
+    The filter and forecast are linear in (p, v), so an identified β enters them as α; β/s (the same
+    acceleration at this instant) overshoots a speed-up (exponential growth against linear) and
+    undershoots a braking (an exponential never stops) — by a factor e/2 in speed over 2 s at
+    αH = 1. Matched, the 2 s forecast of a straight path follows the identified model exactly; α is
+    kept within ±XI_MAX."""
+    from scipy.optimize import brentq
+
+    b = np.asarray(beta, dtype=np.float64)
+    out = np.zeros(b.shape)
+    s = max(float(speed), 1e-9)
+    for idx, bi in np.ndenumerate(b):
+        if bi == 0.0:
+            continue
+        dist = s * horizon + bi * horizon ** 2 / 2 if bi > 0 or s + bi * horizon > 0 else s ** 2 / (2 * -bi)
+        ratio = dist / (s * horizon)                                        # (e^x − 1)/x with x = αH
+
+        def f(x, r=ratio):
+            return np.expm1(x) / x - r if x != 0 else 1.0 - r
+
+        lo, hi = -XI_MAX * horizon, XI_MAX * horizon
+        out[idx] = (lo if f(lo) > 0 else hi if f(hi) < 0 else brentq(f, lo, hi, xtol=1e-10)) / horizon
+    return out
+
+
 def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotion:
     """The forecast model of an identification at the track's velocity v (2,) [m/s] (module docstring,
     3–5): CV unless supported."""
@@ -132,9 +164,9 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
             lam, vec = np.linalg.eigh(cov[4:, 4:])  # a pseudo-inverse covariance: PSD, maybe singular
             members[m, mask] = theta[4:] + vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(lam)))
     speed = float(np.linalg.norm(v))
-    return fc.LinearMotion(bounded(generator_coefficients(instantaneous_xi(model.rates, speed)), p.max_growth),
-                           bounded(generator_coefficients(instantaneous_xi(members, speed)), p.max_growth),
-                           " ".join(terms))
+    point = np.r_[matched_alpha(model.rates[0], speed), model.rates[1]]
+    members[:, 0] = matched_alpha(members[:, 0], speed)
+    return fc.LinearMotion(bounded(point, p.max_growth), bounded(members, p.max_growth), " ".join(terms))
 
 
 def _legacy(identified) -> bool:

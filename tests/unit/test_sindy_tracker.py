@@ -197,3 +197,20 @@ def test_defaults_follow_braking_cars_early():
                 early += 1
                 break
     assert early >= 6, early
+
+
+def test_matched_alpha_covers_the_identified_distance_in_2s():
+    # The linear form e^{αh} of a constant tangential acceleration β: the 2 s position of a straight
+    # path matches s·2 + β·2²/2 (or the stop at s²/(2|β|)); β/s would overshoot a speed-up, undershoot
+    # a braking.
+    from estimators.trackers.forecast import LinearMotion
+    from estimators.trackers.sindy import MATCH_HORIZON, matched_alpha
+
+    assert MATCH_HORIZON == 2.0
+    for beta, speed, dist in ((2.0, 4.0, 12.0), (-1.5, 6.0, 9.0), (-2.5, 4.0, 3.2), (0.0, 5.0, 10.0)):
+        alpha = float(matched_alpha(beta, speed))
+        x = LinearMotion(alpha * np.eye(2)).transition(2.0) @ np.r_[0.0, 0.0, speed, 0.0]
+        assert x[0] == pytest.approx(dist, rel=1e-8) and x[1] == 0.0, (beta, speed, alpha, x)
+        if beta:
+            assert alpha < beta / speed      # below the instantaneous β/s: less speed-up, more braking
+    assert matched_alpha(np.array([[2.0, 0.0], [-1.5, 2.0]]), 4.0).shape == (2, 2)
