@@ -17,9 +17,10 @@ spoiled turn identification.
 
 Linear form. With a = β v̂ carried as a state, d(p, v, a)/dt = (v, ωJv + a, ωJa) is linear (a turns with
 v, so |v| changes by β per second): the positions are Φ(t) (p₀, v₀, β v̂₀) with Φ = expm(A(ω) t) (6, 6),
-exact, and their derivatives with respect to ω come from one augmented exponential (Van Loan). The
-tracker's filter and forecast take the model at the track's speed s as Ξ = αI + ωJ with α = β/s
-(:func:`instantaneous_xi`, ``MotionModel.coefficients``): the same acceleration at that instant.
+exact, and their derivatives with respect to ω come from one augmented exponential (Van Loan).
+``MotionModel.coefficients`` states the model at ``t_last`` as Ξ = αI + ωJ with α = β/|v| (the same
+acceleration at that instant, :func:`instantaneous_xi`); the tracker's filter and forecast, linear in
+(p, v), take the α that matches β's distance over 2 s instead (:func:`estimators.trackers.sindy.matched_alpha`).
 
 Identification (``identify_motion``):
 1. Velocities and accelerations from a Rauch–Tung–Striebel (RTS) smoother of a white-jerk
