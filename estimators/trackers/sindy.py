@@ -60,7 +60,7 @@ from .measurements import Measurements
 from estimators.state import StateReader
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
-MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
+MODEL_ACCEL_PSD = 3.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
 
 

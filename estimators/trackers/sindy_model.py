@@ -63,7 +63,8 @@ many independent samples the m radial residuals hold:
   about tenfold). It suits scenes where every point's relay wall is right. On the large val split
   (configs/ablations/tracking.toml, sindy + Doppler) "full" takes braking hidden cars from 0.71 to
   0.57 of CV's 2 s error behind nlos_cfar and from 0.89 to 0.82 behind the oracle, but the oracle's
-  straight cyclists from 1.04 to 1.20 (with the exponential library, on the test split, straight
+  straight cyclists from 1.04 to 1.20 (measured with the forecast's α = β/s; with the exponential
+  library, on the test split, straight
   cars 1.05 → 1.11: ``benchmarks/tracking_ablation.md``, session 8).
 
 The covariance stays σ_p² (JᵀJ)⁻¹ of the weighted Jacobian.
