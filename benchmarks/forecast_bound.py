@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracking_case import case_parser
+from tracking_case import case_parser, family_sequences
 
 from estimators.trackers.sindy_model import GENERATORS, _positions
 
@@ -46,17 +46,11 @@ def run(config: str, case: int, dataset: str, split: str):
     """[(case name, per sequence: [frame dicts])] of the hidden-car sequences of the split."""
     from xnlos_core.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
-    from xnlos_core.sequence_eval import sequences
 
     r = plan_runs(config, dataset=dataset, split=split)[case]
     pipe = Pipeline(r["config"], source=r["source"])
-    backend = pipe.stages["backend"]
-    backend.open(pipe.radar)
     tracker = pipe.stages["tracker"]
-    seqs = []
-    for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-        pipe.reset()  # the tracks and a wall estimator's history
-        seqs.append([_record(f, pipe.process(f), tracker) for _, f in group])
+    seqs = [[_record(f, pipe.process(f), tracker) for f in frames] for frames in family_sequences(pipe, FAMILY)]
     return r["name"], seqs, r["config"].run.match_radius, _thresholds(tracker)
 
 

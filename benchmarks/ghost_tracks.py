@@ -17,7 +17,7 @@ from collections import Counter
 
 import numpy as np
 
-from tracking_case import case_parser
+from tracking_case import case_parser, family_sequences
 
 FAMILY = "hidden_car_approach"
 DISTANCES = ((2.0, "< 2 m"), (4.0, "2–4 m"), (10.0, "4–10 m"), (np.inf, "≥ 10 m"))
@@ -32,7 +32,6 @@ def count(config: str, case: int, dataset: str, split: str, history: int | None)
     """(case name, lsq's history_frames, Counter {(distance bin, speed bin): track frames})."""
     from xnlos_core.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
-    from xnlos_core.sequence_eval import sequences
 
     r = plan_runs(config, dataset=dataset, split=split)[case]
     cfg = r["config"]
@@ -40,20 +39,14 @@ def count(config: str, case: int, dataset: str, split: str, history: int | None)
         cfg.wall_estimator.params["history_frames"] = history
     pipe = Pipeline(cfg, source=r["source"])
     frames = pipe.stages["wall_estimator"].get_params().get("history_frames", 1)
-    backend = pipe.stages["backend"]
-    backend.open(pipe.radar)
     out: Counter = Counter()
-    try:
-        for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-            pipe.reset()
-            for _, frame in group:
-                tracks = pipe.process(frame).tracks
-                cars = np.asarray(frame.meta["object_truth"]["position"], dtype=np.float64).reshape(-1, 2)
-                for p, v in zip(tracks.position, tracks.velocity):
-                    d = float(np.min(np.linalg.norm(cars - p, axis=1))) if len(cars) else np.inf
-                    out[_bin(d, DISTANCES), _bin(float(np.linalg.norm(v)), SPEEDS)] += 1
-    finally:
-        backend.close()
+    for seq in family_sequences(pipe, FAMILY):
+        for frame in seq:
+            tracks = pipe.process(frame).tracks
+            cars = np.asarray(frame.meta["object_truth"]["position"], dtype=np.float64).reshape(-1, 2)
+            for p, v in zip(tracks.position, tracks.velocity):
+                d = float(np.min(np.linalg.norm(cars - p, axis=1))) if len(cars) else np.inf
+                out[_bin(d, DISTANCES), _bin(float(np.linalg.norm(v)), SPEEDS)] += 1
     return r["name"], frames, out
 
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracking_case import case_parser
+from tracking_case import case_parser, family_sequences
 
 from estimators.trackers.sindy_model import identify_motion
 
@@ -70,7 +70,6 @@ def collect(config: str, case: int, dataset: str, split: str, radius: float) -> 
     """(case name, min_evidence, [(kind, speed, true a/v, {share: (evidence, α)}, window, v_true)])."""
     from xnlos_core.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
-    from xnlos_core.sequence_eval import sequences
 
     r = plan_runs(config, dataset=dataset, split=split)[case]
     pipe = Pipeline(r["config"], source=r["source"])
@@ -78,31 +77,24 @@ def collect(config: str, case: int, dataset: str, split: str, radius: float) -> 
     p = tracker.params
     if not (hasattr(p, "min_evidence") and getattr(p, "use_doppler", False)):
         raise SystemExit(f"case {case} ({r['name']}) is not a sindy tracker with Doppler")
-    backend = pipe.stages["backend"]
-    backend.open(pipe.radar)
     rows = []
-    try:
-        for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-            pipe.reset()
-            frames = [f for _, f in group]
-            for k, frame in enumerate(frames):
-                pipe.process(frame)
-                for t, z, g, y in _windows(tracker):
-                    truth = _truth(frame, frames[k - 1] if k else None, frames[k + 1] if k + 1 < len(frames) else None,
-                                   z[-1], radius)
-                    if truth is None or np.linalg.norm(truth[2]) < 1.0:
-                        continue
-                    kind, _, v, a = truth
-                    fits = {}
-                    for share in SHARES:
-                        m = identify_motion(t, z, None, direction=g, radial=y, n_models=p.n_models, seed=p.seed,
-                                            radial_share=share)
-                        u = v / np.linalg.norm(v)
-                        fits[share] = (m.evidence, float(u @ m.coefficients @ u))
-                    true_alpha = None if a is None else float(a @ v / (v @ v))
-                    rows.append((kind, float(np.linalg.norm(v)), true_alpha, fits, (t, z, g, y), v))
-    finally:
-        backend.close()
+    for frames in family_sequences(pipe, FAMILY):
+        for k, frame in enumerate(frames):
+            pipe.process(frame)
+            for t, z, g, y in _windows(tracker):
+                truth = _truth(frame, frames[k - 1] if k else None, frames[k + 1] if k + 1 < len(frames) else None,
+                               z[-1], radius)
+                if truth is None or np.linalg.norm(truth[2]) < 1.0:
+                    continue
+                kind, _, v, a = truth
+                fits = {}
+                for share in SHARES:
+                    m = identify_motion(t, z, None, direction=g, radial=y, n_models=p.n_models, seed=p.seed,
+                                        radial_share=share)
+                    u = v / np.linalg.norm(v)
+                    fits[share] = (m.evidence, float(u @ m.coefficients @ u))
+                true_alpha = None if a is None else float(a @ v / (v @ v))
+                rows.append((kind, float(np.linalg.norm(v)), true_alpha, fits, (t, z, g, y), v))
     return r["name"], p.min_evidence, rows
 
 

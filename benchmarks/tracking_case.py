@@ -16,3 +16,19 @@ def case_parser(doc: str, case: int, split: str) -> argparse.ArgumentParser:
     ap.add_argument("--dataset", default="out/data/sequences_large")
     ap.add_argument("--split", default=split)
     return ap
+
+
+def family_sequences(pipe, family: str):
+    """The sequences (each a list of frames, in order) of one scene family from the pipeline's frame
+    source, the pipeline reset before each (the tracks and a wall estimator's history); the source is
+    opened here and closed when the iteration ends."""
+    from xnlos_core.sequence_eval import sequences
+
+    backend = pipe.stages["backend"]
+    backend.open(pipe.radar)
+    try:
+        for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == family):
+            pipe.reset()
+            yield [f for _, f in group]
+    finally:
+        backend.close()

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tracking_case import case_parser
+from tracking_case import case_parser, family_sequences
 
 FAMILY = "hidden_car_approach"
 
@@ -29,40 +29,33 @@ def errors(config: str, case: int, dataset: str, split: str, k: int, tol_deg: fl
     from xnlos_core.errors import InsufficientDataError
     from xnlos_core.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
-    from xnlos_core.sequence_eval import sequences
 
     r = plan_runs(config, dataset=dataset, split=split)[case]
     cfg = r["config"]
     cfg.wall_estimator.params["history_frames"] = k
     pipe = Pipeline(cfg, source=r["source"])
     detector, estimator = pipe.stages["detector"], pipe.stages["wall_estimator"]
-    backend = pipe.stages["backend"]
-    backend.open(pipe.radar)
     out = []
-    try:
-        for _, group in sequences(f for f in backend.frames() if f.meta.get("family") == FAMILY):
-            pipe.reset()
-            seq = []
-            for _, frame in group:
-                try:
-                    walls = estimator.estimate(detector.detect(frame))
-                except InsufficientDataError:
-                    walls = []
-                rows = []
-                for j, w in enumerate(frame.ground_truth.walls):
-                    n, b = w._line
-                    centre = 0.5 * (np.asarray(w.start) + np.asarray(w.end))
-                    best = (np.nan, np.nan)
-                    for e in walls:
-                        dphi = np.degrees(np.arccos(min(1.0, abs(float(e.normal @ n)))))
-                        dd = abs(float(e.normal @ centre + e.offset))  # the estimate's distance from the true wall's centre
-                        if dphi <= tol_deg and dd <= tol_m and not dphi >= best[0]:
-                            best = (dphi, dd)
-                    rows.append((j, *best))
-                seq.append(rows)
-            out.append(seq)
-    finally:
-        backend.close()
+    for frames in family_sequences(pipe, FAMILY):
+        seq = []
+        for frame in frames:
+            try:
+                walls = estimator.estimate(detector.detect(frame))
+            except InsufficientDataError:
+                walls = []
+            rows = []
+            for j, w in enumerate(frame.ground_truth.walls):
+                n, b = w._line
+                centre = 0.5 * (np.asarray(w.start) + np.asarray(w.end))
+                best = (np.nan, np.nan)
+                for e in walls:
+                    dphi = np.degrees(np.arccos(min(1.0, abs(float(e.normal @ n)))))
+                    dd = abs(float(e.normal @ centre + e.offset))  # the estimate's distance from the true wall's centre
+                    if dphi <= tol_deg and dd <= tol_m and not dphi >= best[0]:
+                        best = (dphi, dd)
+                rows.append((j, *best))
+            seq.append(rows)
+        out.append(seq)
     return out
 
 
