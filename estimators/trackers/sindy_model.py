@@ -64,8 +64,7 @@ many independent samples the m radial residuals hold:
   (configs/ablations/tracking.toml, sindy + Doppler) "full" takes braking hidden cars from 0.71 to
   0.57 of CV's 2 s error behind nlos_cfar and from 0.89 to 0.82 behind the oracle, but the oracle's
   straight cyclists from 1.04 to 1.20 (measured with the forecast's α = β/s; with the exponential
-  library, on the test split, straight
-  cars 1.05 → 1.11: ``benchmarks/tracking_ablation.md``, session 8).
+  library, on the test split, straight cars 1.05 → 1.11: ``benchmarks/tracking_ablation.md``, session 8).
 
 The covariance stays σ_p² (JᵀJ)⁻¹ of the weighted Jacobian.
 
@@ -188,12 +187,6 @@ def _jacobian(theta: np.ndarray, mask: np.ndarray, h: np.ndarray) -> np.ndarray:
     h = _until_stop(theta, mask, h)
     phi, dphi = _flow(_rates(theta, mask)[1], bool(mask[1]), h)
     return _columns(phi, dphi, theta, mask).reshape(-1, 4 + int(mask.sum()))
-
-
-def generator_coefficients(xi) -> np.ndarray:
-    """(α, ω) (…, 2) of Ξ (…, 2, 2): its projection on the generators (exact for Ξ = αI + ωJ)."""
-    xi = np.asarray(xi, dtype=np.float64)
-    return np.stack([(xi[..., 0, 0] + xi[..., 1, 1]) / 2, (xi[..., 1, 0] - xi[..., 0, 1]) / 2], axis=-1)
 
 
 def instantaneous_xi(rates, speed: float) -> np.ndarray:
