@@ -3,7 +3,9 @@ update), with each confirmed track's motion model identified by ensemble SINDy.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
-   over the last ``window`` [s].
+   over the last ``window`` [s]; with the offset state (:mod:`estimators.trackers.kalman`, Offset) z
+   less the offset the filter predicted for it, so that the centroid's slide along the body is not
+   identified as a braking.
 2. Identification (:func:`estimators.trackers.sindy_model.identify_motion`): once a track has
    ≥ ``min_samples`` samples in the window, and then every ``refit_every`` frames (not every frame:
    the time budget), its motion is identified from the window with the noise σ profiled out of the
@@ -17,8 +19,13 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
 3. Model choice: the identified Ξ (turn / acceleration terms) replaces constant velocity only when it
    is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
    Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
-   tracks). Otherwise, and until the first fit, the track stays CV: it then behaves exactly as
-   ``kalman``.
+   tracks), and when it lies in the road users' envelope: a speed-up β ≤ ``max_speedup`` (3 m/s²,
+   ≈ 0.3 g) and a lateral acceleration |ω|·|v| ≤ ``max_lateral`` (4 m/s², ≈ 0.4 g), the upper range of
+   everyday driving (braking is bounded by the identification's BETA_MAX, ≈ 1 g). Beyond it a model
+   is taken for an artefact of the track, not the road user's motion: a track still catching up with
+   its car (its speed rising towards the car's) reads as a speed-up, a wrong relay's Doppler step as
+   a sharp turn (``benchmarks/tracking_ablation.md``, session 9). Otherwise, and until the first fit,
+   the track stays CV: it then behaves exactly as ``kalman``.
 4. Invariant form. SINDy's library is the rotation-invariant (v̂, Jv) (sindy_model): a tangential
    acceleration β [m/s²] (braking < 0) and a turn rate ω [rad/s], whatever the road's direction. The
    filter and the forecast, linear in (p, v), take it at the track's speed s as Ξ = αI + ωJ with the α
@@ -62,6 +69,8 @@ from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_
 
 MODEL_ACCEL_PSD = 3.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
+MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
+MAX_LATERAL = 4.0  # [m/s²] ≈ 0.4 g: the upper range of everyday driving's cornering
 
 
 class SindyParams(KalmanParams):
@@ -88,6 +97,11 @@ class SindyParams(KalmanParams):
                                                             "velocity (its turn and acceleration are unobservable)")
     max_growth: float = Field(0.5, ge=0, le=XI_MAX, description="largest tangential growth rate α [1/s] "
                                                                "(speeding up) a forecast uses")
+    max_speedup: float = Field(MAX_SPEEDUP, gt=0, le=100, description="largest acceleration along the path β [m/s²] "
+                                                                      "of a model the track may follow (module "
+                                                                      "docstring, 3: the road users' envelope)")
+    max_lateral: float = Field(MAX_LATERAL, gt=0, le=100, description="largest lateral acceleration |ω|·|v| [m/s²] of "
+                                                                      "a model the track may follow (module docstring, 3)")
     model_accel_psd: float = Field(MODEL_ACCEL_PSD, gt=0, le=1e4,
                                    description="process-noise PSD q [m²/s³] of the forecast (and arrival draws) of a "
                                                "track that follows an identified model; the default is calibrated "
@@ -150,12 +164,21 @@ def matched_alpha(beta, speed: float, horizon: float = MATCH_HORIZON) -> np.ndar
     return out
 
 
+def within_envelope(rates, speed: float, p: "SindyParams") -> bool:
+    """Whether the rates (β [m/s²], ω [rad/s]) at ``speed`` [m/s] lie in the road users' envelope:
+    β ≤ ``max_speedup`` and |ω|·speed ≤ ``max_lateral`` (module docstring, 3)."""
+    beta, omega = (float(r) for r in rates)
+    return beta <= p.max_speedup and abs(omega) * speed <= p.max_lateral
+
+
 def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotion:
     """The forecast model of an identification at the track's velocity v (2,) [m/s] (module docstring,
     3–5): CV unless supported."""
     terms = model.terms()
     v = np.asarray(v, dtype=np.float64)
     if not terms or model.evidence < p.min_evidence or np.linalg.norm(v) < max(p.min_speed, 1e-9):
+        return CV
+    if not within_envelope(model.rates, float(np.linalg.norm(v)), p):
         return CV
     rng = np.random.default_rng(seed)
     members = np.zeros((len(model.fits), len(GENERATORS)))  # (β, ω) of each member
@@ -242,9 +265,10 @@ class SindyTracker(KalmanTracker):
         return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy(), np.zeros(2), np.nan)])
 
     def _correct(self, tr: _SindyTrack, meas: Measurements, k: int) -> None:
+        offset = tr.x[4:6].copy() if len(tr.x) == 6 else np.zeros(2)  # the predicted offset d̂ (kalman, Offset)
         super()._correct(tr, meas, k)
         y = float(meas.y[k]) if meas.doppler[k] else np.nan
-        tr.history.append((tr.t, meas.z[k].copy(), meas.R[k].copy(), meas.g[k].copy(), y))
+        tr.history.append((tr.t, meas.z[k] - offset, meas.R[k].copy(), meas.g[k].copy(), y))
 
     def _motion(self, tr: _SindyTrack) -> fc.LinearMotion:
         return tr.motion
@@ -285,4 +309,4 @@ class SindyTracker(KalmanTracker):
             tr.identified, tr.motion = None, CV
             return
         tr.identified = model
-        tr.motion = motion_from(model, tr.x[2:], [p.seed, tr.id, self._frame], p)
+        tr.motion = motion_from(model, tr.x[2:4], [p.seed, tr.id, self._frame], p)
