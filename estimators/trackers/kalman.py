@@ -21,20 +21,6 @@ Per frame at time t [s]:
    ``confirm_window`` (N) frames, else deleted. Death: a confirmed track is deleted after
    ``max_misses`` (K) consecutive misses.
 
-Offset (``offset_sigma`` σ_d > 0). The centroid of an extended object's seen points is not its centre,
-and it does not scatter about it independently from frame to frame: which parts of the body reflect
-changes as the object moves, and the points slide along it — a hidden car's centroid drifts back at
-0.8 m/s on average, a random walk within the body's length (``benchmarks/centroid_offset.md``), which
-a point-target filter reads as a car about 1 m/s slower than it is. The state then carries that
-offset d (2,) [m]: x = (p, v, d) (6,), the position measurement is z = p + d (H = [I, 0, I]) and d an
-Ornstein–Uhlenbeck process of stationary standard deviation σ_d per axis and correlation time
-τ = ``offset_time``: d(t + Δt) = e^(−Δt/τ) d(t) + w, w ~ N(0, σ_d² (1 − e^(−2Δt/τ)) I). A slide
-longer than σ_d cannot hide in d, it is motion; the Doppler row, which the slide does not enter (the
-scatterers of a rigid body share its velocity), pins the velocity along ĝ. A new track starts with
-d ~ N(0, σ_d² I) and p = z − d. Gating and the update compare z with p + d; the reported position,
-the forecast and the arrival are the centre p's. The default 0 (no offset state) is a point target's
-filter; ``configs/ablations/tracking.toml`` sets 1 m and 2 s for the hidden road users (val split).
-
 Only confirmed tracks are reported; ``predicted`` is the position at t + Δt_frame, the last frame
 interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
 measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
@@ -107,11 +93,6 @@ class KalmanParams(BaseModel):
                                                           "times their span across it (measurements.py: W/(2L) = 0.2 "
                                                           "for a car seen broadside; val split of the sequence data); "
                                                           "0: the centroid. Needs HiddenPoints.view")
-    offset_sigma: float = Field(0.0, ge=0, le=100, description="standard deviation [m] per axis of the offset state d: "
-                                                               "the measured centroid's slide about the object's "
-                                                               "centre, an Ornstein–Uhlenbeck process (module "
-                                                               "docstring, Offset); 0: no offset state")
-    offset_time: float = Field(2.0, gt=0, le=1e3, description="correlation time τ [s] of the offset state d")
     initial_speed_sigma: float = Field(10.0, gt=0, le=1e3, description="prior standard deviation [m/s] per axis of "
                                                                        "a new track's velocity (it starts at 0)")
 
@@ -149,19 +130,13 @@ class KalmanParams(BaseModel):
 @dataclass
 class _Track:
     id: int
-    x: np.ndarray            # (4,) state (p, v) [m, m, m/s, m/s]; (6,) (p, v, d) with the offset d [m]
-    P: np.ndarray            # (n, n) covariance
+    x: np.ndarray            # (4,) state [m, m, m/s, m/s]
+    P: np.ndarray            # (4, 4) covariance
     t: float                 # time [s] of x
     frames: int = 1          # frames since birth, birth frame included
     hits: int = 1
     misses: int = 0
     confirmed: bool = False
-
-
-def position_rows(n: int) -> np.ndarray:
-    """H (2, n) of the position measurement on a state of length n: [I, 0] on (p, v), [I, 0, I] on
-    (p, v, d) — the centroid is the centre plus the offset (module docstring, Offset)."""
-    return H if n == 4 else np.hstack([np.eye(2), np.zeros((2, 2)), np.eye(2)])
 
 
 def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
@@ -202,7 +177,9 @@ class KalmanTracker(Tracker):
                        p.use_doppler, type(self).__name__, p.depth_ratio)
         z, R = meas.z, meas.R
         for tr in self._tracks:
-            F, Q = self._transition(tr, t - tr.t)
+            dt = t - tr.t
+            F = self._motion(tr).transition(dt)
+            Q = fc.cv_process_noise(dt, p.accel_psd)
             tr.x, tr.P, tr.t, tr.frames = F @ tr.x, F @ tr.P @ F.T + Q, t, tr.frames + 1
         rows, cols = self._associate(z, R)
         for i, k in zip(rows, cols):
@@ -213,8 +190,9 @@ class KalmanTracker(Tracker):
             tr.confirmed = tr.confirmed or tr.hits >= p.confirm_hits
         self._tracks = [tr for tr in self._tracks if self._alive(tr)]
         for k in np.setdiff1d(np.arange(len(z)), cols):
-            x0, P0 = self._prior(z[k], R[k])
-            tr = self._new_track(self._next_id, x0, P0, t)
+            P0 = np.zeros((4, 4))
+            P0[:2, :2], P0[2:, 2:] = R[k], p.initial_speed_sigma ** 2 * np.eye(2)
+            tr = self._new_track(self._next_id, np.r_[z[k], 0.0, 0.0], P0, t)
             if meas.doppler[k]:
                 self._filter(tr, meas, k, position=False)
             tr.confirmed = p.confirm_hits == 1
@@ -256,8 +234,7 @@ class KalmanTracker(Tracker):
                 "hits": tr.hits, "misses": tr.misses, "confirmed": bool(tr.confirmed)}
 
     def _track_from(self, r: StateReader) -> _Track:
-        n = self._dim
-        return _Track(r.integer("id", 0), r.array("x", (n,)), r.array("P", (n, n)), r.number("t"),
+        return _Track(r.integer("id", 0), r.array("x", (4,)), r.array("P", (4, 4)), r.number("t"),
                       r.integer("frames", 0), r.integer("hits", 0), r.integer("misses", 0), r.flag("confirmed"))
 
     # hooks for subclasses (the sindy tracker): time checks, track records, per-track motion model
@@ -266,35 +243,6 @@ class KalmanTracker(Tracker):
 
     def _new_track(self, track_id: int, x: np.ndarray, P: np.ndarray, t: float) -> _Track:
         return _Track(track_id, x, P, t)
-
-    @property
-    def _dim(self) -> int:
-        """Length of a track's state: 4 (p, v), or 6 (p, v, d) with the offset state (module docstring)."""
-        return 6 if self.params.offset_sigma > 0 else 4
-
-    def _prior(self, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """A new track's state x (n,) and covariance P (n, n) from its first measurement z (2,), R (2, 2):
-        p = z, v = 0 (module docstring, 4); with the offset state d ~ N(0, σ_d² I) and p = z − d."""
-        p, n = self.params, self._dim
-        P = np.zeros((n, n))
-        P[:2, :2], P[2:4, 2:4] = R, p.initial_speed_sigma ** 2 * np.eye(2)
-        if n == 6:
-            sd2 = p.offset_sigma ** 2 * np.eye(2)
-            P[:2, :2] += sd2
-            P[4:, 4:], P[:2, 4:], P[4:, :2] = sd2, -sd2, -sd2
-        return np.r_[z, np.zeros(n - 2)], P
-
-    def _transition(self, tr: _Track, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """F (n, n) and Q (n, n) of track ``tr`` over ``dt`` [s]: its motion model's transition and the CV
-        process noise (``accel_psd``), and the offset's Ornstein–Uhlenbeck step (module docstring)."""
-        F4, Q4 = self._motion(tr).transition(dt), fc.cv_process_noise(dt, self.params.accel_psd)
-        if len(tr.x) == 4:
-            return F4, Q4
-        phi = np.exp(-dt / self.params.offset_time)
-        F, Q = np.zeros((6, 6)), np.zeros((6, 6))
-        F[:4, :4], Q[:4, :4] = F4, Q4
-        F[4:, 4:], Q[4:, 4:] = phi * np.eye(2), self.params.offset_sigma ** 2 * (1 - phi ** 2) * np.eye(2)
-        return F, Q
 
     def _motion(self, tr: _Track) -> fc.LinearMotion:
         """The motion model that track ``tr`` predicts and forecasts with (CV here)."""
@@ -323,11 +271,10 @@ class KalmanTracker(Tracker):
     def _associate(self, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if not self._tracks or len(z) == 0:
             return np.empty(0, np.int64), np.empty(0, np.int64)
-        Hp = position_rows(self._dim)
-        x = np.array([tr.x for tr in self._tracks]) @ Hp.T       # (T, 2) predicted measurements
-        P = Hp @ np.array([tr.P for tr in self._tracks]) @ Hp.T  # (T, 2, 2)
-        r = z[None, :, :] - x[:, None, :]                        # (T, C, 2)
-        S = P[:, None, :, :] + R[None, :, :, :]                  # (T, C, 2, 2)
+        x = np.array([tr.x for tr in self._tracks])
+        P = np.array([tr.P for tr in self._tracks])
+        r = z[None, :, :] - x[:, None, :2]                       # (T, C, 2)
+        S = P[:, None, :2, :2] + R[None, :, :, :]                # (T, C, 2, 2)
         d2 = np.einsum("tci,tci->tc", r, np.linalg.solve(S, r[..., None])[..., 0])
         gate = chi2_2_ppf(self.params.gate_probability)
         big = gate * (min(d2.shape) + 1)  # any gated match beats all out-of-gate ones
@@ -342,15 +289,12 @@ class KalmanTracker(Tracker):
     @staticmethod
     def _filter(tr: _Track, meas: Measurements, k: int, position: bool) -> None:
         """Joseph-form Kalman update of ``tr`` with measurement ``k``: its position row(s) when
-        ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]]; with the offset
-        state [[I, 0, I], [0, ĝᵀ, 0]])."""
-        n = len(tr.x)
+        ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]])."""
         rows, z, r = [], [], []
         if position:
-            rows.append(position_rows(n)), z.append(meas.z[k]), r.append(np.diag(meas.R[k]))
+            rows.append(H), z.append(meas.z[k]), r.append(np.diag(meas.R[k]))
         if meas.doppler[k]:
-            rows.append(np.r_[0.0, 0.0, meas.g[k], np.zeros(n - 4)][None]), z.append(meas.y[k:k + 1])
-            r.append(meas.s[k:k + 1])
+            rows.append(np.r_[0.0, 0.0, meas.g[k]][None]), z.append(meas.y[k:k + 1]), r.append(meas.s[k:k + 1])
         if not rows:
             return
         Hx, zx = np.vstack(rows), np.concatenate(z)
@@ -359,7 +303,7 @@ class KalmanTracker(Tracker):
             Rx[:2, :2] = meas.R[k]
         S = Hx @ tr.P @ Hx.T + Rx
         K = np.linalg.solve(S, Hx @ tr.P).T
-        IKH = np.eye(n) - K @ Hx
+        IKH = np.eye(4) - K @ Hx
         tr.x = tr.x + K @ (zx - Hx @ tr.x)
         tr.P = IKH @ tr.P @ IKH.T + K @ Rx @ K.T
 
@@ -371,16 +315,15 @@ class KalmanTracker(Tracker):
             extra = {"arrival": np.empty(0), "arrival_interval": np.empty((0, 2))} if self._region else {}
             return Tracks(e.track_id, e.position, e.velocity, e.predicted, t, h, np.empty((0, len(h), 2)),
                           np.empty((0, len(h))), np.empty((0, len(h))), (), **extra)
-        x = np.array([tr.x[:4] for tr in trs])
+        x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
-        fcs = [fc.forecast(self._motion(tr), tr.x[:4], tr.P[:4, :4], h, self._forecast_psd(tr), self._spread(tr))
-               for tr in trs]
+        fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr)) for tr in trs]
         mean = np.array([m for m, _ in fcs])
         r50, r90 = fc.radii(np.array([c for _, c in fcs]))
         scale = np.array([self._interval_scale(tr) for tr in trs])  # (T, 2)
         r50, r90 = r50 * scale[:, :1], r90 * scale[:, 1:]
         labels = tuple(self._motion(tr).label for tr in trs)
-        pred = np.array([self._motion(tr).transition(self._dt_frame)[:2] @ tr.x[:4] for tr in trs])
+        pred = np.array([self._motion(tr).transition(self._dt_frame)[:2] @ tr.x for tr in trs])
         extra = self._arrivals(trs, t) if self._region else {}
         return Tracks(np.array([tr.id for tr in trs]), pos, vel, pred, t, h, mean, r50, r90, labels, **extra)
 
@@ -392,8 +335,7 @@ class KalmanTracker(Tracker):
         out, interval = np.empty(len(trs)), np.empty((len(trs), 2))
         for i, tr in enumerate(trs):
             motion = self._motion(tr)
-            mean = fc.mean_path(motion, tr.x[:4], p.arrival_step, n)
-            draws = fc.draw_paths(motion, tr.x[:4], tr.P[:4, :4], p.arrival_step, n, self._forecast_psd(tr),
-                                  p.arrival_draws, rng)
+            mean = fc.mean_path(motion, tr.x, p.arrival_step, n)
+            draws = fc.draw_paths(motion, tr.x, tr.P, p.arrival_step, n, self._forecast_psd(tr), p.arrival_draws, rng)
             out[i], interval[i] = arrival(self._region, mean, draws, p.arrival_step, t)
         return {"arrival": out, "arrival_interval": interval}

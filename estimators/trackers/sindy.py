@@ -3,9 +3,7 @@ update), with each confirmed track's motion model identified by ensemble SINDy.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
-   over the last ``window`` [s]; with the offset state (:mod:`estimators.trackers.kalman`, Offset) z
-   less the offset the filter predicted for it, so that the centroid's slide along the body is not
-   identified as a braking.
+   over the last ``window`` [s].
 2. Identification (:func:`estimators.trackers.sindy_model.identify_motion`): once a track has
    ≥ ``min_samples`` samples in the window, and then every ``refit_every`` frames (not every frame:
    the time budget), its motion is identified from the window with the noise σ profiled out of the
@@ -265,10 +263,9 @@ class SindyTracker(KalmanTracker):
         return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy(), np.zeros(2), np.nan)])
 
     def _correct(self, tr: _SindyTrack, meas: Measurements, k: int) -> None:
-        offset = tr.x[4:6].copy() if len(tr.x) == 6 else np.zeros(2)  # the predicted offset d̂ (kalman, Offset)
         super()._correct(tr, meas, k)
         y = float(meas.y[k]) if meas.doppler[k] else np.nan
-        tr.history.append((tr.t, meas.z[k] - offset, meas.R[k].copy(), meas.g[k].copy(), y))
+        tr.history.append((tr.t, meas.z[k].copy(), meas.R[k].copy(), meas.g[k].copy(), y))
 
     def _motion(self, tr: _SindyTrack) -> fc.LinearMotion:
         return tr.motion
@@ -309,4 +306,4 @@ class SindyTracker(KalmanTracker):
             tr.identified, tr.motion = None, CV
             return
         tr.identified = model
-        tr.motion = motion_from(model, tr.x[2:4], [p.seed, tr.id, self._frame], p)
+        tr.motion = motion_from(model, tr.x[2:], [p.seed, tr.id, self._frame], p)

@@ -17,9 +17,6 @@ from xnlos_core.motion import ConstantTurn
 CLASSES = {"nearest": NearestTracker, "kalman": KalmanTracker, "sindy": SindyTracker}
 PARAMS = {"nearest": {}, "kalman": {"region": [[0, 0], [5, 0], [5, 5], [0, 5]]},
           "sindy": {"min_samples": 8, "refit_every": 4, "n_models": 3, "min_evidence": 0.0, "region": [[0, 0], [5, 0], [5, 5], [0, 5]]}}
-OFFSET = {"offset_sigma": 1.0, "offset_time": 2.0}  # the offset state (kalman.py, Offset): x (6,)
-CLASSES |= {"kalman offset": KalmanTracker, "sindy offset": SindyTracker}
-PARAMS |= {"kalman offset": PARAMS["kalman"] | OFFSET, "sindy offset": PARAMS["sindy"] | OFFSET}
 DT = 0.1
 
 
@@ -181,11 +178,3 @@ def test_sindy_history_keeps_its_doppler_samples_and_reads_the_older_three_field
     tr = SindyTracker(PARAMS["sindy"])
     tr.load_state(old)
     assert all(all(h[4] is None for h in t["history"]) for t in tr.state()["tracks"])
-
-
-def test_a_state_without_the_offset_is_refused_by_a_tracker_with_it():
-    ref = KalmanTracker(PARAMS["kalman"])
-    for p, t in _frames(5):
-        ref.update(p, t)
-    with pytest.raises(InputError, match=r"tracks\[0\].*x"):
-        KalmanTracker(PARAMS["kalman offset"]).load_state(ref.state())
