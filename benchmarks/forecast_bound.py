@@ -19,8 +19,9 @@ the car's truth 2 s ahead:
 * for a ``sindy`` tracker, where its forecasts of each motion come from: the matched track's state
   when it forecast (from :meth:`Tracker.state`: its samples in the window and the evidence of its last
   identification) — following a model; CV because it has fewer than ``min_samples`` samples; CV with
-  evidence below ``min_evidence``; CV otherwise (not yet identified, nothing identified, or slower than
-  ``min_speed``) — with each group's share of CV's error and its ratios.
+  evidence below ``min_evidence``; CV otherwise (not yet identified, nothing identified, slower than
+  ``min_speed``, or a model outside the road users' envelope, ``max_speedup`` / ``max_lateral``) — with
+  each group's share of CV's error and its ratios.
 
 Writes benchmarks/forecast_bound.md.
 
