@@ -18,8 +18,10 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
    Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
    tracks), and when it lies in the road users' envelope: a speed-up β ≤ ``max_speedup`` (3 m/s²,
-   ≈ 0.3 g) and a lateral acceleration |ω|·|v| ≤ ``max_lateral`` (4 m/s², ≈ 0.4 g), the upper range of
-   everyday driving (braking is bounded by the identification's BETA_MAX, ≈ 1 g). Beyond it a model
+   ≈ 0.3 g, the upper range of everyday driving) and a lateral acceleration |ω|·|v| ≤ ``max_lateral``
+   (5 m/s², ≈ 0.5 g: a brisk junction turn, 25 km/h on a 10 m radius; beyond it harsh cornering, and a
+   synthetic car turning at 0.4 rad/s at 14 m/s lies outside). Braking is bounded by the
+   identification's BETA_MAX, ≈ 1 g. Beyond the envelope a model
    is taken for an artefact of the track, not the road user's motion: a track still catching up with
    its car (its speed rising towards the car's) reads as a speed-up, a wrong relay's Doppler step as
    a sharp turn (``benchmarks/tracking_ablation.md``, session 9). Otherwise, and until the first fit,
@@ -65,10 +67,10 @@ from .measurements import Measurements
 from estimators.state import StateReader
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
-MODEL_ACCEL_PSD = 3.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
+MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
 MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
-MAX_LATERAL = 4.0  # [m/s²] ≈ 0.4 g: the upper range of everyday driving's cornering
+MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh cornering
 
 
 class SindyParams(KalmanParams):
