@@ -37,7 +37,7 @@ import numpy as np
 
 from tracking_case import case_parser, family_sequences
 
-from estimators.trackers.sindy_model import GENERATORS, _positions
+from estimators.trackers.sindy_model import GENERATORS, path_under
 
 FAMILY = "hidden_car_approach"
 AGES = ((0, 5), (5, 10), (10, 20), (20, 40), (40, 10_000))
@@ -120,7 +120,7 @@ def _true_manoeuvre(s: list, times: np.ndarray, k: int, i: int, v: np.ndarray) -
 def _under(rates: np.ndarray, p: np.ndarray, v: np.ndarray, horizon: float) -> np.ndarray:
     """Position (2,) [m] ``horizon`` s after the state (p, v) under the rates (β, ω), a braking one
     stopping where its speed reaches 0 (:mod:`estimators.trackers.sindy_model`)."""
-    return _positions(np.r_[p, v, rates], np.array([True, True]), np.array([horizon]))[0]
+    return path_under(rates, p, v, [horizon])[0]
 
 
 def score(seqs, radius: float, thresholds: tuple[int, float] | None = None, centroid_radius: float = 3.5,

@@ -189,6 +189,14 @@ def _jacobian(theta: np.ndarray, mask: np.ndarray, h: np.ndarray) -> np.ndarray:
     return _columns(phi, dphi, theta, mask).reshape(-1, 4 + int(mask.sum()))
 
 
+def path_under(rates, p, v, horizons) -> np.ndarray:
+    """Positions (K, 2) [m] ``horizons`` (K,) ≥ 0 [s] after the state p (2,) [m], v (2,) [m/s] under the
+    rates (β [m/s²], ω [rad/s]) of the model dv/dt = βv̂ + ωJv, integrated exactly, a braking one (β < 0)
+    up to its stop |v|/|β| (the car then stays): what a perfect identification forecasts from (p, v)."""
+    theta = np.r_[np.asarray(p, np.float64), np.asarray(v, np.float64), np.asarray(rates, np.float64)]
+    return _positions(theta, np.array([True, True]), np.asarray(horizons, np.float64))
+
+
 def instantaneous_xi(rates, speed: float) -> np.ndarray:
     """Ξ = αI + ωJ (…, 2, 2) [1/s] of the rates (β, ω) (…, 2) at ``speed`` [m/s]: α = β/speed, the
     exponential speed change that matches the tangential acceleration β at that speed."""

@@ -132,6 +132,20 @@ def test_a_braking_forecast_stops_where_the_car_stops():
     assert np.allclose(pos, [[3.0 * 0.75, 4.0 * 0.75], [3.0, 4.0], [3.0, 4.0]], atol=1e-9)
 
 
+def test_path_under_a_manoeuvre_in_closed_form():
+    # The public path of a state under (β, ω): braking along v̂ to its stop; a constant turn on its circle
+    # of radius |v|/ω about p + (|v|/ω) Jv̂.
+    from estimators.trackers.sindy_model import path_under
+
+    p, v = np.array([10.0, -2.0]), np.array([3.0, 4.0])
+    assert np.allclose(path_under((-2.5, 0.0), p, v, [1.0, 3.0]), p + np.array([[0.6, 0.8]]) * [[3.75], [5.0]])
+    w, h = 0.3, np.array([0.0, 1.5, 2.5])
+    centre = p + 5.0 / w * np.array([-0.8, 0.6])
+    expect = centre + 5.0 / w * np.stack([np.cos(w * h) * 0.8 + np.sin(w * h) * 0.6,
+                                          np.sin(w * h) * 0.8 - np.cos(w * h) * 0.6], axis=1)
+    assert np.allclose(path_under((0.0, w), p, v, h), expect, atol=1e-9)
+
+
 def test_noiseless_constant_deceleration_within_1e3():
     # A car braking at 2.5 m/s² from 9 m/s (constant deceleration, the scene generators' braking):
     # the tangential acceleration β is identified exactly, from positions alone and with radial velocities.
