@@ -14,7 +14,9 @@ Per frame at time t [s]:
    S = H P Hᵀ + R; pairs with d² above the χ²₂ quantile of ``gate_probability`` stay unassigned.
    The remaining pairs are assigned one-to-one by scipy.optimize.linear_sum_assignment on d².
 4. Matched tracks take the Kalman update (Joseph form) with H = [I, 0] and R, or with Doppler the
-   extended H = [[I, 0], [0, ĝᵀ]] (3, 4), measurement (z, y) and R ⊕ s. Unmatched measurements start
+   extended H = [[I, 0], [0, ĝᵀ]] (3, 4), measurement (z, y) and R ⊕ s — with ``doppler_rows = "wall"``
+   one row ĝ_gᵀ per relay wall the object's points were mirrored through (measurements.py: two walls
+   give two components of the velocity). Unmatched measurements start
    tentative tracks from the prior p = z, v = 0, P = diag(R, ``initial_speed_sigma``² I), which the
    Doppler row (if any) then updates: a new track starts with its radial velocity.
 5. Birth: a tentative track is confirmed once it has ``confirm_hits`` (M) hits within its first
@@ -37,7 +39,7 @@ Subclasses change the motion model per track through :meth:`KalmanTracker._motio
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -100,6 +102,11 @@ class KalmanParams(BaseModel):
                                                 "(ignored when the points carry none)")
     doppler_floor: float = Field(0.1, gt=0, le=100, description="standard deviation [m/s] added to each "
                                                                "point's radial-velocity error")
+    doppler_rows: Literal["cluster", "wall"] = Field("cluster", description="Doppler rows of an object's update: "
+                                                     "'cluster', one radial velocity along the points' mean line "
+                                                     "of sight; 'wall', one per relay wall its points were "
+                                                     "mirrored through (measurements.py: two walls see two "
+                                                     "components of the velocity)")
     interval_scale: tuple[Scale, Scale] = Field((1.0, 1.0), description="factors on the 50 % and 90 % disc radii "
                                                 "of the forecast (a conformal calibration on held-out sequences: "
                                                 "benchmarks/interval_calibration.py; 1: the Gaussian's own radii)")
@@ -174,7 +181,7 @@ class KalmanTracker(Tracker):
         t = self._frame_time(points, timestamp)
         p = self.params
         meas = cluster(points, p.cluster_distance, float(np.hypot(p.sigma_floor, p.extent_sigma)), p.doppler_floor,
-                       p.use_doppler, type(self).__name__, p.depth_ratio)
+                       p.use_doppler, type(self).__name__, p.depth_ratio, p.doppler_rows)
         z, R = meas.z, meas.R
         for tr in self._tracks:
             dt = t - tr.t
@@ -293,8 +300,9 @@ class KalmanTracker(Tracker):
         rows, z, r = [], [], []
         if position:
             rows.append(H), z.append(meas.z[k]), r.append(np.diag(meas.R[k]))
-        if meas.doppler[k]:
-            rows.append(np.r_[0.0, 0.0, meas.g[k]][None]), z.append(meas.y[k:k + 1]), r.append(meas.s[k:k + 1])
+        for j in np.flatnonzero(np.isfinite(meas.rows_s[k])):  # the Doppler row(s): one, or one per relay wall
+            rows.append(np.r_[0.0, 0.0, meas.rows_g[k, j]][None]), z.append(meas.rows_y[k, j:j + 1])
+            r.append(meas.rows_s[k, j:j + 1])
         if not rows:
             return
         Hx, zx = np.vstack(rows), np.concatenate(z)

@@ -20,6 +20,16 @@ Points are grouped by single linkage (cut at ``distance`` [m]); cluster c of n_c
   s_c = 1/Σu_i. A point with w_i = 0 and velocity_cov_i = 0 carries no direction and is left out.
 
 The tracker's measurement model is then H = [[I, 0], [0, ĝ_cᵀ]] on the state (p, v) (kalman.py).
+
+Per relay wall (``doppler_rows = "wall"``). An object seen through two relay walls is seen from two
+mirrored radars, along lines of sight that may differ by tens of degrees: its points then carry two
+independent components of one velocity, and the full velocity is observable in a single frame (a
+rigid body's scatterers share it). One weighted mean over all of them would mix those directions
+(two perpendicular ĝ_i give ĝ_c on the bisector and y_c the mean of the two projections, √2 off the
+bisector's). The points of a cluster are then grouped by ``HiddenPoints.wall_index`` and each group
+gives its own row (ĝ_g, y_g, s_g) by the weighted mean above; ``rows_g`` (C, K, 2), ``rows_y`` (C, K),
+``rows_s`` (C, K) hold them, the heaviest group first (s = inf where a cluster has fewer than K), and
+(g, y, s) are the heaviest group's. With "cluster" (default) K = 1 and the rows are (g, y, s).
 """
 from __future__ import annotations
 
@@ -36,7 +46,9 @@ from ..lsq import single_linkage
 @dataclass(frozen=True)
 class Measurements:
     """C objects of one frame: z (C, 2) [m], R (C, 2, 2) [m²]; Doppler: direction g (C, 2) (unit),
-    y (C,) [m/s], s (C,) [m²/s²], doppler (C,) bool — False where the cluster has no velocity."""
+    y (C,) [m/s], s (C,) [m²/s²], doppler (C,) bool — False where the cluster has no velocity; the
+    Doppler rows of the update rows_g (C, K, 2), rows_y (C, K), rows_s (C, K) (module docstring;
+    K = 1 and the rows (g, y, s) unless per relay wall; s = inf marks no row)."""
 
     z: np.ndarray
     R: np.ndarray
@@ -44,6 +56,15 @@ class Measurements:
     y: np.ndarray
     s: np.ndarray
     doppler: np.ndarray
+    rows_g: np.ndarray | None = None
+    rows_y: np.ndarray | None = None
+    rows_s: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.rows_g is None:  # one row per cluster: (g, y, s)
+            object.__setattr__(self, "rows_g", self.g[:, None, :])
+            object.__setattr__(self, "rows_y", self.y[:, None])
+            object.__setattr__(self, "rows_s", np.where(self.doppler, self.s, np.inf)[:, None])
 
     def __len__(self) -> int:
         return len(self.z)
@@ -63,9 +84,14 @@ def _directions(w: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return g, np.ones(len(w), bool)
 
 
+DOPPLER_ROWS = ("cluster", "wall")
+
+
 def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: float = 0.1,
-            use_doppler: bool = True, who: str = "tracker", depth_ratio: float = 0.0) -> Measurements:
-    """The frame's object measurements (module docstring); ``who`` names the caller in errors."""
+            use_doppler: bool = True, who: str = "tracker", depth_ratio: float = 0.0,
+            doppler_rows: str = "cluster") -> Measurements:
+    """The frame's object measurements (module docstring); ``who`` names the caller in errors;
+    ``doppler_rows`` "cluster" (one radial row per cluster) or "wall" (one per relay wall)."""
     m = len(points)
     if m == 0:
         e = np.empty((0, 2))
@@ -87,22 +113,52 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
             raise InputError(f"{who}.update: points.velocity and points.velocity_cov must be finite "
                              "(m/s, m²/s²); got NaN or inf")
         g, ok = _directions(w, vcov)
-        first = np.full(c, -1)
-        for i in np.flatnonzero(ok)[::-1]:  # the first valid point of each cluster sets the sign
-            first[labels[i]] = i
-        ref = g[np.maximum(first[labels], 0)]
-        sign = np.where(np.sum(g * ref, axis=1) < 0, -1.0, 1.0)
-        g = g * sign[:, None]
-        y = np.sum(g * w, axis=1)
-        s = np.einsum("mi,mij,mj->m", g, vcov, g) + doppler_floor ** 2
-        u = np.where(ok, 1.0 / s, 0.0)
-        usum = np.bincount(labels, u, minlength=c)
-        has = usum > 0
-        gsum = np.stack([np.bincount(labels, u * g[:, 0], minlength=c), np.bincount(labels, u * g[:, 1], minlength=c)], 1)
-        g_c[has] = gsum[has] / np.linalg.norm(gsum[has], axis=1, keepdims=True)
-        y_c[has] = np.bincount(labels, u * y, minlength=c)[has] / usum[has]
-        s_c[has] = 1.0 / usum[has]
+        if doppler_rows == "wall":
+            walls = np.asarray(points.wall_index, np.int64)
+            groups = np.unique(labels * (int(walls.max()) + 1) + walls, return_inverse=True)[1]
+        else:
+            groups = labels
+        n_g = int(groups.max()) + 1
+        gg, yg, sg, ug = _radial_means(g, w, vcov, ok, groups, n_g, doppler_floor)
+        owner = np.zeros(n_g, np.int64)
+        owner[groups] = labels                               # the cluster of each group
+        order = np.lexsort((-ug, owner))                     # by cluster, the heaviest group first
+        slot = np.zeros(n_g, np.int64)
+        starts = np.r_[0, np.flatnonzero(np.diff(owner[order])) + 1]
+        for a, b in zip(starts, np.r_[starts[1:], n_g]):
+            slot[order[a:b]] = np.arange(b - a)
+        k = int(slot.max()) + 1
+        rows_g, rows_y, rows_s = np.zeros((c, k, 2)), np.zeros((c, k)), np.full((c, k), np.inf)
+        valid = ug > 0
+        rows_g[owner[valid], slot[valid]] = gg[valid]
+        rows_y[owner[valid], slot[valid]] = yg[valid]
+        rows_s[owner[valid], slot[valid]] = sg[valid]
+        has = np.isfinite(rows_s[:, 0])
+        g_c[has], y_c[has], s_c[has] = rows_g[has, 0], rows_y[has, 0], rows_s[has, 0]
+        return Measurements(z, R, g_c, y_c, s_c, has, rows_g, rows_y, rows_s)
     return Measurements(z, R, g_c, y_c, s_c, has)
+
+
+def _radial_means(g, w, vcov, ok, groups, n_g: int, doppler_floor: float):
+    """Per group of points (module docstring): ĝ (G, 2), y (G,), s (G,) [m²/s², inf without a valid
+    point] and the weight Σu (G,), each ĝ_i's sign turned to agree with the group's first valid point."""
+    first = np.full(n_g, -1)
+    for i in np.flatnonzero(ok)[::-1]:  # the first valid point of each group sets the sign
+        first[groups[i]] = i
+    ref = g[np.maximum(first[groups], 0)]
+    sign = np.where(np.sum(g * ref, axis=1) < 0, -1.0, 1.0)
+    g = g * sign[:, None]
+    y = np.sum(g * w, axis=1)
+    s = np.einsum("mi,mij,mj->m", g, vcov, g) + doppler_floor ** 2
+    u = np.where(ok, 1.0 / s, 0.0)
+    usum = np.bincount(groups, u, minlength=n_g)
+    has = usum > 0
+    gsum = np.stack([np.bincount(groups, u * g[:, 0], minlength=n_g), np.bincount(groups, u * g[:, 1], minlength=n_g)], 1)
+    g_out, y_out, s_out = np.zeros((n_g, 2)), np.zeros(n_g), np.full(n_g, np.inf)
+    g_out[has] = gsum[has] / np.linalg.norm(gsum[has], axis=1, keepdims=True)
+    y_out[has] = np.bincount(groups, u * y, minlength=n_g)[has] / usum[has]
+    s_out[has] = 1.0 / usum[has]
+    return g_out, y_out, s_out, usum
 
 
 def _behind(mean: np.ndarray, view: np.ndarray, labels: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -105,3 +105,30 @@ def test_a_seen_side_moves_to_the_objects_centre_along_the_view():
     assert np.allclose(cluster(pts, 5.0, 0.1).z, [[10.0, -20.9]])  # depth_ratio 0: the centroid
     plain = HiddenPoints(face, pts.cov, pts.source_index, pts.wall_index)  # no view: the centroid
     assert np.allclose(cluster(plain, 5.0, 0.1, depth_ratio=0.2).z, [[10.0, -20.9]])
+
+
+def test_one_doppler_row_per_relay_wall_sees_the_full_velocity():
+    # A car at v = (4, −3) m/s seen through two relay walls along perpendicular mirrored lines of sight
+    # ±x̂ and ±ŷ (points of wall 0 and wall 1): per wall one row with y = ĝᵀv exactly, and a new
+    # track's update from the prior v = 0, P_v = σ_v² I recovers v·σ_v²/(σ_v² + s) exactly. One row per
+    # cluster mixes them: ĝ_c on the bisector, y_c the mean of the two projections — not ĝ_cᵀv.
+    from estimators.trackers.measurements import cluster
+
+    v, var, floor, sv = np.array([4.0, -3.0]), 0.04, 0.1, 10.0
+    g = np.array([[1.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.0, 1.0]])
+    w = (g @ v)[:, None] * g                                   # each point's observed component y_i ĝ_i
+    pts = HiddenPoints(np.array([[20.0, 5.0], [20.5, 5.2], [20.2, 4.8], [19.8, 5.1]]), np.tile(0.01 * np.eye(2), (4, 1, 1)),
+                       np.arange(4), np.array([0, 0, 1, 1]), velocity=w, velocity_cov=var * g[:, :, None] * g[:, None, :])
+    walls = cluster(pts, 5.0, 0.1, floor, doppler_rows="wall")
+    s = (var + floor ** 2) / 2                                   # two points per wall
+    assert walls.rows_g.shape == (1, 2, 2) and np.allclose(walls.rows_s, s)
+    assert np.allclose(walls.rows_g[0] @ v, walls.rows_y[0])  # each row is exact: y = ĝᵀv
+    assert np.allclose(np.abs(walls.rows_g[0]), np.eye(2)[::1 if abs(walls.rows_g[0, 0, 0]) > 0.5 else -1])
+    one = cluster(pts, 5.0, 0.1, floor)
+    assert one.rows_g.shape == (1, 1, 2) and not np.isclose(one.g[0] @ v, one.y[0])
+    tr = KalmanTracker({"confirm_hits": 1, "initial_speed_sigma": sv, "doppler_floor": floor, "doppler_rows": "wall",
+                        "depth_ratio": 0.0})
+    out = tr.update(pts, 0.0)
+    assert np.allclose(out.velocity[0], v * sv ** 2 / (sv ** 2 + s), atol=1e-9)
+    with pytest.raises(ConfigError):
+        KalmanTracker({"doppler_rows": "point"})
