@@ -61,6 +61,14 @@ Scale = Annotated[float, Field(gt=0, le=100)]  # a factor on a disc radius
 ACCEL_PSD = 0.75  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
 
 
+def chi2_1_ppf(p: float) -> float:
+    """The p-quantile of χ² with 1 degree of freedom, the squared (1 + p)/2-quantile of the standard
+    normal (statistics.NormalDist: no scipy.stats import, see :func:`chi2_2_ppf`)."""
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf((1.0 + p) / 2.0) ** 2
+
+
 def chi2_2_ppf(p: float) -> float:
     """The p-quantile of χ² with 2 degrees of freedom: −2 ln(1 − p) (its CDF is 1 − e^(−x/2)), in closed
     form rather than scipy.stats.chi2.ppf, whose import (~0.2 s) every `xnlos` start would pay."""
@@ -107,6 +115,9 @@ class KalmanParams(BaseModel):
                                                      "of sight; 'wall', one per relay wall its points were "
                                                      "mirrored through (measurements.py: two walls see two "
                                                      "components of the velocity)")
+    doppler_gate: float | None = Field(None, gt=0, lt=1, description="a matched track leaves out a Doppler row "
+                                       "whose squared normalised innovation (y − ĝᵀv)²/(ĝᵀP_vĝ + s) exceeds this "
+                                       "χ²₁ quantile (e.g. 0.999); None: every row is used")
     interval_scale: tuple[Scale, Scale] = Field((1.0, 1.0), description="factors on the 50 % and 90 % disc radii "
                                                 "of the forecast (a conformal calibration on held-out sequences: "
                                                 "benchmarks/interval_calibration.py; 1: the Gaussian's own radii)")
@@ -290,18 +301,23 @@ class KalmanTracker(Tracker):
         return rows[ok], cols[ok]
 
     def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
-        self._filter(tr, meas, k, position=True)
+        gate = self.params.doppler_gate
+        self._filter(tr, meas, k, position=True, gate=None if gate is None else chi2_1_ppf(gate))
         tr.hits, tr.misses = tr.hits + 1, 0
 
     @staticmethod
-    def _filter(tr: _Track, meas: Measurements, k: int, position: bool) -> None:
+    def _filter(tr: _Track, meas: Measurements, k: int, position: bool, gate: float | None = None) -> None:
         """Joseph-form Kalman update of ``tr`` with measurement ``k``: its position row(s) when
-        ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]])."""
+        ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]]); a Doppler row whose
+        squared normalised innovation exceeds ``gate`` (a χ²₁ quantile, None: no gate) is left out."""
         rows, z, r = [], [], []
         if position:
             rows.append(H), z.append(meas.z[k]), r.append(np.diag(meas.R[k]))
         for j in np.flatnonzero(np.isfinite(meas.rows_s[k])):  # the Doppler row(s): one, or one per relay wall
-            rows.append(np.r_[0.0, 0.0, meas.rows_g[k, j]][None]), z.append(meas.rows_y[k, j:j + 1])
+            g = meas.rows_g[k, j]
+            if gate is not None and (meas.rows_y[k, j] - g @ tr.x[2:]) ** 2 > gate * (g @ tr.P[2:, 2:] @ g + meas.rows_s[k, j]):
+                continue
+            rows.append(np.r_[0.0, 0.0, g][None]), z.append(meas.rows_y[k, j:j + 1])
             r.append(meas.rows_s[k, j:j + 1])
         if not rows:
             return

@@ -132,3 +132,29 @@ def test_one_doppler_row_per_relay_wall_sees_the_full_velocity():
     assert np.allclose(out.velocity[0], v * sv ** 2 / (sv ** 2 + s), atol=1e-9)
     with pytest.raises(ConfigError):
         KalmanTracker({"doppler_rows": "point"})
+
+
+def test_a_gated_doppler_row_with_an_outlier_is_left_out():
+    # A track at v = (5, 0) m/s with consistent radial velocities for 5 frames; in frame 6 its radial
+    # velocity is off by 5 m/s at 0.1 m/s: with doppler_gate 0.999 (χ²₁ 10.83) that row is left out — the
+    # update is the one of the same frame without Doppler — and without the gate it pulls the velocity.
+    from estimators.trackers.kalman import chi2_1_ppf
+
+    assert chi2_1_ppf(0.999) == pytest.approx(10.8276, abs=1e-4)
+    g = np.array([1.0, 0.0])
+
+    def frame(k, y):
+        p = np.array([[10.0 + 0.5 * k, 3.0]])
+        if y is None:
+            return HiddenPoints(p, 0.01 * np.eye(2)[None], np.arange(1), np.zeros(1))
+        return HiddenPoints(p, 0.01 * np.eye(2)[None], np.arange(1), np.zeros(1), velocity=(y * g)[None],
+                            velocity_cov=(0.01 * np.outer(g, g))[None])
+
+    out = {}
+    for name, gate, last in (("gated", 0.999, 10.0), ("no row", 0.999, None), ("ungated", None, 10.0)):
+        tr = KalmanTracker({"doppler_gate": gate} if gate else {})
+        for k in range(5):
+            tr.update(frame(k, 5.0), 0.1 * k)
+        out[name] = tr.update(frame(5, last), 0.5).velocity[0]
+    assert np.allclose(out["gated"], out["no row"], atol=1e-12)
+    assert out["ungated"][0] > out["gated"][0] + 1.0
