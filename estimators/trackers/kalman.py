@@ -39,6 +39,7 @@ Subclasses change the motion model per track through :meth:`KalmanTracker._motio
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Annotated, Literal
 
 import numpy as np
@@ -61,6 +62,7 @@ Scale = Annotated[float, Field(gt=0, le=100)]  # a factor on a disc radius
 ACCEL_PSD = 0.75  # [m²/s³] calibrated default of accel_psd (benchmarks/forecast_calibration.py)
 
 
+@lru_cache(maxsize=8)
 def chi2_1_ppf(p: float) -> float:
     """The p-quantile of χ² with 1 degree of freedom, the squared (1 + p)/2-quantile of the standard
     normal (statistics.NormalDist: no scipy.stats import, see :func:`chi2_2_ppf`)."""

@@ -27,9 +27,8 @@ independent components of one velocity, and the full velocity is observable in a
 rigid body's scatterers share it). One weighted mean over all of them would mix those directions
 (two perpendicular ĝ_i give ĝ_c on the bisector and y_c the mean of the two projections, √2 off the
 bisector's). The points of a cluster are then grouped by ``HiddenPoints.wall_index`` and each group
-gives its own row (ĝ_g, y_g, s_g) by the weighted mean above; ``rows_g`` (C, K, 2), ``rows_y`` (C, K),
-``rows_s`` (C, K) hold them, the heaviest group first (s = inf where a cluster has fewer than K), and
-(g, y, s) are the heaviest group's. With "cluster" (default) K = 1 and the rows are (g, y, s).
+gives its own row (ĝ_g, y_g, s_g) by the weighted mean above, the heaviest group first. With
+"cluster" (default) each cluster is one group.
 """
 from __future__ import annotations
 
@@ -45,26 +44,36 @@ from ..lsq import single_linkage
 
 @dataclass(frozen=True)
 class Measurements:
-    """C objects of one frame: z (C, 2) [m], R (C, 2, 2) [m²]; Doppler: direction g (C, 2) (unit),
-    y (C,) [m/s], s (C,) [m²/s²], doppler (C,) bool — False where the cluster has no velocity; the
-    Doppler rows of the update rows_g (C, K, 2), rows_y (C, K), rows_s (C, K) (module docstring;
-    K = 1 and the rows (g, y, s) unless per relay wall; s = inf marks no row)."""
+    """C objects of one frame: z (C, 2) [m], R (C, 2, 2) [m²]; the Doppler rows of each object's update,
+    direction rows_g (C, K, 2) (unit), rows_y (C, K) [m/s], rows_s (C, K) [m²/s²] — K = 1 unless per
+    relay wall (module docstring), the heaviest row first, s = inf where an object has fewer rows (none:
+    no velocity)."""
 
     z: np.ndarray
     R: np.ndarray
-    g: np.ndarray
-    y: np.ndarray
-    s: np.ndarray
-    doppler: np.ndarray
-    rows_g: np.ndarray | None = None
-    rows_y: np.ndarray | None = None
-    rows_s: np.ndarray | None = None
+    rows_g: np.ndarray
+    rows_y: np.ndarray
+    rows_s: np.ndarray
 
-    def __post_init__(self):
-        if self.rows_g is None:  # one row per cluster: (g, y, s)
-            object.__setattr__(self, "rows_g", self.g[:, None, :])
-            object.__setattr__(self, "rows_y", self.y[:, None])
-            object.__setattr__(self, "rows_s", np.where(self.doppler, self.s, np.inf)[:, None])
+    @property
+    def g(self) -> np.ndarray:
+        """(C, 2) the first (heaviest) row's direction ĝ."""
+        return self.rows_g[:, 0]
+
+    @property
+    def y(self) -> np.ndarray:
+        """(C,) [m/s] the first row's radial velocity."""
+        return self.rows_y[:, 0]
+
+    @property
+    def s(self) -> np.ndarray:
+        """(C,) [m²/s²] the first row's variance (inf: no velocity)."""
+        return self.rows_s[:, 0]
+
+    @property
+    def doppler(self) -> np.ndarray:
+        """(C,) bool: whether the object has a radial velocity."""
+        return np.isfinite(self.rows_s[:, 0])
 
     def __len__(self) -> int:
         return len(self.z)
@@ -84,9 +93,6 @@ def _directions(w: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return g, np.ones(len(w), bool)
 
 
-DOPPLER_ROWS = ("cluster", "wall")
-
-
 def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: float = 0.1,
             use_doppler: bool = True, who: str = "tracker", depth_ratio: float = 0.0,
             doppler_rows: str = "cluster") -> Measurements:
@@ -94,8 +100,8 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
     ``doppler_rows`` "cluster" (one radial row per cluster) or "wall" (one per relay wall)."""
     m = len(points)
     if m == 0:
-        e = np.empty((0, 2))
-        return Measurements(e, np.empty((0, 2, 2)), e, np.empty(0), np.empty(0), np.empty(0, bool))
+        return Measurements(np.empty((0, 2)), np.empty((0, 2, 2)), np.empty((0, 1, 2)), np.empty((0, 1)),
+                            np.empty((0, 1)))
     labels = single_linkage(np.asarray(points.mean, np.float64), distance)
     n = np.bincount(labels).astype(np.float64)
     c = len(n)
@@ -106,7 +112,6 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
     R = np.zeros((c, 2, 2))
     np.add.at(R, labels, points.cov)
     R = R / n[:, None, None] ** 2 + floor ** 2 * np.eye(2)
-    g_c, y_c, s_c, has = np.zeros((c, 2)), np.zeros(c), np.full(c, np.inf), np.zeros(c, bool)
     if use_doppler and points.velocity is not None:
         w, vcov = np.asarray(points.velocity, np.float64), np.asarray(points.velocity_cov, np.float64)
         if not (np.all(np.isfinite(w)) and np.all(np.isfinite(vcov))):
@@ -123,20 +128,17 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
         owner = np.zeros(n_g, np.int64)
         owner[groups] = labels                               # the cluster of each group
         order = np.lexsort((-ug, owner))                     # by cluster, the heaviest group first
-        slot = np.zeros(n_g, np.int64)
-        starts = np.r_[0, np.flatnonzero(np.diff(owner[order])) + 1]
-        for a, b in zip(starts, np.r_[starts[1:], n_g]):
-            slot[order[a:b]] = np.arange(b - a)
+        starts = np.r_[0, np.flatnonzero(np.diff(owner[order])) + 1]   # each cluster's first group in order
+        slot = np.empty(n_g, np.int64)
+        slot[order] = np.arange(n_g) - np.repeat(starts, np.diff(np.r_[starts, n_g]))  # rank within its cluster
         k = int(slot.max()) + 1
         rows_g, rows_y, rows_s = np.zeros((c, k, 2)), np.zeros((c, k)), np.full((c, k), np.inf)
         valid = ug > 0
         rows_g[owner[valid], slot[valid]] = gg[valid]
         rows_y[owner[valid], slot[valid]] = yg[valid]
         rows_s[owner[valid], slot[valid]] = sg[valid]
-        has = np.isfinite(rows_s[:, 0])
-        g_c[has], y_c[has], s_c[has] = rows_g[has, 0], rows_y[has, 0], rows_s[has, 0]
-        return Measurements(z, R, g_c, y_c, s_c, has, rows_g, rows_y, rows_s)
-    return Measurements(z, R, g_c, y_c, s_c, has)
+        return Measurements(z, R, rows_g, rows_y, rows_s)
+    return Measurements(z, R, np.zeros((c, 1, 2)), np.zeros((c, 1)), np.full((c, 1), np.inf))
 
 
 def _radial_means(g, w, vcov, ok, groups, n_g: int, doppler_floor: float):
