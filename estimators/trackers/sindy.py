@@ -17,7 +17,10 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
 3. Model choice: the identified Ξ (turn / acceleration terms) replaces constant velocity only when it
    is not CV and its evidence BIC(CV) − BIC(Ξ) is ≥ ``min_evidence`` (10: "very strong" on the
    Kass–Raftery scale; the BIC alone — a margin of 0 — fits turns that are not there on noisy straight
-   tracks), and when it lies in the road users' envelope: a speed-up β ≤ ``max_speedup`` (3 m/s²,
+   tracks; ``braking_evidence``, where set, is the bar of a model of braking alone — β < 0, no turn —
+   a lower bar states higher prior odds for the manoeuvre a car approaching a junction often makes, and
+   a braking model wrongly followed keeps the forecast on the track's line where a wrong turn leaves it),
+   and when it lies in the road users' envelope: a speed-up β ≤ ``max_speedup`` (3 m/s²,
    ≈ 0.3 g, the upper range of everyday driving) and a lateral acceleration |ω|·|v| ≤ ``max_lateral``
    (5 m/s², ≈ 0.5 g: a brisk junction turn, 25 km/h on a 10 m radius; beyond it harsh cornering, and a
    synthetic car turning at 0.4 rad/s at 14 m/s lies outside). Braking is bounded by the
@@ -93,6 +96,9 @@ class SindyParams(KalmanParams):
                                                   "'full' finds braking sooner, and turns in wrong-relay Doppler)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
+    braking_evidence: float | None = Field(None, ge=0, le=1e6, description="BIC(CV) − BIC(model) a model of braking "
+                                                                         "alone (β < 0, no turn) needs; None: min_evidence "
+                                                                         "(module docstring, 3)")
     min_speed: float = Field(0.5, ge=0, le=100, description="speed [m/s] below which a track stays constant "
                                                             "velocity (its turn and acceleration are unobservable)")
     max_growth: float = Field(0.5, ge=0, le=XI_MAX, description="largest tangential growth rate α [1/s] "
@@ -171,12 +177,19 @@ def within_envelope(rates, speed: float, p: "SindyParams") -> bool:
     return beta <= p.max_speedup and abs(omega) * speed <= p.max_lateral
 
 
+def evidence_bar(rates, p: "SindyParams") -> float:
+    """The evidence BIC(CV) − BIC(model) a model of rates (β [m/s²], ω [rad/s]) needs to be followed:
+    ``braking_evidence`` for braking alone (β < 0, ω = 0) where set, ``min_evidence`` otherwise."""
+    beta, omega = (float(r) for r in rates)
+    return p.braking_evidence if p.braking_evidence is not None and beta < 0 and omega == 0 else p.min_evidence
+
+
 def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotion:
     """The forecast model of an identification at the track's velocity v (2,) [m/s] (module docstring,
     3–5): CV unless supported."""
     terms = model.terms()
     v = np.asarray(v, dtype=np.float64)
-    if not terms or model.evidence < p.min_evidence or np.linalg.norm(v) < max(p.min_speed, 1e-9):
+    if not terms or model.evidence < evidence_bar(model.rates, p) or np.linalg.norm(v) < max(p.min_speed, 1e-9):
         return CV
     if not within_envelope(model.rates, float(np.linalg.norm(v)), p):
         return CV

@@ -236,3 +236,24 @@ def test_models_beyond_the_road_users_envelope_stay_constant_velocity():
         wide = SindyParams(min_evidence=10.0, max_speedup=10.0, max_lateral=10.0)
         assert not motion_from(model, [6.0, 0.0], 0, wide).is_cv
 
+
+
+def test_braking_alone_may_have_its_own_evidence_bar():
+    # braking_evidence sets the bar of a model of braking alone (β < 0, ω = 0); a turn, a speed-up and
+    # a braking turn keep min_evidence, and None (the default) is min_evidence for all.
+    from estimators.trackers.sindy import SindyParams, evidence_bar, motion_from
+    from estimators.trackers.sindy_model import MotionModel
+
+    low = SindyParams(min_evidence=30.0, braking_evidence=5.0)
+    same = SindyParams(min_evidence=30.0)
+    for (beta, omega), bar in (((-2.0, 0.0), 5.0), ((2.0, 0.0), 30.0), ((0.0, 0.2), 30.0), ((-2.0, 0.2), 30.0)):
+        assert evidence_bar((beta, omega), low) == bar and evidence_bar((beta, omega), same) == 30.0
+        xi = (beta / 6.0) * np.eye(2) + omega * np.array([[0.0, -1.0], [1.0, 0.0]])
+        mask = np.array([beta != 0, omega != 0])
+        theta = np.r_[0.0, 0.0, 6.0, 0.0, [r for r, m in zip((beta, omega), mask) if m]]
+        model = MotionModel(xi, xi[None], ((mask, theta, np.zeros((len(theta), len(theta)))),), 0.0, 0.5, 10.0,
+                            np.array([beta, omega]))  # evidence 10: between the two bars
+        assert motion_from(model, [6.0, 0.0], 0, low).is_cv is (bar == 30.0), (beta, omega)
+        assert motion_from(model, [6.0, 0.0], 0, same).is_cv
+    with pytest.raises(ValueError):
+        SindyParams(braking_evidence=-1.0)
