@@ -19,7 +19,7 @@ the car's truth 2 s ahead:
 * for a ``sindy`` tracker, where its forecasts of each motion come from: the matched track's state
   when it forecast (from :meth:`Tracker.state`: its samples in the window and the evidence of its last
   identification) — following a model; CV because it has fewer than ``min_samples`` samples; CV with
-  evidence below ``min_evidence``; CV otherwise (not yet identified, nothing identified, slower than
+  evidence below its bar (``min_evidence``, or ``braking_evidence`` for braking alone); CV otherwise (not yet identified, nothing identified, slower than
   ``min_speed``, or a model outside the road users' envelope, ``max_speedup`` / ``max_lateral``) — with
   each group's share of CV's error and its ratios.
 
@@ -55,10 +55,10 @@ def run(config: str, case: int, dataset: str, split: str):
     return r["name"], seqs, r["config"].run.match_radius, _thresholds(tracker)
 
 
-def _thresholds(tracker) -> tuple[int, float] | None:
-    """(min_samples, min_evidence) of a sindy tracker, None for another."""
+def _thresholds(tracker):
+    """The SindyParams of a sindy tracker (its min_samples and evidence bars), None for another."""
     p = tracker.params
-    return (p.min_samples, p.min_evidence) if hasattr(p, "min_samples") and hasattr(p, "min_evidence") else None
+    return p if hasattr(p, "min_samples") and hasattr(p, "min_evidence") else None
 
 
 def _identification(tracker) -> dict:
@@ -69,7 +69,8 @@ def _identification(tracker) -> dict:
     out = {}
     for d in tracker.state()["tracks"]:
         ident = d.get("identified")
-        out[int(d["id"])] = (len(d.get("history", [])), None if ident is None else float(ident["evidence"]))
+        out[int(d["id"])] = (len(d.get("history", [])), None if ident is None else float(ident["evidence"]),
+                             None if ident is None else ident["rates"])
     return out
 
 
@@ -83,17 +84,20 @@ def _record(f, res, tracker) -> dict:
             "truth": {int(i): (np.asarray(p, float), np.asarray(v, float), bool(m), str(k)) for i, p, v, m, k in truth}}
 
 
-GROUPS = ("follows a model", "CV: fewer than min_samples samples", "CV: evidence below min_evidence", "CV: otherwise")
+GROUPS = ("follows a model", "CV: fewer than min_samples samples", "CV: evidence below its bar", "CV: otherwise")
 
 
-def _group(f: dict, j: int, thresholds: tuple[int, float]) -> str:
-    """Which of GROUPS track j of map f was in when it forecast (module docstring)."""
+def _group(f: dict, j: int, thresholds) -> str:
+    """Which of GROUPS track j of map f was in when it forecast (module docstring; ``thresholds`` the
+    tracker's SindyParams)."""
+    from estimators.trackers.sindy import evidence_bar
+
     if f["model"][j] != "cv":
         return GROUPS[0]
-    n, evidence = f["ident"].get(int(f["ids"][j]), (0, None))
-    if n < thresholds[0]:
+    n, evidence, rates = f["ident"].get(int(f["ids"][j]), (0, None, None))
+    if n < thresholds.min_samples:
         return GROUPS[1]
-    if evidence is not None and evidence < thresholds[1]:
+    if evidence is not None and evidence < evidence_bar(rates, thresholds):
         return GROUPS[2]
     return GROUPS[3]
 
@@ -123,10 +127,10 @@ def _under(rates: np.ndarray, p: np.ndarray, v: np.ndarray, horizon: float) -> n
     return path_under(rates, p, v, [horizon])[0]
 
 
-def score(seqs, radius: float, thresholds: tuple[int, float] | None = None, centroid_radius: float = 3.5,
+def score(seqs, radius: float, thresholds=None, centroid_radius: float = 3.5,
           horizon: float = 2.0) -> dict:
     """Per motion kind: lists of the quantities of the module docstring (``thresholds``: a sindy
-    tracker's (min_samples, min_evidence), for the grouping)."""
+    tracker's SindyParams, for the grouping)."""
     out = defaultdict(lambda: defaultdict(list))
     for s in seqs:
         times, born = np.array([f["t"] for f in s]), {}

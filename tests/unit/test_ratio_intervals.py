@@ -1,0 +1,41 @@
+"""benchmarks/ratio_intervals.py: the 2 s ratio to CV and its sequence bootstrap, on records written by hand."""
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+
+def _module():
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "ratio_intervals.py"
+    spec = importlib.util.spec_from_file_location("ratio_intervals", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _row(err2, cv2):
+    return {"h": [1.0, 2.0], "err": [err2 / 2, err2], "err_cv": [cv2 / 2, cv2], "motion": "braking",
+            "in50": None, "in90": None}
+
+
+def test_ratio_and_bootstrap_over_whole_sequences(tmp_path):
+    ri = _module()
+    run = tmp_path / "run-000"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({"name": "sindy + Doppler"}))
+    # sequence 0: two forecasts at half of CV's error, sequence 1: one at CV's, sequence 2: a cyclist
+    seqs = [{"family": "hidden_car_approach", "forecasts": [_row(1.0, 2.0), _row(2.0, 4.0)]},
+            {"family": "hidden_car_approach", "forecasts": [_row(3.0, 3.0)]},
+            {"family": "hidden_cyclist", "forecasts": [_row(5.0, 1.0)]}]
+    (run / "sequences.jsonl").write_text("\n".join(json.dumps(s) for s in seqs))
+    by = ri.by_sequence(run, "hidden_car_approach/braking")
+    assert [len(s) for s in by] == [2, 1]
+    # the mean 2 s errors' ratio over the pooled forecasts: (1 + 2 + 3) / (2 + 4 + 3)
+    r, lo, hi, n = ri.interval(by, 2000, np.random.default_rng(0))
+    assert r == pytest.approx(6 / 9) and n == 2
+    # resamples hold sequence 0 alone (0.5), sequence 1 alone (1.0) or both: the interval spans them
+    assert lo == pytest.approx(0.5) and hi == pytest.approx(1.0)
+    assert ri.interval([by[0]], 50, np.random.default_rng(0))[1:3] == pytest.approx((0.5, 0.5))
+    assert ri.interval([], 50, np.random.default_rng(0))[3] == 0
