@@ -10,7 +10,11 @@ the association, filter, forecast and bookkeeping alone, with the identification
 identify_motion alone: 3 s windows (30 samples) of straight, turning and braking tracks, from the
 positions and with their radial velocities too (0.2 m/s noise, seen from the origin). The hidden
 points carry those radial velocities, so kalman and sindy run with their Doppler update and sindy's
-identification fits them (its defaults).
+identification fits them (its defaults). The rows "…, the ablation's Doppler" run the tracking
+ablation's setting (configs/ablations/tracking.toml: one Doppler row per relay wall, gated at χ²₁
+0.999, and sindy's evidence bars 30 / 10) on cars seen through two relay walls: each car gives two
+points 0.5 m apart with wall_index 0 and 1, the second's radial velocity along the line of sight
+turned by 90° (two rows per track).
 
     OMP_NUM_THREADS=1 python benchmarks/tracking_speed.py
 """
@@ -31,7 +35,7 @@ from xnlos_core.types import HiddenPoints
 FRAMES, WARM, DT, N = 60, 20, 0.1, 10
 
 
-def frames(seed: int = 0):
+def frames(seed: int = 0, two_walls: bool = False):
     rng = np.random.default_rng(seed)
     t = np.arange(FRAMES) * DT
     states = [ConstantTurn(speed=10.0, yaw_rate=0.3 * (k % 3 - 1)).state(t, (20.0 + 15 * (k % 5), 40.0 * (k // 5) - 20),
@@ -42,8 +46,16 @@ def frames(seed: int = 0):
         z = np.array([s.position[i] for s in states]) + 0.3 * rng.standard_normal((N, 2))
         g = z / np.linalg.norm(z, axis=1, keepdims=True)
         y = np.sum(g * np.array([s.velocity[i] for s in states]), axis=1) + 0.2 * rng.standard_normal(N)
-        out.append(HiddenPoints(z, np.tile(0.09 * np.eye(2), (N, 1, 1)), np.arange(N), np.zeros(N),
-                                velocity=y[:, None] * g, velocity_cov=0.04 * g[:, :, None] * g[:, None, :]))
+        if not two_walls:
+            out.append(HiddenPoints(z, np.tile(0.09 * np.eye(2), (N, 1, 1)), np.arange(N), np.zeros(N),
+                                    velocity=y[:, None] * g, velocity_cov=0.04 * g[:, :, None] * g[:, None, :]))
+            continue
+        g2 = g @ np.array([[0.0, 1.0], [-1.0, 0.0]])                 # the second wall's line of sight, +90°
+        y2 = np.sum(g2 * np.array([s.velocity[i] for s in states]), axis=1) + 0.2 * rng.standard_normal(N)
+        zz, gg, yy = np.r_[z, z + 0.5 * g2], np.r_[g, g2], np.r_[y, y2]
+        out.append(HiddenPoints(zz, np.tile(0.09 * np.eye(2), (2 * N, 1, 1)), np.arange(2 * N),
+                                np.r_[np.zeros(N), np.ones(N)], velocity=yy[:, None] * gg,
+                                velocity_cov=0.04 * gg[:, :, None] * gg[:, None, :]))
     return t, out
 
 
@@ -72,11 +84,17 @@ def time_tracker(tracker, t, fr):
 
 def main():
     t, fr = frames()
+    _, fr2 = frames(two_walls=True)
+    ablation = {"doppler_rows": "wall", "doppler_gate": 0.999}
     lines = ["# Tracking speed (10 tracks, 10 Hz)", "", "| tracker | median [ms/frame] | max [ms/frame] | "
              "median without identification [ms/frame] | max without identification [ms/frame] | "
              "identification median [ms each] |", "|---|---|---|---|---|---|"]
-    for name, tracker in (("nearest", NearestTracker()), ("kalman", KalmanTracker()), ("sindy", SindyTracker())):
-        ms, fit_ms, calls = time_tracker(tracker, t, fr)
+    for name, tracker, data in (("nearest", NearestTracker(), fr), ("kalman", KalmanTracker(), fr),
+                                ("sindy", SindyTracker(), fr),
+                                ("kalman, the ablation's Doppler", KalmanTracker(ablation), fr2),
+                                ("sindy, the ablation's Doppler",
+                                 SindyTracker({**ablation, "min_evidence": 30.0, "braking_evidence": 10.0}), fr2)):
+        ms, fit_ms, calls = time_tracker(tracker, t, data)
         plain = ms - fit_ms
         ident = f"{np.median(calls):.1f} ({len(calls)} in {len(ms)} frames)" if len(calls) else "–"
         lines.append(f"| {name} | {np.median(ms):.2f} | {ms.max():.2f} | {np.median(plain):.2f} | {plain.max():.2f} | "
