@@ -70,3 +70,19 @@ def tiny_checkpoint():
         return net
 
     return save
+
+
+@pytest.fixture(scope="session")
+def benchmark_module():
+    """Import a script of benchmarks/ (not a package) by its path: ``benchmark_module("forecast_quality")``."""
+    import importlib.util
+    from pathlib import Path
+
+    def load(name: str):
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        return mod
+
+    return load

@@ -1,18 +1,8 @@
 """benchmarks/ratio_intervals.py: the 2 s ratio to CV and its sequence bootstrap, on records written by hand."""
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-
-def _module():
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "ratio_intervals.py"
-    spec = importlib.util.spec_from_file_location("ratio_intervals", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _row(err2, cv2):
@@ -20,8 +10,8 @@ def _row(err2, cv2):
             "in50": None, "in90": None}
 
 
-def test_ratio_and_bootstrap_over_whole_sequences(tmp_path):
-    ri = _module()
+def test_ratio_and_bootstrap_over_whole_sequences(tmp_path, benchmark_module):
+    ri = benchmark_module("ratio_intervals")
     run = tmp_path / "run-000"
     run.mkdir()
     (run / "run.json").write_text(json.dumps({"name": "sindy + Doppler"}))

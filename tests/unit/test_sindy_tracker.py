@@ -1,7 +1,5 @@
 """Tracker ``sindy`` and the Doppler update shared with ``kalman``: closed-form update, faster velocity
 convergence with Doppler, one identity through a hidden approach, bad input, forecast quality (slow)."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,19 +109,11 @@ def test_one_identity_through_a_hidden_approach():
         assert np.linalg.norm(out.position[0] - truth[-1]) < 1.0
 
 
-def _quality():
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "forecast_quality.py"
-    spec = importlib.util.spec_from_file_location("forecast_quality", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_sindy_90_percent_discs_cover_a_handful_of_synthetic_cars():
+def test_sindy_90_percent_discs_cover_a_handful_of_synthetic_cars(benchmark_module):
     # The calibrated forecast (benchmarks/forecast_calibration.py) on 4 seeded straight, turning and
     # braking cars each (forecast_quality's cars: 0.5 m noise, 4 s at 10 Hz, 2 s ahead): the 90 % discs
     # around sindy's forecast hold the true centre in 80–100 % of the cases (12 cars: a loose band).
-    res = _quality().compare({"sindy": SindyTracker()}, tracks=4, noise=0.5, seed=3)
+    res = benchmark_module("forecast_quality").compare({"sindy": SindyTracker()}, tracks=4, noise=0.5, seed=3)
     err = np.concatenate([r["sindy"][0] for r in res.values()])
     r90 = np.concatenate([r["sindy"][1] for r in res.values()])
     assert np.all(np.isfinite(err))                               # no car lost
@@ -131,10 +121,10 @@ def test_sindy_90_percent_discs_cover_a_handful_of_synthetic_cars():
 
 
 @pytest.mark.slow
-def test_forecast_beats_cv_on_turns_and_braking_not_worse_on_straight():
+def test_forecast_beats_cv_on_turns_and_braking_not_worse_on_straight(benchmark_module):
     # Issue 28 targets at 0.5 m noise, 2 s ahead: ≥ 30 % below CV (kalman) on turning and braking
     # cars, ≤ 5 % above it on straight ones (8 seeded cars per kind, xnlos_core.motion truth).
-    res = _quality().compare({"kalman": KalmanTracker(), "sindy": SindyTracker()}, tracks=8, noise=0.5)
+    res = benchmark_module("forecast_quality").compare({"kalman": KalmanTracker(), "sindy": SindyTracker()}, tracks=8, noise=0.5)
     ratio = {k: np.nanmean(r["sindy"][0]) / np.nanmean(r["kalman"][0]) for k, r in res.items()}
     assert ratio["cv"] <= 1.05
     assert ratio["turn"] <= 0.7 and ratio["brake"] <= 0.7
