@@ -37,6 +37,7 @@ import numpy as np
 
 from tracking_case import case_parser, family_sequences
 
+from estimators.trackers.sindy import SindyParams, evidence_bar
 from estimators.trackers.sindy_model import GENERATORS, path_under
 
 FAMILY = "hidden_car_approach"
@@ -52,19 +53,18 @@ def run(config: str, case: int, dataset: str, split: str):
     pipe = Pipeline(r["config"], source=r["source"])
     tracker = pipe.stages["tracker"]
     seqs = [[_record(f, pipe.process(f), tracker) for f in frames] for frames in family_sequences(pipe, FAMILY)]
-    return r["name"], seqs, r["config"].run.match_radius, _thresholds(tracker)
+    return r["name"], seqs, r["config"].run.match_radius, _sindy_params(tracker)
 
 
-def _thresholds(tracker):
+def _sindy_params(tracker) -> SindyParams | None:
     """The SindyParams of a sindy tracker (its min_samples and evidence bars), None for another."""
-    p = tracker.params
-    return p if hasattr(p, "min_samples") and hasattr(p, "min_evidence") else None
+    return tracker.params if isinstance(tracker.params, SindyParams) else None
 
 
 def _identification(tracker) -> dict:
     """{track id: (samples in its window, evidence of its last identification or None)} of a sindy
     tracker, from its checkpoint (:meth:`Tracker.state`); {} for another tracker."""
-    if _thresholds(tracker) is None:
+    if _sindy_params(tracker) is None:
         return {}
     out = {}
     for d in tracker.state()["tracks"]:
@@ -87,17 +87,14 @@ def _record(f, res, tracker) -> dict:
 GROUPS = ("follows a model", "CV: fewer than min_samples samples", "CV: evidence below its bar", "CV: otherwise")
 
 
-def _group(f: dict, j: int, thresholds) -> str:
-    """Which of GROUPS track j of map f was in when it forecast (module docstring; ``thresholds`` the
-    tracker's SindyParams)."""
-    from estimators.trackers.sindy import evidence_bar
-
+def _group(f: dict, j: int, params: SindyParams) -> str:
+    """Which of GROUPS track j of map f was in when it forecast (module docstring)."""
     if f["model"][j] != "cv":
         return GROUPS[0]
     n, evidence, rates = f["ident"].get(int(f["ids"][j]), (0, None, None))
-    if n < thresholds.min_samples:
+    if n < params.min_samples:
         return GROUPS[1]
-    if evidence is not None and evidence < evidence_bar(rates, thresholds):
+    if evidence is not None and evidence < evidence_bar(rates, params):
         return GROUPS[2]
     return GROUPS[3]
 
@@ -121,15 +118,9 @@ def _true_manoeuvre(s: list, times: np.ndarray, k: int, i: int, v: np.ndarray) -
     return np.array([a @ v / np.linalg.norm(v), a @ (GENERATORS[1] @ v) / (v @ v)])
 
 
-def _under(rates: np.ndarray, p: np.ndarray, v: np.ndarray, horizon: float) -> np.ndarray:
-    """Position (2,) [m] ``horizon`` s after the state (p, v) under the rates (β, ω), a braking one
-    stopping where its speed reaches 0 (:mod:`estimators.trackers.sindy_model`)."""
-    return path_under(rates, p, v, [horizon])[0]
-
-
-def score(seqs, radius: float, thresholds=None, centroid_radius: float = 3.5,
+def score(seqs, radius: float, params: SindyParams | None = None, centroid_radius: float = 3.5,
           horizon: float = 2.0) -> dict:
-    """Per motion kind: lists of the quantities of the module docstring (``thresholds``: a sindy
+    """Per motion kind: lists of the quantities of the module docstring (``params``: a sindy
     tracker's SindyParams, for the grouping)."""
     out = defaultdict(lambda: defaultdict(list))
     for s in seqs:
@@ -160,12 +151,12 @@ def score(seqs, radius: float, thresholds=None, centroid_radius: float = 3.5,
                     continue
                 future = s[jf]["truth"][i][0]
                 o["cv"].append(np.linalg.norm(tp + horizon * tv - future))
-                o["true_xi"].append(np.linalg.norm(_under(truth, tp, tv, horizon) - future))
+                o["true_xi"].append(np.linalg.norm(path_under(truth, tp, tv, [horizon])[0] - future))
                 if f["fc"] is not None and len(f["hz"]):
                     h = int(np.argmin(np.abs(np.asarray(f["hz"]) - horizon)))
                     o["tracker"].append(np.linalg.norm(f["fc"][j, h] - future))
-                    if thresholds is not None:
-                        o["groups"].append((_group(f, j, thresholds), o["cv"][-1], o["tracker"][-1], o["true_xi"][-1]))
+                    if params is not None:
+                        o["groups"].append((_group(f, j, params), o["cv"][-1], o["tracker"][-1], o["true_xi"][-1]))
     return out
 
 
@@ -228,9 +219,9 @@ def main():
     ap.add_argument("--out", default=str(Path(__file__).with_name("forecast_bound.md")))
     a = ap.parse_args()
     t0 = time.perf_counter()
-    name, seqs, radius, thresholds = run(a.config, a.case, a.dataset, a.split)
+    name, seqs, radius, params = run(a.config, a.case, a.dataset, a.split)
     cmd = f"python benchmarks/forecast_bound.py --dataset {a.dataset} --split {a.split} --case {a.case}"
-    text = report(name, score(seqs, radius, thresholds), cmd, time.perf_counter() - t0, len(seqs))
+    text = report(name, score(seqs, radius, params), cmd, time.perf_counter() - t0, len(seqs))
     print(text)
     Path(a.out).write_text(text)
 

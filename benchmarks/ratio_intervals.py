@@ -9,8 +9,9 @@ The issue's forecast target is a ratio: the tracker's mean 2 s-ahead error over 
 ``family_motions``). Its forecasts are not independent: one car gives up to 40 consecutive ones
 from one track, and the split holds a handful of braking cars. So the forecasts are resampled by
 whole sequences (the percentile bootstrap, Efron & Tibshirani 1993, ch. 13): each resample draws
-the split's sequences with replacement and recomputes the ratio with
-``xnlos_core.sequence_eval.prediction_summary`` — the same function eval.md's ratio comes from. The
+the split's sequences with replacement and recomputes the ratio from each sequence's
+``xnlos_core.sequence_eval.prediction_summary`` (the function eval.md's ratio comes from; pooled as
+sums, :func:`interval`). The
 table gives, per run and family/motion, the ratio on the split, its 90 % interval and the sequences
 that hold a scored 2 s forecast of that kind (the cars' count that decides the spread). Seeded.
 """
@@ -28,13 +29,6 @@ KINDS = ("hidden_car_approach/braking", "hidden_car_approach/turning", "hidden_c
          "hidden_cyclist/turning", "hidden_cyclist/straight")
 
 
-def ratio(rows: list[dict]) -> float:
-    """Mean 2 s error of the tracker's forecast over CV's (NaN where nothing is scored at 2 s)."""
-    s = prediction_summary(rows)
-    a, b = s["model"]["fde@2s"], s["cv"]["fde@2s"]
-    return a / b if a is not None and b else float("nan")
-
-
 def by_sequence(run_dir: Path, kind: str) -> list[list[dict]]:
     """The forecast rows of ``kind`` ("family/motion") of each sequence that has any."""
     fam, motion = kind.split("/")
@@ -48,14 +42,28 @@ def by_sequence(run_dir: Path, kind: str) -> list[list[dict]]:
 
 
 def interval(seqs: list[list[dict]], resamples: int, rng: np.random.Generator) -> tuple[float, float, float, int]:
-    """(ratio, 5 %, 95 % bootstrap quantiles, sequences scored at 2 s)."""
-    scored = [s for s in seqs if prediction_summary(s)["cv"]["n@2s"]]
-    if not scored:
+    """(ratio, 5 %, 95 % bootstrap quantiles, sequences scored at 2 s).
+
+    Each sequence is summarised once: its summed 2 s errors and their counts (the mean 2 s error of
+    ``prediction_summary`` times its ``n@2s``), tracker's and CV's; a resample's pooled means are then
+    sums of those, the same as ``prediction_summary`` of the resample's rows."""
+    sums = []
+    for s in seqs:
+        p = prediction_summary(s)
+        if p["cv"]["n@2s"]:
+            sums.append([(p[k]["fde@2s"] or 0.0) * p[k]["n@2s"] for k in ("model", "cv")]
+                        + [p[k]["n@2s"] for k in ("model", "cv")])
+    if not sums:
         return float("nan"), float("nan"), float("nan"), 0
-    draws = np.array([ratio([r for i in rng.integers(0, len(scored), len(scored)) for r in scored[i]])
-                      for _ in range(resamples)])
+    sums = np.array(sums)                                             # (S, 4): Σe, Σe_cv, n, n_cv
+
+    def ratios(tot):                                                  # (…, 4) → (…,)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (tot[..., 0] / tot[..., 2]) / (tot[..., 1] / tot[..., 3])
+
+    draws = ratios(sums[rng.integers(0, len(sums), (resamples, len(sums)))].sum(1))
     lo, hi = np.nanquantile(draws, [0.05, 0.95])
-    return ratio([r for s in scored for r in s]), float(lo), float(hi), len(scored)
+    return float(ratios(sums.sum(0))), float(lo), float(hi), len(sums)
 
 
 def main() -> None:
