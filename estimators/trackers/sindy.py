@@ -93,7 +93,9 @@ class SindyParams(KalmanParams):
     radial_share: Literal["ar1", "full"] = Field("ar1", description="how many independent samples the radial "
                                                   "residuals count in the identification's evidence: 'ar1' from "
                                                   "their lag-1 autocorrelation, 'full' all (sindy_model, Doppler: "
-                                                  "'full' finds braking sooner, and turns in wrong-relay Doppler)")
+                                                  "'full' finds braking sooner; with one row per cluster it also "
+                                                  "finds turns in rows that mix two relay walls, so pair it with "
+                                                  "doppler_rows 'wall')")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
     braking_evidence: float | None = Field(None, ge=0, le=1e6, description="BIC(CV) − BIC(model) a model of braking "

@@ -60,11 +60,14 @@ many independent samples the m radial residuals hold:
   not enter y, and each frame's Doppler noise is its own; the radial residuals' correlation is then
   the model's mismatch (with the exponential library used before, e^{αt} fitted to a constant
   deceleration left a smooth residual of a few 0.1 m/s, ρ ≈ 0.8, and "ar1" cut the radial evidence
-  about tenfold). It suits scenes where every point's relay wall is right. On the large val split
-  (configs/ablations/tracking.toml, sindy + Doppler) "full" takes braking hidden cars from 0.71 to
-  0.57 of CV's 2 s error behind nlos_cfar and from 0.89 to 0.82 behind the oracle, but the oracle's
-  straight cyclists from 1.04 to 1.20 (measured with the forecast's α = β/s; with the exponential
-  library, on the test split, straight cars 1.05 → 1.11: ``benchmarks/tracking_ablation.md``, session 8).
+  about tenfold). It suits rows whose direction is their relay wall's own. With one row per cluster,
+  which mixes the directions of two relay walls, "full" took the oracle's straight cyclists on the large
+  val split from 1.04 to 1.20 of CV's 2 s error (session 8, with α = β/s; with the exponential library,
+  on the test split, straight cars 1.05 → 1.11). With one row per relay wall (the tracker's
+  ``doppler_rows = "wall"``) it took braking hidden cars from 0.53 to 0.37 of CV's error behind nlos_cfar
+  and from 0.81 to 0.73 behind the oracle on val (train: 0.91 → 0.91, 0.85 → 0.78), straight road users
+  within 0.02 of before (``benchmarks/tracking_ablation.md``, session 11); the tracking ablation uses
+  "full" with wall rows.
 
 The covariance stays σ_p² (JᵀJ)⁻¹ of the weighted Jacobian.
 

@@ -313,3 +313,31 @@ def test_precise_radial_velocities_of_a_braking_car_count_in_full():
 def test_radial_share_must_be_named():
     with pytest.raises(InputError, match="radial_share"):
         identify_motion(T, turn(T, 0.0, 5.0), 0.1, radial_share="none")
+
+
+def test_radial_residuals_in_full_need_each_rows_own_relay_wall():
+    # A straight car (8 m/s) seen through two relay walls whose mirrored lines of sight differ by 83–112°,
+    # the cluster's points coming mostly through one wall or the other in turn (every 0.75 s). One row per
+    # cluster, the weighted mean of both walls' directions and radial velocities, is no ĝᵀv of any velocity:
+    # its residual steps with the walls' shares, and counted in full ("full") it passes for a manoeuvre.
+    # One row per relay wall (the heaviest wall's own ĝ and y) leaves the car constant velocity on every seed.
+    t = T[:30]
+    pos, vel = braking(t, v0=8.0, a=0.0)
+    g1, y1 = radial(pos, vel, (40.0, 30.0))
+    g2, y2 = radial(pos, vel, (-20.0, 35.0))
+    mixed = 0
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        z = pos + wander(len(t), rng) + 0.1 * rng.standard_normal(pos.shape)
+        w1 = 0.5 + 0.4 * np.sign(np.sin(2 * np.pi * t / 1.5 + rng.uniform(0, 6)))  # wall 1's share of the points
+        n1, n2 = y1 + 0.05 * rng.standard_normal(len(t)), y2 + 0.05 * rng.standard_normal(len(t))
+        gm = w1[:, None] * g1 + (1 - w1)[:, None] * g2
+        gm /= np.linalg.norm(gm, axis=1, keepdims=True)
+        cluster = identify_motion(t, z, None, direction=gm, radial=w1 * n1 + (1 - w1) * n2, n_models=5, seed=seed,
+                                  radial_share="full")
+        mixed += cluster.evidence >= 10
+        heavy = (w1 >= 0.5)[:, None]
+        wall = identify_motion(t, z, None, direction=np.where(heavy, g1, g2), radial=np.where(heavy[:, 0], n1, n2),
+                               n_models=5, seed=seed, radial_share="full")
+        assert wall.terms() == [], (seed, wall.evidence, wall.terms())
+    assert mixed >= 5, mixed
