@@ -16,6 +16,9 @@ the car's truth 2 s ahead:
 * the state errors: position, velocity, and the velocity error along the car's heading by track age
   (frames since the track's birth), and the speed of the hidden points' centroid (points within
   ``centroid_radius`` of the car) against the car's speed;
+* how often the moving, mirror-visible cars are detected (a hidden point within ``centroid_radius``)
+  and tracked (a track within ``match_radius``), pooled over frames and per car: a car the detector
+  misses leaves only short, young tracks, whose forecasts stay CV;
 * for a ``sindy`` tracker, where its forecasts of each motion come from: the matched track's state
   when it forecast (from :meth:`Tracker.state`: its samples in the window and the evidence of its last
   identification) — following a model; CV because it has fewer than ``min_samples`` samples; CV with
@@ -123,7 +126,7 @@ def score(seqs, radius: float, params: SindyParams | None = None, centroid_radiu
     """Per motion kind: lists of the quantities of the module docstring (``params``: a sindy
     tracker's SindyParams, for the grouping)."""
     out = defaultdict(lambda: defaultdict(list))
-    for s in seqs:
+    for si, s in enumerate(seqs):
         times, born = np.array([f["t"] for f in s]), {}
         for k, f in enumerate(s):
             for tid in f["ids"]:
@@ -140,6 +143,8 @@ def score(seqs, radius: float, params: SindyParams | None = None, centroid_radiu
                     o["centroid_deficit"].append((c - c_prev) @ v / speed / (f["t"] - s[k - 1]["t"]) - speed)
                 d = np.linalg.norm(f["pos"] - p, axis=1) if len(f["ids"]) else np.array([np.inf])
                 j = int(d.argmin())
+                near = len(f["points"]) > 0 and bool(np.any(np.linalg.norm(f["points"] - p, axis=1) < centroid_radius))
+                o["seen"].append((si, i, near, bool(d[j] <= radius)))
                 if d[j] > radius:
                     continue
                 tp, tv = f["pos"][j], f["vel"][j]
@@ -178,6 +183,26 @@ def _groups_table(out: dict, kinds: list[str]) -> list[str]:
     return lines
 
 
+def _detection_table(out: dict, kinds: list[str]) -> list[str]:
+    """Per motion: of the frames where a car moves (≥ 0.5 m/s) mirror-visible, the share with a hidden
+    point within ``centroid_radius`` of it (detected) and with a track within ``match_radius`` (tracked),
+    pooled and per car (median, and cars detected in fewer than 30 % of their frames)."""
+    lines = ["", "Moving, mirror-visible cars: share of their frames with a hidden point within 3.5 m (detected) and "
+             "with a track within the match radius (tracked):", "",
+             "| motion | cars | frames | detected | tracked | detected, median car | cars detected < 30 % |",
+             "|---|---|---|---|---|---|---|"]
+    for k in kinds:
+        rows = out[k]["seen"]
+        cars = defaultdict(list)
+        for seq, i, near, tracked in rows:
+            cars[(seq, i)].append(near)
+        per_car = np.array([np.mean(v) for v in cars.values()])
+        det, trk = np.mean([r[2] for r in rows]), np.mean([r[3] for r in rows])
+        lines.append(f"| {k} | {len(cars)} | {len(rows)} | {det:.2f} | {trk:.2f} | {np.median(per_car):.2f} | "
+                     f"{int(np.sum(per_car < 0.3))} |")
+    return lines
+
+
 def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
     kinds = [k for k in ("straight", "turning", "braking") if k in out]
     lines = [f"# Forecast bound: hidden cars, 2 s ahead ({name}, {n_seq} sequences)", "",
@@ -209,6 +234,7 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
             sel = al[(al[:, 1] >= lo) & (al[:, 1] < hi), 0]
             cells.append(f"{sel.mean():+.2f} ± {sel.std():.2f} ({len(sel)})" if len(sel) else "–")
         lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += _detection_table(out, kinds)
     lines += _groups_table(out, [k for k in ("straight", "turning", "braking") if k in out])
     lines += ["", f"`{cmd}` ({seconds:.0f} s)"]
     return "\n".join(lines) + "\n"
