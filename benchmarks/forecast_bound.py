@@ -102,11 +102,16 @@ def _group(f: dict, j: int, params: SindyParams) -> str:
     return GROUPS[3]
 
 
+def _near(f: dict, p: np.ndarray, radius: float) -> np.ndarray:
+    """Mask (N,) of map f's hidden points within ``radius`` [m] of the position p (2,)."""
+    return np.linalg.norm(f["points"] - p, axis=1) < radius if len(f["points"]) else np.zeros(0, bool)
+
+
 def _centroid(f: dict, i: int, radius: float) -> np.ndarray | None:
     """Centroid (2,) [m] of the hidden points within ``radius`` of object i's centre (None: < 2 points)."""
-    if i not in f["truth"] or not len(f["points"]):
+    if i not in f["truth"]:
         return None
-    near = np.linalg.norm(f["points"] - f["truth"][i][0], axis=1) < radius
+    near = _near(f, f["truth"][i][0], radius)
     return f["points"][near].mean(0) if np.count_nonzero(near) >= 2 else None
 
 
@@ -143,8 +148,7 @@ def score(seqs, radius: float, params: SindyParams | None = None, centroid_radiu
                     o["centroid_deficit"].append((c - c_prev) @ v / speed / (f["t"] - s[k - 1]["t"]) - speed)
                 d = np.linalg.norm(f["pos"] - p, axis=1) if len(f["ids"]) else np.array([np.inf])
                 j = int(d.argmin())
-                near = len(f["points"]) > 0 and bool(np.any(np.linalg.norm(f["points"] - p, axis=1) < centroid_radius))
-                o["seen"].append((si, i, near, bool(d[j] <= radius)))
+                o["seen"].append((si, i, bool(_near(f, p, centroid_radius).any()), bool(d[j] <= radius)))
                 if d[j] > radius:
                     continue
                 tp, tv = f["pos"][j], f["vel"][j]

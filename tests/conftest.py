@@ -74,15 +74,23 @@ def tiny_checkpoint():
 
 @pytest.fixture(scope="session")
 def benchmark_module():
-    """Import a script of benchmarks/ (not a package) by its path: ``benchmark_module("forecast_quality")``."""
+    """Import a script of benchmarks/ (not a package) by its path: ``benchmark_module("forecast_quality")``.
+    benchmarks/ is on sys.path while the script loads, as when it runs, for its sibling imports
+    (e.g. ``tracking_case``)."""
     import importlib.util
+    import sys
     from pathlib import Path
 
+    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+
     def load(name: str):
-        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-        spec = importlib.util.spec_from_file_location(name, path)
+        spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
         mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
+        sys.path.insert(0, str(folder))
+        try:
+            spec.loader.exec_module(mod)
+        finally:
+            sys.path.remove(str(folder))
         return mod
 
     return load

@@ -16,10 +16,7 @@ def _frame(t, car, points, track):
             "truth": {0: (np.asarray(car, float), np.array([5.0, 0.0]), True, "braking")}}
 
 
-def test_detected_and_tracked_shares_per_car(benchmark_module, monkeypatch):
-    from pathlib import Path
-
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))  # its sibling tracking_case
+def test_detected_and_tracked_shares_per_car(benchmark_module):
     fb = benchmark_module("forecast_bound")
     # 30 frames at 10 Hz; points near the car in the first 10 frames only, a track on it in frames 0–4
     seq = []
