@@ -147,7 +147,7 @@ def test_builtin_scene_by_name_from_any_folder(tmp_path, monkeypatch):
         load_scene({"builtin": "corner.toml"}, "t", tmp_path)
 
 
-@pytest.mark.parametrize(("name", "dataset"), [("table2.toml", "default"), ("tracking.toml", "sequences")])
+@pytest.mark.parametrize(("name", "dataset"), [("table2.toml", "default"), ("tracking.toml", "sequences64")])
 def test_ablations_read_the_dataset_their_simulate_command_writes(monkeypatch, name, dataset):
     """Each ablation names `xnlos simulate … --out out/data/<dataset>` (run from the project root); its
     dataset path, taken from the config's own folder, is that same place."""

@@ -112,6 +112,33 @@ def test_shipped_models_record_the_default_dataset_radar(name):
     assert any("121 azimuth bins trained, 31 here" in p for p in grid_mismatches(rec, _map(smoke)))
 
 
+@pytest.mark.parametrize("dataset", ["sequences_64chirps", "sequences_large_64chirps"])
+def test_sequence_model_records_the_sequence_datasets_radar(dataset):
+    """swin_unet_sequences64.pt, the detector of the tracking ablation's swin_unet cases, was fine-tuned on
+    the train split of sequences_large_64chirps.toml (its metadata names that config's digest) and records
+    that radar's grid, which the default sequence dataset shares: no grid warning on either's maps, one on
+    the Table 2 dataset's 401 range bins."""
+    from sims.dataset import load_dataset_config
+    from sims.dataset.config import resolve
+
+    def radar_of(name):
+        cfg = resolve(load_dataset_config(f"configs/datasets/{name}.toml"), f"{name}.toml")
+        return cfg, RadarConfig.model_validate(cfg.radar)
+
+    _, meta, _ = load_checkpoint(MODELS_DIR / "swin_unet_sequences64.pt", "swin_unet")
+    rec = meta["trained_on"]
+    cfg, radar = radar_of(dataset)
+    assert rec["radar"] == radar.model_dump(mode="json") and radar.n_chirps == 64
+    assert grid_mismatches(rec, _map(radar)) == []
+    assert meta["training"]["dataset"]["config_sha256"] == radar_of("sequences_large_64chirps")[0].digest()
+    assert meta["training"]["dataset"]["init"]["weights_sha256"] == load_checkpoint(MODELS_DIR / "swin_unet.pt",
+                                                                                    "swin_unet")[1]["weights_sha256"]
+    assert any("241 range bins trained, 401 here" in m for m in grid_mismatches(rec, _map(radar_of("default")[1])))
+    from plugins.detectors.train_config import load_train_config  # and its training config is the one in the repo
+
+    assert load_train_config(meta["training"]["config_file"]).digest() == meta["training"]["config_sha256"]
+
+
 def test_shipped_model_warns_on_a_77_ghz_map():
     det = get_registry().create("detector", "further_than_cfar", {"device": "cpu"})
     radar = SMALL.model_copy(update={"carrier_frequency": 77e9})
