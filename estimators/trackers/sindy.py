@@ -96,6 +96,10 @@ class SindyParams(KalmanParams):
                                                   "'full' finds braking sooner; with one row per cluster it also "
                                                   "finds turns in rows that mix two relay walls, so pair it with "
                                                   "doppler_rows 'wall')")
+    screen_radial: bool = Field(False, description="the identification first leaves out the radial velocities "
+                                                   "that the richest model, refitted without each, misses by more "
+                                                   "than 5 robust SDs (at most 10 % of them: a wrong relay wall's "
+                                                   "rows; sindy_model._screen_radial)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
                                                                 "needs to replace constant velocity")
     braking_evidence: float | None = Field(None, ge=0, le=1e6, description="BIC(CV) − BIC(model) a model of braking "
@@ -318,7 +322,7 @@ class SindyTracker(KalmanTracker):
         tr.fitted_frame = self._frame
         try:
             model = identify_motion(ts, zs, None, n_models=p.n_models, seed=p.seed + tr.id,
-                                    radial_share=p.radial_share, **doppler)
+                                    radial_share=p.radial_share, screen_radial=p.screen_radial, **doppler)
         except InsufficientDataError:  # e.g. an axis-aligned noiseless path: nothing to identify
             tr.identified, tr.motion = None, CV
             return

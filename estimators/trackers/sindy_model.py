@@ -69,6 +69,12 @@ many independent samples the m radial residuals hold:
   within 0.02 of before (``benchmarks/tracking_ablation.md``, session 11); the tracking ablation uses
   "full" with wall rows.
 
+A single row through a wrong relay among precise ones (64 chirps: σ_r ≈ 0.02–0.07 m/s), counted in full,
+still passes for a manoeuvre: the refit bends to it (a straight cyclist identified as braking and turning,
+evidence up to 110, for the 3 s the row stayed in the window). ``screen_radial`` first leaves out the rows
+whose deleted residual under the richest model exceeds 5 robust SDs (at least 0.1 m/s; at most 10 % of
+the rows, :func:`_screen_radial`); a true manoeuvre's rows all stay.
+
 The covariance stays σ_p² (JᵀJ)⁻¹ of the weighted Jacobian.
 
 Prediction (``MotionModel.predict``) h ∈ [0, 3] s ahead: every member is integrated exactly (matrix
@@ -437,6 +443,9 @@ def _share(num: float, den: float, count: int) -> float:
 
 
 RADIAL_SHARES = ("ar1", "full")
+RADIAL_OUTLIER_SDS = 5.0    # a radial velocity this many robust SDs off the model refitted without it is dropped
+RADIAL_OUTLIER_FLOOR = 0.1  # [m/s] floor of that SD: the tracker's own Doppler floor (``doppler_floor``)
+RADIAL_OUTLIER_SHARE = 0.1  # at most this share of a window's radial velocities (at least one) is dropped
 
 
 def _effective_share(resid: np.ndarray, n: int, radial: _Radial | None, radial_share: str = "ar1") -> tuple[float, float]:
@@ -482,8 +491,53 @@ def _radial_sigma(y: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d)) / np.sqrt(2)) if len(d) >= 3 else 0.1
 
 
+def _screen_radial(coef: np.ndarray, t: np.ndarray, z: np.ndarray, rad: _Radial) -> np.ndarray:
+    """Mask (m,) of the radial velocities of ``rad`` to keep: the one farthest from the refit of support
+    ``coef`` (by its deleted residual) is left out while the refit *without it* misses it by more than RADIAL_OUTLIER_SDS robust SDs
+    (1.4826 MAD of the other radial residuals, at least RADIAL_OUTLIER_FLOOR), at most
+    RADIAL_OUTLIER_SHARE of them. A point mirrored through a wrong relay wall carries a direction ĝ and a
+    radial velocity of another line of sight (off by 0.5–1.7 m/s): one such row among precise ones, its
+    residual counted in full, bent a straight cyclist's refit into a braking turn with evidence ≈ 100 for
+    the 3 s it stayed in the window (benchmarks/tracking_ablation.md, session 12). With the row in the fit
+    its residual shrinks to a few of the others' SDs, so the row is picked by its leverage-corrected
+    residual e/(1 − h) (h the hat-matrix diagonal of the linearised refit) and tested by its deleted one."""
+    keep = np.ones(len(rad.idx), bool)
+    n2, dts = 2 * len(t), t - t[-1]
+    for _ in range(max(1, int(RADIAL_OUTLIER_SHARE * len(rad.idx)))):
+        if keep.sum() <= 3:
+            break
+        cur = _Radial(rad.idx[keep], rad.g[keep], rad.y[keep], rad.lam)
+        mask, theta, cov, *_, resid = _refit(coef, t, z, cur)
+        jac = _design(*_flow(_rates(theta, mask)[1], bool(mask[1]), dts, 4), theta, mask, cur)[n2:]
+        lev = np.clip(np.sum((jac @ cov) * jac, axis=1), 0.0, 0.99)  # hat-matrix diagonal of the radial rows
+        j = np.flatnonzero(keep)[int(np.argmax(np.abs(resid[n2:]) / (1.0 - lev)))]  # largest deleted residual
+        without = keep.copy()
+        without[j] = False
+        mask, theta, *_, resid = _refit(coef, t, z, _Radial(rad.idx[without], rad.g[without], rad.y[without], rad.lam))
+        rest = resid[n2:] / rad.lam
+        sd = max(1.4826 * float(np.median(np.abs(rest - np.median(rest)))), RADIAL_OUTLIER_FLOOR)
+        v = _flow(_rates(theta, mask)[1], False, dts[rad.idx[j]:rad.idx[j] + 1], 4)[0][0, 2:4] @ _initial(theta, mask)
+        if abs(rad.y[j] - rad.g[j] @ v) <= RADIAL_OUTLIER_SDS * sd:
+            break
+        keep = without
+    return keep
+
+
+def _smoothed(t: np.ndarray, z: np.ndarray, sigma_smooth: float, jerk_psd: float, doppler: tuple | None):
+    """(σ_r [m/s] or None, v (n, 2), a (n, 2), the full STLSQ fit (2,)) of the RTS smoother over the positions
+    and, with ``doppler`` (g, y), the radial velocities (identification steps 1–2)."""
+    sigma_r = None if doppler is None else max(_radial_sigma(doppler[1]), 1e-3)
+    smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
+    v, a = smooth[:, 2:4], smooth[:, 4:6]
+    if np.linalg.norm(v) < 1e-9:  # a track at rest: the library columns cannot be normalised
+        raise InsufficientDataError("identify_motion: the velocity is identically zero (a track at rest); "
+                                    "its turn and acceleration are unobservable")
+    return sigma_r, v, a, _sindy_fit(_stlsq(0.0), v, a)
+
+
 def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial=None, n_models: int = 20,
-                    jerk_psd: float = 1.0, seed: int = 0, radial_share: str = "ar1") -> MotionModel:
+                    jerk_psd: float = 1.0, seed: int = 0, radial_share: str = "ar1",
+                    screen_radial: bool = False) -> MotionModel:
     """Identify one track's motion model from samples t (n,) [s] (increasing) and xy (n, 2) [m].
 
     sigma [m]: per-axis measurement standard deviation; None profiles it out of the selection and
@@ -492,7 +546,8 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     has none); they enter the smoother, the refits and the selection (module docstring, Doppler).
     seed: the bagging draws (numpy.random.default_rng(seed); numpy's global RNG is never touched).
     radial_share: "ar1" or "full", how many independent samples the radial residuals count (module
-    docstring, Doppler).
+    docstring, Doppler). screen_radial: first leave out the radial velocities that the richest model,
+    refitted without each, misses by more than 5 robust SDs (:func:`_screen_radial`: a wrong relay's).
     """
     t = as_array("identify_motion: t", t, ndim=1)
     z = as_array("identify_motion: xy", xy, shape=(len(t), 2))
@@ -508,13 +563,15 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     # The smoother needs a noise level; when none is given, white noise's second difference has
     # variance 6σ² (robust scale via the MAD). The model selection below profiles σ out instead.
     sigma_smooth = sigma or float(1.4826 * np.median(np.abs(np.diff(z, 2, axis=0))) / np.sqrt(6)) or 1e-3
-    sigma_r = None if doppler is None else max(_radial_sigma(doppler[1]), 1e-3)
-    smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
-    v, a = smooth[:, 2:4], smooth[:, 4:6]
-    if np.linalg.norm(v) < 1e-9:  # a track at rest: the library columns cannot be normalised
-        raise InsufficientDataError("identify_motion: the velocity is identically zero (a track at rest); "
-                                    "its turn and acceleration are unobservable")
-    full = _sindy_fit(_stlsq(0.0), v, a)
+    sigma_r, v, a, full = _smoothed(t, z, sigma_smooth, jerk_psd, doppler)
+    if doppler is not None and screen_radial:  # under the richest model of all the rows; then smoothed again
+        ok = np.flatnonzero(np.isfinite(doppler[1]))
+        keep = _screen_radial(full, t, z, _Radial(ok, doppler[0][ok], doppler[1][ok], sigma_smooth / sigma_r))
+        if not keep.all():
+            y = doppler[1].copy()
+            y[ok[~keep]] = np.nan
+            doppler = (doppler[0], y)
+            sigma_r, v, a, full = _smoothed(t, z, sigma_smooth, jerk_psd, doppler)
     norms = np.linalg.norm(_library(v), axis=0)  # of v̂ and Jv: the thresholds act on normalised columns
     cuts = np.unique(np.abs(full * norms))
     cuts = cuts[cuts > 0]
