@@ -493,9 +493,9 @@ def _radial_sigma(y: np.ndarray) -> float:
 
 def _screen_radial(coef: np.ndarray, t: np.ndarray, z: np.ndarray, rad: _Radial) -> np.ndarray:
     """Mask (m,) of the radial velocities of ``rad`` to keep: the one farthest from the refit of support
-    ``coef`` (by its deleted residual) is left out while the refit *without it* misses it by more than RADIAL_OUTLIER_SDS robust SDs
-    (1.4826 MAD of the other radial residuals, at least RADIAL_OUTLIER_FLOOR), at most
-    RADIAL_OUTLIER_SHARE of them. A point mirrored through a wrong relay wall carries a direction ĝ and a
+    ``coef`` (by its deleted residual) is left out while the refit *without it* misses it by more than
+    RADIAL_OUTLIER_SDS robust SDs (1.4826 MAD of the other radial residuals, at least RADIAL_OUTLIER_FLOOR),
+    at most RADIAL_OUTLIER_SHARE of them. A point mirrored through a wrong relay wall carries a direction ĝ and a
     radial velocity of another line of sight (off by 0.5–1.7 m/s): one such row among precise ones, its
     residual counted in full, bent a straight cyclist's refit into a braking turn with evidence ≈ 100 for
     the 3 s it stayed in the window (benchmarks/tracking_ablation.md, session 12). With the row in the fit

@@ -127,7 +127,7 @@ def test_sequence_model_records_the_sequence_datasets_radar(dataset):
 
     _, meta, _ = load_checkpoint(MODELS_DIR / "swin_unet_sequences64.pt", "swin_unet")
     rec = meta["trained_on"]
-    cfg, radar = radar_of(dataset)
+    _, radar = radar_of(dataset)
     assert rec["radar"] == radar.model_dump(mode="json") and radar.n_chirps == 64
     assert grid_mismatches(rec, _map(radar)) == []
     assert meta["training"]["dataset"]["config_sha256"] == radar_of("sequences_large_64chirps")[0].digest()
