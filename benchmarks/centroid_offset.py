@@ -11,7 +11,7 @@ body reads as a car slower than it is by −do/dt), the lag-1 autocorrelation of
 (≈ 0: a random walk; < 0: jitter about a mean) and the same by distance to the radar. Drawn:
 ``benchmarks/centroid_offset.png``, o against time for the first sequences.
 
-    python benchmarks/centroid_offset.py [--dataset out/data/sequences_large] [--split test] [--case 6]
+    python benchmarks/centroid_offset.py [--dataset out/data/sequences_large64] [--split test] [--case 6]
 """
 from __future__ import annotations
 

@@ -28,7 +28,7 @@ the car's truth 2 s ahead:
 
 Writes benchmarks/forecast_bound.md.
 
-    python benchmarks/forecast_bound.py [--dataset out/data/sequences_large] [--split test] [--case 6]
+    python benchmarks/forecast_bound.py [--dataset out/data/sequences_large64] [--split test] [--case 6]
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ its distance to the nearest road user of the frame's object truth — within 2 m
 not their relay wall — and by its speed (< 1, 1–4, ≥ 4 m/s). ``--history`` overrides ``lsq``'s
 ``history_frames`` (the walls' frames), to compare one frame against several on the same sequences.
 
-    python benchmarks/ghost_tracks.py [--dataset out/data/sequences_large] [--split val] [--case 4] [--history 1]
+    python benchmarks/ghost_tracks.py [--dataset out/data/sequences_large64] [--split val] [--case 4] [--history 1]
 """
 from __future__ import annotations
 

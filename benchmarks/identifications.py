@@ -18,7 +18,7 @@ window's last sample is matched to the nearest car of that frame's truth (within
   samples [deg] and the range of y − ĝᵀv_true [m/s] (the radial error of a point mirrored through a
   wrong or misplaced relay wall).
 
-    python benchmarks/identifications.py [--dataset out/data/sequences_large] [--split train] [--case 6]
+    python benchmarks/identifications.py [--dataset out/data/sequences_large64] [--split train] [--case 6]
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-CASES = {4: "sindy + Doppler behind nlos_cfar", 6: "oracle → sindy + Doppler"}
+CASES = {4: "sindy + Doppler behind nlos_cfar", 6: "oracle → sindy + Doppler", 8: "swin_unet → sindy + Doppler"}
 
 
 def case_parser(doc: str, case: int, split: str) -> argparse.ArgumentParser:
@@ -13,7 +13,7 @@ def case_parser(doc: str, case: int, split: str) -> argparse.ArgumentParser:
     ap.add_argument("--config", default="configs/ablations/tracking.toml")
     ap.add_argument("--case", type=int, default=case,
                     help=f"index of the sweep case ({case}: {CASES.get(case, 'see the config')})")
-    ap.add_argument("--dataset", default="out/data/sequences_large")
+    ap.add_argument("--dataset", default="out/data/sequences_large64")
     ap.add_argument("--split", default=split)
     return ap
 

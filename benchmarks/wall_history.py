@@ -10,7 +10,7 @@ share of (frame, wall) pairs found, the median and 90th percentile of |Δφ| [de
 at the wall's centre [m], and draws ``benchmarks/wall_history.png``: the normal-angle error of the walls
 of one sequence frame by frame, for each K.
 
-    python benchmarks/wall_history.py [--dataset out/data/sequences_large] [--split val] [--case 4] [--k 1 5]
+    python benchmarks/wall_history.py [--dataset out/data/sequences_large64] [--split val] [--case 4] [--k 1 5]
 """
 from __future__ import annotations
 

@@ -230,3 +230,23 @@ def test_the_sequences_dataset_checks_visibility_with_its_own_radar_and_tests_ev
              for seed, fam, split in zip(plan.scene_seed, plan.family, plan.split)
              if fam == "hidden_car_approach" and split == "test"}
     assert kinds == {"straight", "braking", "turning"}
+
+
+@pytest.mark.parametrize(("base", "twin"), [("sequences", "sequences_64chirps"),
+                                            ("sequences_large", "sequences_large_64chirps")])
+def test_the_64_chirp_sequence_datasets_render_the_same_scenes(base, twin):
+    """The tracking ablation's datasets (64 chirps per transmitter, the radar preset's own) are their
+    16-chirp bases with only [radar].n_chirps changed: the same name, seed, generators and the generators'
+    visibility radar, hence the same scenes and splits (the 16-chirp figures of earlier sessions compare)."""
+    from pathlib import Path
+
+    from sims.dataset.config import load_dataset_config
+    from sims.dataset.plan import make_plan
+    from xnlos_core.config import load_toml
+
+    folder = Path(__file__).resolve().parents[2] / "configs" / "datasets"
+    a, b = load_toml(folder / f"{base}.toml"), load_toml(folder / f"{twin}.toml")
+    assert (a["radar"].pop("n_chirps"), b["radar"].pop("n_chirps")) == (16, 64)
+    assert a == b
+    pa, pb = make_plan(load_dataset_config(folder / f"{base}.toml")), make_plan(load_dataset_config(folder / f"{twin}.toml"))
+    assert np.array_equal(pa.scene_seed, pb.scene_seed) and list(pa.split) == list(pb.split)
