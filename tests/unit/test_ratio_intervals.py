@@ -29,3 +29,12 @@ def test_ratio_and_bootstrap_over_whole_sequences(tmp_path, benchmark_module):
     assert lo == pytest.approx(0.5) and hi == pytest.approx(1.0)
     assert ri.interval([by[0]], 50, np.random.default_rng(0))[1:3] == pytest.approx((0.5, 0.5))
     assert ri.interval([], 50, np.random.default_rng(0))[3] == 0
+
+
+def test_figure_draws_each_run_and_skips_motions_it_lacks(tmp_path, benchmark_module):
+    ri = benchmark_module("ratio_intervals")
+    found = {("large", "sindy + Doppler"): {"hidden_car_approach/braking": (0.6, 0.5, 0.8, 10)},
+             ("large", "oracle"): {"hidden_car_approach/braking": (0.9, 0.8, 1.0, 12),
+                                   "hidden_car_approach/straight": (1.1, 1.0, 1.2, 4)}}
+    ri.figure(found, str(tmp_path / "r.png"))
+    assert (tmp_path / "r.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
