@@ -239,7 +239,7 @@ def report(name: str, out: dict, cmd: str, seconds: float, n_seq: int) -> str:
             cells.append(f"{sel.mean():+.2f} ± {sel.std():.2f} ({len(sel)})" if len(sel) else "–")
         lines.append(f"| {k} | " + " | ".join(cells) + " |")
     lines += _detection_table(out, kinds)
-    lines += _groups_table(out, [k for k in ("straight", "turning", "braking") if k in out])
+    lines += _groups_table(out, kinds)
     lines += ["", f"`{cmd}` ({seconds:.0f} s)"]
     return "\n".join(lines) + "\n"
 

@@ -501,19 +501,24 @@ def _screen_radial(coef: np.ndarray, t: np.ndarray, z: np.ndarray, rad: _Radial)
     the 3 s it stayed in the window (benchmarks/tracking_ablation.md, session 12). With the row in the fit
     its residual shrinks to a few of the others' SDs, so the row is picked by its leverage-corrected
     residual e/(1 − h) (h the hat-matrix diagonal of the linearised refit) and tested by its deleted one."""
-    keep = np.ones(len(rad.idx), bool)
     n2, dts = 2 * len(t), t - t[-1]
+
+    def rows(m):
+        return _Radial(rad.idx[m], rad.g[m], rad.y[m], rad.lam)
+
+    keep = np.ones(len(rad.idx), bool)
+    fit = _refit(coef, t, z, rad)  # the refit on the kept rows: the last one's "without" refit once a row goes
     for _ in range(max(1, int(RADIAL_OUTLIER_SHARE * len(rad.idx)))):
         if keep.sum() <= 3:
             break
-        cur = _Radial(rad.idx[keep], rad.g[keep], rad.y[keep], rad.lam)
-        mask, theta, cov, *_, resid = _refit(coef, t, z, cur)
-        jac = _design(*_flow(_rates(theta, mask)[1], bool(mask[1]), dts, 4), theta, mask, cur)[n2:]
+        mask, theta, cov, *_, resid = fit
+        jac = _design(*_flow(_rates(theta, mask)[1], bool(mask[1]), dts, 4), theta, mask, rows(keep))[n2:]
         lev = np.clip(np.sum((jac @ cov) * jac, axis=1), 0.0, 0.99)  # hat-matrix diagonal of the radial rows
         j = np.flatnonzero(keep)[int(np.argmax(np.abs(resid[n2:]) / (1.0 - lev)))]  # largest deleted residual
         without = keep.copy()
         without[j] = False
-        mask, theta, *_, resid = _refit(coef, t, z, _Radial(rad.idx[without], rad.g[without], rad.y[without], rad.lam))
+        fit = _refit(coef, t, z, rows(without))
+        mask, theta, *_, resid = fit
         rest = resid[n2:] / rad.lam
         sd = max(1.4826 * float(np.median(np.abs(rest - np.median(rest)))), RADIAL_OUTLIER_FLOOR)
         v = _flow(_rates(theta, mask)[1], False, dts[rad.idx[j]:rad.idx[j] + 1], 4)[0][0, 2:4] @ _initial(theta, mask)
