@@ -21,9 +21,17 @@ Per frame at time t [s]:
    Doppler row (if any) then updates: a new track starts with its radial velocity.
 5. Birth: a tentative track is confirmed once it has ``confirm_hits`` (M) hits within its first
    ``confirm_window`` (N) frames, else deleted. Death: a confirmed track is deleted after
-   ``max_misses`` (K) consecutive misses.
+   ``max_misses`` (K) consecutive misses — or, with ``lost_frames`` L > 0, it is first *lost* for up to
+   L further frames: it keeps predicting but is not reported, and is offered only the measurements
+   the other tracks leave (step 3 runs first over the tracks with fewer than K misses, then over the
+   lost ones: a lost track's grown covariance gives it small Mahalanobis distances, which must not
+   take a measurement from a track that holds its object). A match revives it — id, state, history —
+   where the detector's misses would otherwise end a track and start a new one without velocity (the
+   lost-track buffer of ByteTrack, Zhang et al., ECCV 2022). The revived track is tentative again and is
+   reported once it has M hits within N frames anew (else deleted): a lone false alarm near a lost
+   track's prediction would otherwise bring it back unconfirmed.
 
-Only confirmed tracks are reported; ``predicted`` is the position at t + Δt_frame, the last frame
+Only confirmed tracks with fewer than K misses are reported; ``predicted`` is the position at t + Δt_frame, the last frame
 interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
 measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
 
@@ -89,8 +97,15 @@ class KalmanParams(BaseModel):
     confirm_hits: int = Field(2, ge=1, le=1000, description="M: hits needed to confirm a tentative track")
     confirm_window: int = Field(3, ge=1, le=1000, description="N: frames since birth within which a tentative "
                                                               "track must collect M hits, else it is deleted")
-    max_misses: int = Field(3, ge=1, le=10_000, description="K: a confirmed track is deleted after this many "
-                                                           "consecutive frames without a match")
+    max_misses: int = Field(3, ge=1, le=10_000, description="K: a confirmed track is no longer reported after "
+                                                           "this many consecutive frames without a match (and is "
+                                                           "deleted, unless lost_frames keeps it)")
+    lost_frames: int = Field(0, ge=0, le=10_000, description="L: frames a confirmed track that has missed K frames "
+                                                             "is kept lost (predicted, offered the measurements the "
+                                                             "reported tracks leave, not reported) before it is "
+                                                             "deleted; a match revives it with its id, state and "
+                                                             "history, tentative until M of N hits again. 0: "
+                                                             "deleted at K misses")
     cluster_distance: float = Field(5.0, gt=0, le=1e3, description="single-linkage cut [m] grouping one frame's "
                                                                    "hidden points into objects (the scatterers seen on a "
                                                                    "4.5 m car lie up to ≈ 4.8 m apart)")
@@ -201,7 +216,13 @@ class KalmanTracker(Tracker):
             F = self._motion(tr).transition(dt)
             Q = fc.cv_process_noise(dt, p.accel_psd)
             tr.x, tr.P, tr.t, tr.frames = F @ tr.x, F @ tr.P @ F.T + Q, t, tr.frames + 1
-        rows, cols = self._associate(z, R)
+        held = self._held()
+        rows, cols = self._associate(z, R, held)
+        lost = np.setdiff1d(np.arange(len(self._tracks)), held)
+        if len(lost):  # the lost tracks are offered what the held ones leave (step 5)
+            left = np.setdiff1d(np.arange(len(z)), cols)
+            lost_rows, lost_cols = self._associate(z[left], R[left], lost)
+            rows, cols = np.r_[rows, lost_rows], np.r_[cols, left[lost_cols]]
         for i, k in zip(rows, cols):
             self._correct(self._tracks[i], meas, k)
         for i in np.setdiff1d(np.arange(len(self._tracks)), rows):
@@ -285,14 +306,24 @@ class KalmanTracker(Tracker):
 
     def _alive(self, tr: _Track) -> bool:
         if tr.confirmed:
-            return tr.misses < self.params.max_misses
+            return tr.misses < self.params.max_misses + self.params.lost_frames
         return tr.hits + self.params.confirm_window - tr.frames >= self.params.confirm_hits  # M still reachable
 
-    def _associate(self, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if not self._tracks or len(z) == 0:
+    def _lost(self, tr: _Track) -> bool:
+        """Whether ``tr`` is lost: confirmed, with ``max_misses`` misses or more (module docstring, 5)."""
+        return tr.confirmed and tr.misses >= self.params.max_misses
+
+    def _held(self) -> np.ndarray:
+        """Indices of the tracks that are not lost (tentative ones included)."""
+        return np.array([i for i, tr in enumerate(self._tracks) if not self._lost(tr)], np.int64)
+
+    def _associate(self, z: np.ndarray, R: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Gated Hungarian assignment (module docstring, 3) of the tracks ``which`` (indices into the track
+        list) to the measurements z (C, 2), R (C, 2, 2): matched track indices and measurement indices."""
+        if len(which) == 0 or len(z) == 0:
             return np.empty(0, np.int64), np.empty(0, np.int64)
-        x = np.array([tr.x for tr in self._tracks])
-        P = np.array([tr.P for tr in self._tracks])
+        x = np.array([self._tracks[i].x for i in which])
+        P = np.array([self._tracks[i].P for i in which])
         r = z[None, :, :] - x[:, None, :2]                       # (T, C, 2)
         S = P[:, None, :2, :2] + R[None, :, :, :]                # (T, C, 2, 2)
         d2 = np.einsum("tci,tci->tc", r, np.linalg.solve(S, r[..., None])[..., 0])
@@ -300,10 +331,12 @@ class KalmanTracker(Tracker):
         big = gate * (min(d2.shape) + 1)  # any gated match beats all out-of-gate ones
         rows, cols = linear_sum_assignment(np.where(d2 <= gate, d2, big))
         ok = d2[rows, cols] <= gate
-        return rows[ok], cols[ok]
+        return which[rows[ok]], cols[ok]
 
     def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
         gate = self.params.doppler_gate
+        if self._lost(tr):  # revived: tentative again, confirmed anew by M of N (module docstring, 5)
+            tr.confirmed, tr.hits, tr.frames = False, 0, 1
         self._filter(tr, meas, k, position=True, gate=None if gate is None else chi2_1_ppf(gate))
         tr.hits, tr.misses = tr.hits + 1, 0
 
@@ -334,7 +367,7 @@ class KalmanTracker(Tracker):
         tr.P = IKH @ tr.P @ IKH.T + K @ Rx @ K.T
 
     def _report(self, t: float) -> Tracks:
-        trs = [tr for tr in self._tracks if tr.confirmed]
+        trs = [tr for tr in self._tracks if tr.confirmed and not self._lost(tr)]
         h = np.asarray(self.params.horizons, dtype=np.float64)
         if not trs:
             e = no_tracks(t)

@@ -62,6 +62,68 @@ def test_m_of_n_birth_and_k_miss_death():
     assert tracker.update(hidden([[0.0, 0.0]]), 0.4).track_id.tolist() == [1]
 
 
+def _gap_run(lost_frames: int, gap: range, n: int = 30) -> list[list[int]]:
+    """Reported ids, frame by frame, of a car at 5 m/s missed in the frames ``gap``."""
+    tracker = KalmanTracker({"accel_psd": 0.5, "max_misses": 3, "lost_frames": lost_frames})
+    out = []
+    for k in range(n):
+        t = 0.1 * k
+        pts = np.empty((0, 2)) if k in gap else [[20.0 + 5.0 * t, 3.0]]
+        out.append(tracker.update(hidden(pts, 0.1), t).track_id.tolist())
+    return out
+
+
+def test_a_lost_track_is_hidden_then_revived_with_its_id():
+    # missed in frames 10–15: 2 misses coast (reported), from the 3rd (= max_misses) the track is lost
+    ids = _gap_run(lost_frames=8, gap=range(10, 16))
+    assert ids[9] == ids[10] == ids[11] == [0]
+    assert all(i == [] for i in ids[12:16])        # lost: not reported, no new track
+    assert ids[16] == []                             # the next hit revives it, tentative (1 of M = 2 hits)
+    assert ids[17] == [0] and ids[-1] == [0]        # confirmed anew: the same id
+    ids = _gap_run(lost_frames=0, gap=range(10, 16))
+    assert ids[16] == [] and ids[-1] == [1]         # without the buffer: deleted, a new (tentative) track
+    ids = _gap_run(lost_frames=2, gap=range(10, 16))  # the gap (6 frames) outlasts K + L = 5 misses
+    assert ids[-1] == [1]
+
+
+def test_a_lost_track_survives_a_checkpoint():
+    params = {"accel_psd": 0.5, "max_misses": 3, "lost_frames": 8}
+    tracker = KalmanTracker(params)
+    for k in range(14):                                    # seen in frames 0–9, lost from frame 12 on
+        tracker.update(hidden(np.empty((0, 2)) if k >= 10 else [[20.0 + 0.5 * k, 3.0]]), 0.1 * k)
+    resumed = KalmanTracker(params)
+    resumed.load_state(tracker.state())
+    for tr in (tracker, resumed):
+        assert tr.update(hidden([[27.0, 3.0]]), 1.4).track_id.tolist() == []       # revived, tentative
+        assert tr.update(hidden([[27.5, 3.0]]), 1.5).track_id.tolist() == [0]
+
+
+def test_a_lost_track_takes_only_what_the_held_tracks_leave():
+    # A lost track, coasted far, has a wide gate; it must not take a held track's measurement.
+    tracker = KalmanTracker({"confirm_hits": 1, "max_misses": 1, "lost_frames": 50, "accel_psd": 0.5})
+    tracker.update(hidden([[0.0, 0.0], [30.0, 0.0]]), 0.0)               # tracks 0 (at 0) and 1 (at 30)
+    for k in range(1, 20):                                                # track 0 lost, track 1 held
+        tracker.update(hidden([[30.0, 0.0]]), 0.1 * k)
+    # 3 m off track 1 (d² ≈ 8, within its gate), nearer in Mahalanobis terms to lost track 0 (σ ≈ 19 m)
+    assert tracker.update(hidden([[33.0, 0.0]]), 2.0).track_id.tolist() == [1]
+    assert [tr["misses"] for tr in tracker.state()["tracks"]] == [20, 0]
+    # its measurement left over, the lost track takes it back (confirmed at once: M = 1)
+    assert sorted(tracker.update(hidden([[30.0, 0.0], [0.5, 0.0]]), 2.1).track_id.tolist()) == [0, 1]
+
+
+def test_a_false_alarm_does_not_bring_a_lost_track_back():
+    # one hit near a lost track's prediction makes it tentative; without a second hit in N frames it is deleted
+    tracker = KalmanTracker({"accel_psd": 0.5, "max_misses": 3, "lost_frames": 10})
+    for k in range(10):
+        tracker.update(hidden([[20.0, 3.0]]), 0.1 * k)
+    for k in range(10, 14):
+        tracker.update(hidden(np.empty((0, 2))), 0.1 * k)       # lost from frame 12
+    assert tracker.update(hidden([[20.2, 3.0]]), 1.4).track_id.tolist() == []
+    for k in range(15, 17):
+        assert tracker.update(hidden(np.empty((0, 2))), 0.1 * k).track_id.tolist() == []
+    assert tracker.state()["tracks"] == []
+
+
 def test_mahalanobis_gate_uses_measurement_covariance():
     # The same 2 m jump is inside the gate for a 1 m measurement σ and outside it for 0.05 m.
     for sigma, same in ((1.0, True), (0.05, False)):

@@ -247,3 +247,20 @@ def test_braking_alone_may_have_its_own_evidence_bar():
         assert motion_from(model, [6.0, 0.0], 0, same).is_cv
     with pytest.raises(ValueError):
         SindyParams(braking_evidence=-1.0)
+
+
+def test_a_revived_track_keeps_its_history_and_is_not_identified_while_lost():
+    # A car at 5 m/s missed for 5 frames (lost after max_misses = 3): no identification while lost, and the
+    # revived track goes on with the samples from before the gap (the history's window is 3 s).
+    tr = SindyTracker({"max_misses": 3, "lost_frames": 5})
+    fitted = []
+    for k in range(30):
+        t = 0.1 * k
+        pts = np.empty((0, 2)) if 12 <= k < 17 else [[20.0 + 5.0 * t, 3.0]]
+        out = tr.update(hidden(pts), t)
+        track = tr._tracks[0]
+        fitted.append(track.fitted_frame)
+        assert out.track_id.tolist() == ([] if 14 <= k <= 17 else [0] if k >= 1 else [])  # 17: revived, tentative
+    assert len(set(fitted[14:17])) == 1                   # lost frames 14–16: no new identification
+    assert [h[0] for h in track.history][:3] == pytest.approx([0.0, 0.1, 0.2])
+    assert len(track.history) == 25
