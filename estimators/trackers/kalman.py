@@ -31,8 +31,8 @@ Per frame at time t [s]:
    reported once it has M hits within N frames anew (else deleted): a lone false alarm near a lost
    track's prediction would otherwise bring it back unconfirmed.
 
-Only confirmed tracks with fewer than K misses are reported; ``predicted`` is the position at t + Δt_frame, the last frame
-interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
+Only confirmed tracks with fewer than K misses are reported; ``predicted`` is the position at
+t + Δt_frame, the last frame interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
 measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
 
 Forecast (every report, :mod:`estimators.trackers.forecast`): at each of ``horizons`` h [s] the mean
