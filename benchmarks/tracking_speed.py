@@ -12,9 +12,11 @@ positions and with their radial velocities too (0.2 m/s noise, seen from the ori
 points carry those radial velocities, so kalman and sindy run with their Doppler update and sindy's
 identification fits them (its defaults; the rows "…, screened" with screen_radial on). The rows "…, the ablation's Doppler" run the tracking
 ablation's setting (configs/ablations/tracking.toml: one Doppler row per relay wall, gated at χ²₁
-0.999, and sindy's evidence bars 30 / 10 with its radial residuals counted in full) on cars seen through two relay walls: each car gives two
+0.999, tracks kept lost for 10 frames, and sindy's evidence bars 30 / 10 with its radial residuals counted in full) on cars seen through two relay walls: each car gives two
 points 0.5 m apart with wall_index 0 and 1, the second's radial velocity along the line of sight
-turned by 90° (two rows per track).
+turned by 90° (two rows per track). The rows "…, cars missed 6 frames each" take the same cars with car k
+missed in frames 25 + 2k to 30 + 2k: its track is lost after 3 misses (the second association pass runs)
+and revived by its next hit.
 
     OMP_NUM_THREADS=1 python benchmarks/tracking_speed.py
 """
@@ -35,7 +37,9 @@ from xnlos_core.types import HiddenPoints
 FRAMES, WARM, DT, N = 60, 20, 0.1, 10
 
 
-def frames(seed: int = 0, two_walls: bool = False):
+def frames(seed: int = 0, two_walls: bool = False, gaps: bool = False):
+    """Ten cars' hidden points per frame; with ``gaps`` car k is missed in frames 25 + 2k … 30 + 2k (lost
+    after ``max_misses`` = 3 of them, revived by the next hit)."""
     rng = np.random.default_rng(seed)
     t = np.arange(FRAMES) * DT
     states = [ConstantTurn(speed=10.0, yaw_rate=0.3 * (k % 3 - 1)).state(t, (20.0 + 15 * (k % 5), 40.0 * (k // 5) - 20),
@@ -43,20 +47,27 @@ def frames(seed: int = 0, two_walls: bool = False):
               for k in range(N)]
     out = []
     for i in range(FRAMES):
-        z = np.array([s.position[i] for s in states]) + 0.3 * rng.standard_normal((N, 2))
-        g = z / np.linalg.norm(z, axis=1, keepdims=True)
-        y = np.sum(g * np.array([s.velocity[i] for s in states]), axis=1) + 0.2 * rng.standard_normal(N)
-        if not two_walls:
-            out.append(HiddenPoints(z, np.tile(0.09 * np.eye(2), (N, 1, 1)), np.arange(N), np.zeros(N),
-                                    velocity=y[:, None] * g, velocity_cov=0.04 * g[:, :, None] * g[:, None, :]))
-            continue
-        g2 = g @ np.array([[0.0, 1.0], [-1.0, 0.0]])                 # the second wall's line of sight, +90°
-        y2 = np.sum(g2 * np.array([s.velocity[i] for s in states]), axis=1) + 0.2 * rng.standard_normal(N)
-        zz, gg, yy = np.r_[z, z + 0.5 * g2], np.r_[g, g2], np.r_[y, y2]
-        out.append(HiddenPoints(zz, np.tile(0.09 * np.eye(2), (2 * N, 1, 1)), np.arange(2 * N),
-                                np.r_[np.zeros(N), np.ones(N)], velocity=yy[:, None] * gg,
-                                velocity_cov=0.04 * gg[:, :, None] * gg[:, None, :]))
+        seen = ~((i >= 25 + 2 * np.arange(N)) & (i < 31 + 2 * np.arange(N))) if gaps else np.ones(N, bool)
+        out.append(_frame(states, i, rng, two_walls, seen))
     return t, out
+
+
+def _frame(states, i, rng, two_walls: bool, seen) -> HiddenPoints:
+    """Frame ``i``'s hidden points of the cars ``seen`` (N,) bool (:func:`frames`); every car's noise is
+    drawn, seen or not, so that the draws do not depend on the gaps."""
+    z = np.array([s.position[i] for s in states]) + 0.3 * rng.standard_normal((N, 2))
+    v = np.array([s.velocity[i] for s in states])
+    g = z / np.linalg.norm(z, axis=1, keepdims=True)
+    y = np.sum(g * v, axis=1) + 0.2 * rng.standard_normal(N)
+    walls = np.zeros(N)
+    if two_walls:
+        g2 = g @ np.array([[0.0, 1.0], [-1.0, 0.0]])                 # the second wall's line of sight, +90°
+        y2 = np.sum(g2 * v, axis=1) + 0.2 * rng.standard_normal(N)
+        z, g, y, walls, seen = np.r_[z, z + 0.5 * g2], np.r_[g, g2], np.r_[y, y2], np.r_[walls, np.ones(N)], np.r_[seen, seen]
+    z, g, y, walls = z[seen], g[seen], y[seen], walls[seen]
+    m = len(z)
+    return HiddenPoints(z, np.tile(0.09 * np.eye(2), (m, 1, 1)), np.arange(m), walls, velocity=y[:, None] * g,
+                        velocity_cov=0.04 * g[:, :, None] * g[:, None, :])
 
 
 def time_tracker(tracker, t, fr):
@@ -85,16 +96,18 @@ def time_tracker(tracker, t, fr):
 def main():
     t, fr = frames()
     _, fr2 = frames(two_walls=True)
-    ablation = {"doppler_rows": "wall", "doppler_gate": 0.999}
+    _, fr3 = frames(two_walls=True, gaps=True)
+    ablation = {"doppler_rows": "wall", "doppler_gate": 0.999, "lost_frames": 10}
+    sindy_ablation = {**ablation, "min_evidence": 30.0, "braking_evidence": 10.0, "radial_share": "full"}
     lines = ["# Tracking speed (10 tracks, 10 Hz)", "", "| tracker | median [ms/frame] | max [ms/frame] | "
              "median without identification [ms/frame] | max without identification [ms/frame] | "
              "identification median [ms each] |", "|---|---|---|---|---|---|"]
     for name, tracker, data in (("nearest", NearestTracker(), fr), ("kalman", KalmanTracker(), fr),
                                 ("sindy", SindyTracker(), fr),
                                 ("kalman, the ablation's Doppler", KalmanTracker(ablation), fr2),
-                                ("sindy, the ablation's Doppler",
-                                 SindyTracker({**ablation, "min_evidence": 30.0, "braking_evidence": 10.0,
-                                               "radial_share": "full"}), fr2)):
+                                ("sindy, the ablation's Doppler", SindyTracker(sindy_ablation), fr2),
+                                ("kalman, the ablation's, cars missed 6 frames each", KalmanTracker(ablation), fr3),
+                                ("sindy, the ablation's, cars missed 6 frames each", SindyTracker(sindy_ablation), fr3)):
         ms, fit_ms, calls = time_tracker(tracker, t, data)
         plain = ms - fit_ms
         ident = f"{np.median(calls):.1f} ({len(calls)} in {len(ms)} frames)" if len(calls) else "–"
