@@ -216,9 +216,9 @@ class KalmanTracker(Tracker):
             F = self._motion(tr).transition(dt)
             Q = fc.cv_process_noise(dt, p.accel_psd)
             tr.x, tr.P, tr.t, tr.frames = F @ tr.x, F @ tr.P @ F.T + Q, t, tr.frames + 1
-        held = self._held()
-        rows, cols = self._associate(z, R, held)
-        lost = np.setdiff1d(np.arange(len(self._tracks)), held)
+        is_lost = np.array([self._lost(tr) for tr in self._tracks], bool)
+        rows, cols = self._associate(z, R, np.flatnonzero(~is_lost))
+        lost = np.flatnonzero(is_lost)
         if len(lost):  # the lost tracks are offered what the held ones leave (step 5)
             left = np.setdiff1d(np.arange(len(z)), cols)
             lost_rows, lost_cols = self._associate(z[left], R[left], lost)
@@ -312,10 +312,6 @@ class KalmanTracker(Tracker):
     def _lost(self, tr: _Track) -> bool:
         """Whether ``tr`` is lost: confirmed, with ``max_misses`` misses or more (module docstring, 5)."""
         return tr.confirmed and tr.misses >= self.params.max_misses
-
-    def _held(self) -> np.ndarray:
-        """Indices of the tracks that are not lost (tentative ones included)."""
-        return np.array([i for i, tr in enumerate(self._tracks) if not self._lost(tr)], np.int64)
 
     def _associate(self, z: np.ndarray, R: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gated Hungarian assignment (module docstring, 3) of the tracks ``which`` (indices into the track
