@@ -58,9 +58,8 @@ def hidden_record(h: HiddenPoints) -> dict[str, Any]:
                            "wall_index": h.wall_index.tolist()}
     if h.velocity is not None:
         out.update(velocity=h.velocity.tolist(), velocity_cov=h.velocity_cov.tolist())
-    for name in ("view", "tangent"):
-        if getattr(h, name) is not None:
-            out[name] = getattr(h, name).tolist()
+    if h.view is not None:
+        out["view"] = h.view.tolist()
     return out
 
 
@@ -122,5 +121,5 @@ def hidden_from_record(rec: dict[str, Any], where: str = "hidden") -> HiddenPoin
              _array(rec, "source_index", where, dtype=np.int64), _array(rec, "wall_index", where, dtype=np.int64)]
     parts += [_array(rec, "velocity", where, (2,)), _array(rec, "velocity_cov", where, (2, 2))] if "velocity" in rec \
         else [None, None]
-    view, tangent = (_array(rec, k, where, (2,)) if k in rec else None for k in ("view", "tangent"))
-    return _checked(where, lambda: HiddenPoints(*parts, view=view, tangent=tangent))
+    view = _array(rec, "view", where, (2,)) if "view" in rec else None
+    return _checked(where, lambda: HiddenPoints(*parts, view=view))

@@ -77,8 +77,6 @@ HIDDEN = _object({
     "velocity_cov": _list(MAT2, "its covariance (M, 2, 2) [m²/s²]; only with Doppler"),
     "view": _list(_vec(2), "unit direction (M, 2) of the mirrored line of sight at each point, from its "
                            "bounce point on the wall towards it; where the reconstructor gives it"),
-    "tangent": _list(_vec(2), "unit direction (M, 2) along the relay wall each point was mirrored through "
-                              "(sign free); where the reconstructor gives it"),
 }, required=["mean", "cov", "source_index", "wall_index"], description="reconstructed hidden points (Eq. 7)")
 
 TRACKS = {**_object({

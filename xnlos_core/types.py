@@ -485,10 +485,7 @@ class HiddenPoints(_ReadOnlyArrays):
     :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`);
     view (M, 2) [-] or None: the unit direction of the mirrored line of sight at o, from the bounce
     point on the wall towards o (the radar mirrored across the wall sees o from there). An object's
-    seen points lie on its side facing that way; trackers use it to place the object's centre;
-    tangent (M, 2) [-] or None: a unit direction along the relay wall the point was mirrored through
-    (for an arc, along its tangent line at p₀); its sign carries nothing. A facade lines a street, so
-    trackers may take it as the direction hidden road users drive in.
+    seen points lie on its side facing that way; trackers use it to place the object's centre.
     """
 
     mean: np.ndarray
@@ -498,7 +495,6 @@ class HiddenPoints(_ReadOnlyArrays):
     velocity: np.ndarray | None = None
     velocity_cov: np.ndarray | None = None
     view: np.ndarray | None = None
-    tangent: np.ndarray | None = None
 
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
@@ -516,12 +512,11 @@ class HiddenPoints(_ReadOnlyArrays):
             _set(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
             _set(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
                                                 readonly=True))
-        for name in ("view", "tangent"):
-            if getattr(self, name) is not None:
-                v = as_array(f"HiddenPoints.{name}", getattr(self, name), shape=(k, 2), readonly=True)
-                if k and not np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6):
-                    raise InputError(f"HiddenPoints.{name}: expected unit vectors (M, 2), one per hidden point")
-                _set(self, name, v)
+        if self.view is not None:
+            v = as_array("HiddenPoints.view", self.view, shape=(k, 2), readonly=True)
+            if k and not np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6):
+                raise InputError("HiddenPoints.view: expected unit vectors (M, 2), one per hidden point")
+            _set(self, "view", v)
 
     @classmethod
     def empty(cls) -> "HiddenPoints":

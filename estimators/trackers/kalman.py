@@ -18,13 +18,7 @@ Per frame at time t [s]:
    one row ĝ_gᵀ per relay wall the object's points were mirrored through (measurements.py: two walls
    give two components of the velocity). Unmatched measurements start
    tentative tracks from the prior p = z, v = 0, P = diag(R, ``initial_speed_sigma``² I), which the
-   Doppler row (if any) then updates: a new track starts with its radial velocity. With
-   ``across_speed_sigma`` σ_c the velocity prior is σ₀² ââᵀ + σ_c² (I − ââᵀ) about the object's street
-   axis â (the relay facade's direction, measurements.py): a hidden road user drives along the street
-   the facade lines, so one Doppler row y = ĝᵀv gives its speed along â, y/(ĝᵀâ), from its first frame.
-   Isotropic, the row gives only v = y ĝ (least norm), which is (ĝᵀâ)² of the speed along â: ≈ 0.15 for
-   a car in the cross street 30 m ahead, seen through the far facade along a line of sight ≈ 67° off
-   its street, until its positions over several frames have measured the rest.
+   Doppler row (if any) then updates: a new track starts with its radial velocity.
 5. Birth: a tentative track is confirmed once it has ``confirm_hits`` (M) hits within its first
    ``confirm_window`` (N) frames, else deleted. Death: a confirmed track is deleted after
    ``max_misses`` (K) consecutive misses — or, with ``lost_frames`` L > 0, it is first *lost* for up to
@@ -128,12 +122,6 @@ class KalmanParams(BaseModel):
                                                           "0: the centroid. Needs HiddenPoints.view")
     initial_speed_sigma: float = Field(10.0, gt=0, le=1e3, description="prior standard deviation [m/s] per axis of "
                                                                        "a new track's velocity (it starts at 0)")
-    across_speed_sigma: float | None = Field(None, gt=0, le=1e3, description="prior standard deviation [m/s] of "
-                                             "a new track's velocity across its street axis, the direction of the "
-                                             "facade that relays it (measurements.py; along the axis it stays "
-                                             "initial_speed_sigma): hidden road users drive along the street the "
-                                             "facade lines. None, or points without HiddenPoints.tangent: "
-                                             "initial_speed_sigma in every direction")
 
     use_doppler: bool = Field(True, description="use the hidden points' radial velocities in the update "
                                                 "(ignored when the points carry none)")
@@ -244,7 +232,7 @@ class KalmanTracker(Tracker):
         self._tracks = [tr for tr in self._tracks if self._alive(tr)]
         for k in np.setdiff1d(np.arange(len(z)), cols):
             P0 = np.zeros((4, 4))
-            P0[:2, :2], P0[2:, 2:] = R[k], self._velocity_prior(meas.axis[k])
+            P0[:2, :2], P0[2:, 2:] = R[k], p.initial_speed_sigma ** 2 * np.eye(2)
             tr = self._new_track(self._next_id, np.r_[z[k], 0.0, 0.0], P0, t)
             if meas.doppler[k]:
                 self._filter(tr, meas, k, position=False)
@@ -324,15 +312,6 @@ class KalmanTracker(Tracker):
     def _lost(self, tr: _Track) -> bool:
         """Whether ``tr`` is lost: confirmed, with ``max_misses`` misses or more (module docstring, 5)."""
         return tr.confirmed and tr.misses >= self.params.max_misses
-
-    def _velocity_prior(self, axis: np.ndarray) -> np.ndarray:
-        """(2, 2) [m²/s²] a new track's velocity covariance (module docstring, 4): σ₀² I, or with
-        ``across_speed_sigma`` σ_c and a street axis â, σ₀² ââᵀ + σ_c² (I − ââᵀ)."""
-        p = self.params
-        if p.across_speed_sigma is None or not np.all(np.isfinite(axis)):
-            return p.initial_speed_sigma ** 2 * np.eye(2)
-        aa = np.outer(axis, axis)
-        return p.initial_speed_sigma ** 2 * aa + p.across_speed_sigma ** 2 * (np.eye(2) - aa)
 
     def _associate(self, z: np.ndarray, R: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Gated Hungarian assignment (module docstring, 3) of the tracks ``which`` (indices into the track

@@ -29,11 +29,6 @@ rigid body's scatterers share it). One weighted mean over all of them would mix 
 bisector's). The points of a cluster are then grouped by ``HiddenPoints.wall_index`` and each group
 gives its own row (ĝ_g, y_g, s_g) by the weighted mean above, the heaviest group first. With
 "cluster" (default) each cluster is one group.
-
-Street axis. Where the points carry their relay wall's direction (HiddenPoints.tangent t_i, sign
-free), the cluster's axis â_c is the principal eigenvector of Σ t_i t_iᵀ / n_c: the direction of the
-facade that relays the object, along which the street it lines runs (kalman.py's ``across_speed_sigma``
-takes a new track's velocity prior from it). NaN where the points carry none.
 """
 from __future__ import annotations
 
@@ -52,15 +47,13 @@ class Measurements:
     """C objects of one frame: z (C, 2) [m], R (C, 2, 2) [m²]; the Doppler rows of each object's update,
     direction rows_g (C, K, 2) (unit), rows_y (C, K) [m/s], rows_s (C, K) [m²/s²] — K = 1 unless per
     relay wall (module docstring), the heaviest row first, s = inf where an object has fewer rows (none:
-    no velocity); axis (C, 2) the unit street axis â_c (module docstring), NaN where the points carry no
-    wall direction."""
+    no velocity)."""
 
     z: np.ndarray
     R: np.ndarray
     rows_g: np.ndarray
     rows_y: np.ndarray
     rows_s: np.ndarray
-    axis: np.ndarray
 
     @property
     def g(self) -> np.ndarray:
@@ -108,7 +101,7 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
     m = len(points)
     if m == 0:
         return Measurements(np.empty((0, 2)), np.empty((0, 2, 2)), np.empty((0, 1, 2)), np.empty((0, 1)),
-                            np.empty((0, 1)), np.empty((0, 2)))
+                            np.empty((0, 1)))
     labels = single_linkage(np.asarray(points.mean, np.float64), distance)
     n = np.bincount(labels).astype(np.float64)
     c = len(n)
@@ -119,11 +112,6 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
     R = np.zeros((c, 2, 2))
     np.add.at(R, labels, points.cov)
     R = R / n[:, None, None] ** 2 + floor ** 2 * np.eye(2)
-    axis = np.full((c, 2), np.nan)
-    if points.tangent is not None:
-        tt = np.zeros((c, 2, 2))
-        np.add.at(tt, labels, np.einsum("mi,mj->mij", points.tangent, points.tangent))
-        axis = np.linalg.eigh(tt)[1][:, :, 1]  # the principal eigenvector (the scale by 1/n_c changes none)
     if use_doppler and points.velocity is not None:
         w, vcov = np.asarray(points.velocity, np.float64), np.asarray(points.velocity_cov, np.float64)
         if not (np.all(np.isfinite(w)) and np.all(np.isfinite(vcov))):
@@ -149,8 +137,8 @@ def cluster(points: HiddenPoints, distance: float, floor: float, doppler_floor: 
         rows_g[owner[valid], slot[valid]] = gg[valid]
         rows_y[owner[valid], slot[valid]] = yg[valid]
         rows_s[owner[valid], slot[valid]] = sg[valid]
-        return Measurements(z, R, rows_g, rows_y, rows_s, axis)
-    return Measurements(z, R, np.zeros((c, 1, 2)), np.zeros((c, 1)), np.full((c, 1), np.inf), axis)
+        return Measurements(z, R, rows_g, rows_y, rows_s)
+    return Measurements(z, R, np.zeros((c, 1, 2)), np.zeros((c, 1)), np.full((c, 1), np.inf))
 
 
 def _radial_means(g, w, vcov, ok, groups, n_g: int, doppler_floor: float):

@@ -118,15 +118,7 @@ class MirrorReconstructor(Reconstructor):
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)
             cov[m] = 0.5 * (c + np.swapaxes(c, -1, -2))
         vel = self._velocities(detections, walls, pts, pcov, choice, src) or (None, None)
-        return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice),
-                            tangent=self._tangents(walls, choice)), pts
-
-    @staticmethod
-    def _tangents(walls, choice) -> np.ndarray:
-        """(M, 2) unit direction along each point's relay wall, t = (−n_y, n_x) of its normal n (an arc's at
-        p₀, :attr:`WallPosterior.normal`)."""
-        n = np.array([walls[j].normal for j in range(len(walls))]).reshape(-1, 2)[choice]
-        return np.c_[-n[:, 1], n[:, 0]]
+        return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice)), pts
 
     @staticmethod
     def _views(walls, pts, choice) -> np.ndarray:

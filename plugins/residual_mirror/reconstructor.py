@@ -133,4 +133,4 @@ class ResidualMirrorReconstructor(MirrorReconstructor):
         self.last_residual_ = delta
         cov = geom.cov + extra if self.params.residual_cov else geom.cov
         return HiddenPoints(geom.mean + delta, 0.5 * (cov + np.swapaxes(cov, -1, -2)), geom.source_index,
-                            geom.wall_index, view=geom.view, tangent=geom.tangent)
+                            geom.wall_index, view=geom.view)

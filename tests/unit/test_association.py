@@ -99,13 +99,3 @@ def test_the_view_runs_from_the_bounce_point_to_the_hidden_point():
     for o, o_v, u in zip(hp.mean, virt, hp.view):
         q = o_v * 20.0 / o_v[0]  # where the ray radar → o' meets the wall
         assert np.isclose(np.linalg.norm(u), 1.0) and np.allclose(u, (o - q) / np.linalg.norm(o - q))
-
-
-def test_each_hidden_point_carries_its_relay_walls_direction():
-    walls = [WallPosterior.line(np.array([-1.0, 0.0]), 20.0),                        # x = 20
-             WallPosterior.line(np.array([-np.sqrt(0.5), -np.sqrt(0.5)]), 20.0)]      # x + y = 20√2, a chamfer
-    virt = np.array([[26.0, -3.0], [20.0, 20.0]])
-    hp = MirrorReconstructor().reconstruct(Detections.from_points(virt, MNLOS), walls)
-    for j, t in zip(hp.wall_index, hp.tangent):
-        assert np.isclose(np.linalg.norm(t), 1.0) and np.isclose(t @ walls[j].normal, 0.0)
-    assert sorted(hp.wall_index.tolist()) == [0, 1]

@@ -220,35 +220,3 @@ def test_a_gated_doppler_row_with_an_outlier_is_left_out():
         out[name] = tr.update(frame(5, last), 0.5).velocity[0]
     assert np.allclose(out["gated"], out["no row"], atol=1e-12)
     assert out["ungated"][0] > out["gated"][0] + 1.0
-
-
-def test_a_new_track_takes_its_speed_along_the_street_from_one_doppler_row():
-    # A car drives along its street, the facade's direction â = ŷ, at 8 m/s; the mirrored line of sight
-    # ĝ is 67° off â (ĝᵀâ = 0.39), so one Doppler row sees y = 3.1 m/s. With the street prior
-    # (σ₀ = 10 along â, σ_c = 0.3 across) the first frame's velocity is close to (0, 8): the Kalman
-    # update's exact value is P_v ĝ y / (ĝᵀP_vĝ + s). Isotropic (None) it is ≈ y ĝ, (ĝᵀâ)² = 0.15 of the
-    # speed along the street; and without the points' tangent the prior cannot apply.
-    from estimators.trackers.measurements import cluster
-
-    v, a = np.array([0.0, 8.0]), np.array([0.0, 1.0])
-    g = np.array([-np.sqrt(1 - 0.39 ** 2), 0.39])
-    var, floor = 0.01, 0.1
-
-    def frame(tangent):
-        return HiddenPoints(np.array([[25.0, 10.0]]), 0.01 * np.eye(2)[None], [0], [0], velocity=((g @ v) * g)[None],
-                            velocity_cov=(var * np.outer(g, g))[None], tangent=tangent)
-
-    meas = cluster(frame(np.array([[0.0, -1.0]])), 5.0, 0.1, floor)
-    assert np.allclose(np.abs(meas.axis), [a]) and np.all(np.isnan(cluster(frame(None), 5.0, 0.1).axis))
-    s = var + floor ** 2
-    street = KalmanTracker({"confirm_hits": 1, "across_speed_sigma": 0.3, "doppler_floor": floor, "depth_ratio": 0.0})
-    Pv = 100.0 * np.outer(a, a) + 0.09 * (np.eye(2) - np.outer(a, a))
-    out = street.update(frame(np.array([[0.0, 1.0]])), 0.0)
-    assert np.allclose(out.velocity[0], Pv @ g * (g @ v) / (g @ Pv @ g + s), atol=1e-9)
-    assert np.linalg.norm(out.velocity[0] - v) < 0.3
-    plain = KalmanTracker({"confirm_hits": 1, "doppler_floor": floor, "depth_ratio": 0.0})
-    assert np.allclose(plain.update(frame(np.array([[0.0, 1.0]])), 0.0).velocity[0], (g @ v) * g, atol=0.01)
-    no_wall = KalmanTracker({"confirm_hits": 1, "across_speed_sigma": 0.3, "doppler_floor": floor, "depth_ratio": 0.0})
-    assert np.allclose(no_wall.update(frame(None), 0.0).velocity[0], (g @ v) * g, atol=0.01)
-    with pytest.raises(ConfigError):
-        KalmanTracker({"across_speed_sigma": 0.0})

@@ -161,8 +161,3 @@ def test_detections_and_hidden_round_trip_empty_and_with_doppler():
     assert back.velocity is None and back.view.tolist() == [[0.6, -0.8]]
     with pytest.raises(InputError, match="view"):
         HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], view=[[1.0, 1.0]])  # not a unit vector
-    along = HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], tangent=[[0.0, -1.0]])  # a relay wall's direction
-    back = hidden_from_record(_json(hidden_record(along)))
-    assert back.view is None and back.tangent.tolist() == [[0.0, -1.0]]
-    with pytest.raises(InputError, match="tangent"):
-        HiddenPoints([[1.0, 2.0]], [np.eye(2)], [0], [0], tangent=[[0.0, 2.0]])
