@@ -32,8 +32,8 @@ Per frame at time t [s]:
    track's prediction would otherwise bring it back unconfirmed.
 
 Only confirmed tracks with fewer than K misses are reported; ``predicted`` is the position at
-t + Δt_frame, the last frame interval (0 on the first frame). Timestamps must not decrease (a repeated timestamp is a second
-measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
+t + Δt_frame, the last frame interval (0 on the first frame). Timestamps must not decrease (a repeated
+timestamp is a second measurement at the same instant, Δt = 0). A frame without points is valid: tracks coast (predict only).
 
 Forecast (every report, :mod:`estimators.trackers.forecast`): at each of ``horizons`` h [s] the mean
 p + v h and the covariance F(h) P F(h)ᵀ + Q(h) (position block) of the object's true position (no

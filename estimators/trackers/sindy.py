@@ -307,7 +307,8 @@ class SindyTracker(KalmanTracker):
             while tr.history and tr.history[0][0] < t - p.window:
                 tr.history.pop(0)
             stale = self._frame - tr.fitted_frame
-            if tr.confirmed and not self._lost(tr) and len(tr.history) >= p.min_samples and (tr.fitted_frame < 0 or stale >= p.refit_every):
+            ready = tr.confirmed and not self._lost(tr) and len(tr.history) >= p.min_samples
+            if ready and (tr.fitted_frame < 0 or stale >= p.refit_every):
                 due.append((-stale if tr.fitted_frame >= 0 else -np.inf, tr.id, tr))
         for _, _, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]:
             self._identify(tr)
