@@ -7,6 +7,17 @@ is a per-cell estimate (the Doppler bin of that cell's strongest return); betwee
 different targets a bilinear blend would be a velocity neither target has, and the peak cell is
 the one with the highest SNR, hence the smallest σ. Sub-cell range/azimuth refinement does not
 move the cell. variance = σ² [m²/s²].
+
+A learned detector's peak is a peak of its confidence map, not of the echo's power: it may sit a
+cell beside the echo's own peak, where a weaker return (a sidelobe, static clutter, another road
+user) holds the strongest Doppler bin. :func:`strongest_cells` moves such a peak to the strongest
+cell (|κ|², the Doppler-integrated power) within ±``radius`` cells, the cell a CFAR detection of
+the same echo would have. Measured on the hidden cars of the large 64-chirp val split
+(``swin_unet``'s mNLOS detections within 1 m of a moving car's mirror image, 6 sequences, 6131
+detections): radial-velocity errors above 1 m/s fell from 6.0 % (RMSE 2.63 m/s) at the nearest cell
+to 1.5 % (0.83 m/s) at the strongest within ±1 cell (±2: 2.3 %, 0.73 m/s; the smallest stated σ
+within ±1: 2.1 %, 1.21 m/s; ``benchmarks/detection_velocity.md``). CFAR's detections already sit on their
+local maxima.
 """
 from __future__ import annotations
 
@@ -38,6 +49,34 @@ def with_cell_velocity(detections: Detections, ra_map: RAMap, rows, cols) -> Det
         raise InputError(f"with_cell_velocity: peak cells must lie in the {h} × {w} RA map, got rows "
                          f"[{r.min()}, {r.max()}] and cols [{c.min()}, {c.max()}]")
     return dataclasses.replace(detections, velocity=ra_map.velocity[r, c], velocity_var=ra_map.velocity_std[r, c] ** 2)
+
+
+def strongest_cells(ra_map: RAMap, rows, cols, radius: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Integer (rows, cols) (K,) of the strongest cell (largest |κ|²) of ``ra_map`` within ±``radius``
+    cells (a (2·radius + 1)² block, clipped at the map's edges) of each peak cell (rows, cols) (K,)
+    (module doc). A cell ties only with itself first: the given cell is kept when nothing beside it is
+    stronger. radius 0 returns the cells unchanged. InputError for a negative radius or cells outside
+    the map."""
+    r = np.asarray(rows, dtype=np.int64).reshape(-1)
+    c = np.asarray(cols, dtype=np.int64).reshape(-1)
+    radius = int(radius)
+    if radius < 0:
+        raise InputError(f"strongest_cells: radius must be ≥ 0 cells, got {radius}")
+    h, w = ra_map.shape
+    if len(r) != len(c) or (len(r) and (r.min() < 0 or r.max() >= h or c.min() < 0 or c.max() >= w)):
+        raise InputError(f"strongest_cells: rows and cols must be equal-length cell indices into the {h} × {w} "
+                         f"RA map, got {len(r)} rows and {len(c)} cols")
+    if radius == 0 or not len(r):
+        return r, c
+    power = np.abs(ra_map.data).astype(np.float64) ** 2
+    best_r, best_c, best = r.copy(), c.copy(), power[r, c]
+    for dr in range(-radius, radius + 1):
+        for dc in range(-radius, radius + 1):
+            rr, cc = np.clip(r + dr, 0, h - 1), np.clip(c + dc, 0, w - 1)
+            p = power[rr, cc]
+            take = p > best
+            best_r, best_c, best = np.where(take, rr, best_r), np.where(take, cc, best_c), np.where(take, p, best)
+    return best_r, best_c
 
 
 def nearest_cells(frac_rows, frac_cols, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:

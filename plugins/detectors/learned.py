@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
 
-from xnlos_core.detection_doppler import nearest_cells, with_cell_velocity
+from xnlos_core.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.radar import RadarConfig
@@ -71,6 +71,9 @@ class LearnedParams(BaseModel):
                                                  "(decode module doc); None: the checkpoint's choice")
     class_nms: bool = Field(True, description="suppress a weaker peak of the other class within the window")
     max_detections: int = Field(1000, ge=1, le=100_000, description="keep at most this many peaks")
+    velocity_radius: int = Field(1, ge=0, le=3, description="with Doppler maps, each detection's radial velocity "
+                                 "is read at the strongest cell within ± this many cells of its peak cell (0: the "
+                                 "peak cell; xnlos_core.detection_doppler.strongest_cells)")
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
     threads: int | None = Field(None, ge=1, le=1024, description="torch intra-op CPU threads during inference, "
                                 "restored afterwards; None: torch's setting (one per physical core), which the "
@@ -147,15 +150,16 @@ def run_network(net, features: np.ndarray, device, threads: int | None = None) -
 
 def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, window: tuple[int, int],
                            class_nms: bool, max_detections: int, calibration: dict[str, float] | None = None,
-                           cells: bool = False) -> Detections:
+                           cells: bool = False, velocity_radius: int = 1) -> Detections:
     """Detections of one raw network output (see :mod:`.tasks`) on the grid of ``ra_map``.
 
     threshold: one confidence threshold, or (LOS, mNLOS) thresholds (peaks are found at the lower
     one, then each class keeps those reaching its own). cells: keep the most confident peak per
     radar resolution cell (and class; of both classes with ``class_nms``), see :mod:`.decode`.
     Ordered by descending confidence, at most ``max_detections``. With Doppler maps on ``ra_map``
-    each detection carries the radial velocity of the cell nearest its refined position (the peak
-    cell, refinement being ≤ ½ cell; :mod:`xnlos_core.detection_doppler`), else velocity is None."""
+    each detection carries the radial velocity of the strongest cell (|κ|²) within ±``velocity_radius``
+    cells of the cell nearest its refined position (0: that cell itself; refinement is ≤ ½ cell;
+    :func:`xnlos_core.detection_doppler.strongest_cells`), else velocity is None."""
     thr = (float(threshold),) * 2 if np.ndim(threshold) == 0 else (float(threshold[0]), float(threshold[1]))
     h, w = ra_map.shape
     if out.ndim != 3:
@@ -174,7 +178,7 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     rs = cal.get("range_cells", UNIFORM_STD) * dr
     azs = cal.get("azimuth_cells", UNIFORM_STD) * da
     det = Detections(rng, az, k.astype(np.int8), np.clip(conf, 0.0, 1.0), rs, azs)
-    det = with_cell_velocity(det, ra_map, *nearest_cells(fr, fc, (h, w)))
+    det = with_cell_velocity(det, ra_map, *strongest_cells(ra_map, *nearest_cells(fr, fc, (h, w)), velocity_radius))
     if cells and len(rng):
         from xnlos_core.metrics import resolution_groups
 
@@ -338,7 +342,7 @@ class LearnedDetector(Detector):
         self._load()
         thr, win, cal, cells = self._decode_defaults()
         return detections_from_output(out, self._head, ra_map, thr, win, self.params.class_nms,
-                                      self.params.max_detections, cal, cells)
+                                      self.params.max_detections, cal, cells, self.params.velocity_radius)
 
     def detect(self, frame: Frame) -> Detections:
         """Detections of ``frame``, ordered by descending confidence (an empty map may give none)."""

@@ -131,6 +131,28 @@ def test_split_corners_keeps_straight_walls_arcs_and_outliers_whole():
     assert len(sizes) == 3 and np.allclose(sizes, [20, 42, 44], atol=2), sizes
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_a_short_chamfer_beside_a_short_facade_needs_the_smaller_split_tolerance(seed):
+    # A facade seen over 3 m and a 3.4 m chamfer at 45° beside it (a crossroads' far corner, dense LOS
+    # points of 0.1 m noise, 0.2 m stated σ): the corner lies ≈ 0.9 m off the chord of the cluster's ends,
+    # so at split_tolerance 1 m they stay one wall 20° off both; the tracking ablation's 0.5 m splits
+    # them, and does not cut a straight facade of the same noise.
+    from estimators.lsq import split_corners
+
+    rng = np.random.default_rng(seed)
+    facade = np.c_[np.full(20, 24.6), np.linspace(9.0, 12.0, 20)]
+    chamfer = np.array([24.6, 9.0]) + np.linspace(0, 1, 11)[1:, None] * np.array([2.4, -2.4])
+    pts = np.concatenate([facade, chamfer]) + rng.normal(0, 0.1, (30, 2))
+    sigma = np.full(30, 0.2)
+    assert len(split_corners(pts, 1.0, 15.0, sigma)) == 1
+    pieces = split_corners(pts, 0.5, 15.0, sigma)
+    assert len(pieces) == 2
+    short = min(pieces, key=len)  # the chamfer, with at most the facade's points within 0.6 m of the corner
+    assert set(range(20, 30)) - set(short.tolist()) <= {20} and np.sum(short < 20) <= 4, pieces
+    straight = np.c_[np.full(40, 24.6), np.linspace(0.0, 8.0, 40)] + rng.normal(0, 0.1, (40, 2))
+    assert len(split_corners(straight, 0.5, 15.0, np.full(40, 0.2))) == 1
+
+
 def test_collinear_facades_across_a_street_stay_two_walls_where_the_radar_sees_through():
     # Facade y = 8 of the near block (x ≤ 6) and of the far block (x ≥ 16): one line, with the cross
     # street's mouth between. Sparse pieces of one wall are merged (no LOS point beyond the gap), but
