@@ -69,7 +69,7 @@ def small_radar(**overrides) -> RadarConfig:
 
 @contextmanager
 def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: int = 0, pace: bool = False,
-                  status_period: float = 0.05, fc_timeout: float = 0.2, forward_model: str | ForwardModel = "image",
+                  status_period: float = 0.05, fc_timeout: float = 1.0, forward_model: str | ForwardModel = "image",
                   scene: dict | None = None, sensor_id: int = 0, channel: str | None = None,
                   emulator_radar: RadarConfig | None = None, **backend_params):
     """A ``can`` backend (opened) and a RadarEmulator on a private virtual channel.
@@ -77,10 +77,13 @@ def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: i
     tx_faults: :class:`~hardware.faults.Fault` rules applied to what the radar sends;
     rx_faults: rules applied to what the host receives (e.g. ``bus_error``); forward_model: a
     registered name or an instance (e.g. :class:`NoiseModel` for fast streams). Backend parameters
-    default to short waits (``response_timeout`` 0.2 s, ``timeout`` 0.3 s, ``frame_interval``
-    0.05 s) but to the backend's own ``frame_timeout`` of 2 s: one 20 kB transfer takes ≈ 0.08 s
-    on an idle machine and over 0.5 s on a loaded one, and a shorter limit would report such a
-    frame lost (then late) and make exact-count tests depend on the machine's load. Yields
+    default to short waits (``response_timeout`` 0.2 s, ``frame_interval`` 0.05 s) but to the
+    backend's own ``frame_timeout`` of 2 s, a ``timeout`` (no message at all) of 1.5 s and an
+    ISO-TP flow-control wait (``fc_timeout``) of 1 s: one 20 kB transfer takes ≈ 0.08 s on an idle
+    machine and over 0.5 s on a loaded one, and with the 0.3 s / 0.2 s these were before, a machine
+    whose two cores ran four busy processes starved the link's threads long enough to reconnect and
+    abort a frame in 11 of 12 runs of the early-stop test: shorter limits make exact-count tests
+    depend on the machine's load. Tests of a timeout pass their own or outlast these. Yields
     (backend, emulator); both are closed afterwards.
     """
     from xnlos_core.registry import get_registry
@@ -101,7 +104,7 @@ def emulated_link(radar: RadarConfig, *, tx_faults=None, rx_faults=None, seed: i
                        status_period=status_period, fc_timeout=fc_timeout,
                        bus_wrapper=wrapper(tx_faults, proto, "tx") if tx_faults else None)
     params = {"channel": channel, "sensor_id": sensor_id, "emulate": "never", "frame_interval": 0.05,
-              "response_timeout": 0.2, "timeout": 0.3, "frame_timeout": 2.0, **backend_params}
+              "response_timeout": 0.2, "timeout": 1.5, "frame_timeout": 2.0, **backend_params}
     backend = CANBackend(params)
     if rx_faults:
         backend.bus_wrapper = wrapper(rx_faults, proto, "rx")

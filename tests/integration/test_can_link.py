@@ -103,7 +103,7 @@ def test_bus_error_reconnects_and_reports_the_frame():
 
 def test_silent_device_times_out_reconnects_and_resumes():
     with emulated_link(RADAR, seed=5, pace=True, frame_interval=0.05) as (backend, em):
-        em.silence(0.6, after_seq=1)
+        em.silence(3.0, after_seq=1)  # twice emulated_link's 1.5 s timeout: one timeout, on a loaded machine too
         frames = list(backend.frames(4))
         st = backend.stats
     assert [f.index for f in frames] == [0, 1, 2, 3]
