@@ -68,12 +68,14 @@ def strongest_cells(ra_map: RAMap, rows, cols, radius: int = 1) -> tuple[np.ndar
                          f"RA map, got {len(r)} rows and {len(c)} cols")
     if radius == 0 or not len(r):
         return r, c
-    power = np.abs(ra_map.data).astype(np.float64) ** 2
-    best_r, best_c, best = r.copy(), c.copy(), power[r, c]
+    def power(rr, cc):  # |κ|² of the K cells only, not of the whole map (this runs per frame)
+        return np.abs(ra_map.data[rr, cc]).astype(np.float64) ** 2
+
+    best_r, best_c, best = r.copy(), c.copy(), power(r, c)
     for dr in range(-radius, radius + 1):
         for dc in range(-radius, radius + 1):
             rr, cc = np.clip(r + dr, 0, h - 1), np.clip(c + dc, 0, w - 1)
-            p = power[rr, cc]
+            p = power(rr, cc)
             take = p > best
             best_r, best_c, best = np.where(take, rr, best_r), np.where(take, cc, best_c), np.where(take, p, best)
     return best_r, best_c
