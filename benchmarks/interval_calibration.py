@@ -5,8 +5,9 @@
     .venv/bin/python benchmarks/interval_calibration.py out/eval/tracking-val out/eval/tracking-train \
         [--out benchmarks/interval_calibration.md]
 
-(each eval with the config's ``interval_scale`` / ``model_interval_scale`` lines removed, so the radii
-are the Gaussian's own). Several eval folders are pooled run by run (matched by run name): the
+(an eval with the config's ``interval_scale`` / ``model_interval_scale`` lines does as well: the radii are
+scaled by those factors, and each run's factors, read from its ``run.json``, are divided out again, so the
+ratios below are against the Gaussian's own radii either way). Several eval folders are pooled run by run (matched by run name): the
 trackers learn nothing from the train split, so every split but test can calibrate, and 9 val
 sequences alone gave factors that the test split did not share.
 
@@ -35,18 +36,27 @@ import numpy as np
 LEVELS = (0.5, 0.9)
 
 
+def scales(tracker_params: dict) -> dict[str, tuple[float, float]]:
+    """{class: (s50, s90)}: the disc factors a run's tracker applied (1 where its config sets none)."""
+    cv = tuple(tracker_params.get("interval_scale", (1.0, 1.0)))
+    return {"cv": cv, "model": tuple(tracker_params.get("model_interval_scale", (1.0, 1.0)))}
+
+
 def pairs(run_dir: Path) -> dict[str, dict[float, np.ndarray]]:
-    """{class: {q: ratios e / r_q (n,)}} of one run's scored forecast pairs (finite radii only)."""
+    """{class: {q: ratios e / r_q (n,)}} of one run's scored forecast pairs (finite radii only), r_q the
+    Gaussian's own radius: the factors in the run's config (``run.json``) are divided out."""
+    info = json.loads((run_dir / "run.json").read_text())
+    scale = scales((info["config"].get("tracker") or {}).get("params") or {})
     out: dict[str, dict[float, list]] = {}
     for line in (run_dir / "sequences.jsonl").read_text().splitlines():
         for row in json.loads(line).get("forecasts", []):
             if row.get("err") is None or row.get("r50") is None:
                 continue
             cls = "cv" if row.get("model", "cv") == "cv" else "model"
-            for q, key in zip(LEVELS, ("r50", "r90")):
+            for q, key, s in zip(LEVELS, ("r50", "r90"), scale[cls]):
                 for e, r in zip(row["err"], row[key]):
                     if e is not None and r is not None and r > 0:
-                        out.setdefault(cls, {}).setdefault(q, []).append(e / r)
+                        out.setdefault(cls, {}).setdefault(q, []).append(s * e / r)
     return {c: {q: np.asarray(v) for q, v in d.items()} for c, d in out.items()}
 
 

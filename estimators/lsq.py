@@ -58,6 +58,10 @@ class ClusterParams(BaseModel):
                                    "(split_corners); larger than the LOS points' scatter about their wall")
     corner_angle: float = Field(15.0, ge=0, le=90, description="least change of direction [deg] between the two "
                                 "sides of a split (split_corners); smaller bends stay one wall")
+    wall_max_speed: float | None = Field(0.5, gt=0, le=100, description="LOS detections with |radial velocity| "
+                                         "above this [m/s] are left out of the walls: a wall stands still, a road "
+                                         "user in line of sight moves (detections without Doppler are all kept); "
+                                         "None keeps every LOS detection")
 
 
 class LSQParams(ClusterParams):
@@ -388,7 +392,7 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
                                                                      list[np.ndarray]]:
     """Split the LOS detections into walls (steps 1 and merging; shared by every wall estimator).
 
-    params: any model with ``cluster_distance``, ``merge_tolerance`` and ``min_points``; ``who``
+    params: a :class:`ClusterParams` (its ``wall_max_speed`` leaves moving LOS detections out first); ``who``
     names the caller in errors. Returns (idx (K,): indices of the LOS rows in ``detections``,
     points (K, 2) [m], their covariances (K, 2, 2) [m²], clusters: index arrays into points,
     largest first, each with ≥ min_points members — or the largest cluster alone if none reaches
@@ -399,9 +403,14 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
     if not isinstance(detections, Detections):
         raise InputError(f"{who}.estimate: expected Detections, got {type(detections).__name__}")
     idx = detections.of_class(LOS)
+    moving = ""
+    if params.wall_max_speed is not None and detections.velocity is not None:
+        still = np.abs(detections.velocity[idx]) <= params.wall_max_speed
+        moving = f" ({int(np.sum(~still))} LOS detection(s) faster than wall_max_speed = {params.wall_max_speed:g} m/s left out)"
+        idx = idx[still]
     if len(idx) < 2:
         raise InsufficientDataError(
-            f"{who}: {len(idx)} LOS detection(s) among {len(detections)} detections; "
+            f"{who}: {len(idx)} LOS detection(s) among {len(detections)} detections{moving}; "
             "a wall line needs at least 2 LOS points")
     pts = detections.position[idx]
     far = np.flatnonzero(np.abs(pts).max(axis=1) > MAX_COORDINATE)

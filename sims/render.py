@@ -65,8 +65,8 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
     if use["coupling"] != "on" and radar.has_coupling:
         radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
     doppler_meta = {}
+    v_r = radial_velocity(paths.pos, _velocity(paths), paths.length)  # range rates [m/s]: the truth's too
     if params.doppler:
-        v_r = radial_velocity(paths.pos, _velocity(paths), paths.length)
         cube, ra, doppler_meta = render_doppler(radar_syn, radar, paths, live, amp, v_r, rng, params.noise)
     else:
         cube = dechirp(radar_syn, paths.length[live], paths.azimuth[live], amp)
@@ -84,7 +84,8 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
                      mnlos_object=owner, object_names=names, walls=walls,
                      los_snr_db=snr[los], mnlos_snr_db=snr[mn], hidden_velocity=hidden_velocity,
                      mnlos_velocity=image_velocities(paths.hidden[mn], paths.pos[mn], hidden_velocity),
-                     los_object=np.where(paths.obj[los] >= 0, paths.obj[los], -1))  # walls: −1
+                     los_object=np.where(paths.obj[los] >= 0, paths.obj[los], -1),  # walls: −1
+                     los_radial_velocity=v_r[los])
     meta = {"scene": scene.name, "n_paths": int(live.sum()), "n_los_paths": int((live & (paths.kind == LOS)).sum()),
             "n_mnlos_paths": int((live & (paths.kind == MNLOS)).sum()), "forward_model": forward_model,
             **(describe(live) if describe is not None else {}), "components": use}

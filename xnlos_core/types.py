@@ -158,6 +158,9 @@ class GroundTruth(_ReadOnlyArrays):
     los_object (N,) int or None: index into ``object_names`` of the object each LOS point belongs
     to, −1 for walls and other static surfaces that are not scene objects; None where the source
     did not record it (dataset shards, recordings).
+    los_radial_velocity (N,) [m/s] or None: the range rate r̂ᵀv of each LOS point (0 on static
+    surfaces; a road user in line of sight moves), row-aligned with los_points; None where the
+    source did not record it (still scenes rendered before issue 28, recordings).
     """
 
     los_points: np.ndarray = None
@@ -171,6 +174,7 @@ class GroundTruth(_ReadOnlyArrays):
     hidden_velocity: np.ndarray | None = None
     mnlos_velocity: np.ndarray | None = None
     los_object: np.ndarray | None = None
+    los_radial_velocity: np.ndarray | None = None
 
     def __post_init__(self):
         _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
@@ -202,6 +206,9 @@ class GroundTruth(_ReadOnlyArrays):
                                  f"GroundTruth.object_names (0 … {len(self.object_names) - 1}), got "
                                  f"[{lo.min()}, {lo.max()}]")
             _set(self, "los_object", lo)
+        if self.los_radial_velocity is not None:
+            _set(self, "los_radial_velocity", as_array("GroundTruth.los_radial_velocity", self.los_radial_velocity,
+                                                       shape=(len(self.los_points),), readonly=True))
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
         """The points whose recorded SNR is ≥ ``min_snr_db`` [dB] (points with unknown SNR are kept)."""
@@ -212,7 +219,9 @@ class GroundTruth(_ReadOnlyArrays):
         return GroundTruth(self.los_points[keep_l], self.mnlos_points[keep_m], self.hidden_points[keep_m],
                            self.mnlos_object[keep_m], self.object_names, self.walls, self.los_snr_db[keep_l],
                            self.mnlos_snr_db[keep_m], *(velocities or (None, None)),
-                           los_object=None if self.los_object is None else self.los_object[keep_l])
+                           los_object=None if self.los_object is None else self.los_object[keep_l],
+                           los_radial_velocity=None if self.los_radial_velocity is None
+                           else self.los_radial_velocity[keep_l])
 
 
 FRAME_IN_SCENE = "frame_in_scene"  # Frame.meta key: the frame's position in its sequence (0 starts one)

@@ -10,7 +10,8 @@ truth becomes one detection at (r, θ) + (ε_r, ε_θ), ε_r ~ N(0, ``range_sigm
 map's range and azimuth axes are not detected, and a frame without ground truth gives no detections. When the ground
 truth carries velocities (a moving scene), each mNLOS detection's radial velocity is that of its
 virtual point along the virtual line of sight, r̂'ᵀ v' + ε_v (ε_v ~ N(0, ``velocity_sigma``²)), and an
-LOS detection's is ε_v (LOS surfaces are static in the simulated scenes). Draws come from
+LOS detection's is its point's range rate (``GroundTruth.los_radial_velocity``: 0 on a wall, r̂ᵀv on a road
+user in line of sight; 0 where the truth does not record it) + ε_v. Draws come from
 ``numpy.random.default_rng([seed, frame.index])``: the same frame gives the same detections in any
 order or process.
 """
@@ -57,7 +58,8 @@ class OracleDetector(Detector):
         v_true = None
         if gt.mnlos_velocity is not None:
             los_dir = pts[n_los:] / np.maximum(r[n_los:, None], 1e-12)
-            v_true = np.r_[np.zeros(n_los), np.sum(los_dir * gt.mnlos_velocity, axis=1)]
+            v_los = np.zeros(n_los) if gt.los_radial_velocity is None else gt.los_radial_velocity
+            v_true = np.r_[v_los, np.sum(los_dir * gt.mnlos_velocity, axis=1)]
         (r0, r1), (a0, a1) = (ra.range_axis[[0, -1]], ra.azimuth_axis[[0, -1]])
         seen = (r >= r0) & (r <= r1) & (theta >= a0) & (theta <= a1)
         k = int(seen.sum())

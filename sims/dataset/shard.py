@@ -255,7 +255,8 @@ def frames_from_arrays(z: dict[str, np.ndarray], radar: RadarConfig) -> list[Fra
                          z["los_snr_db"][sl["los"]] if "los_snr_db" in z else None,  # shards before SNR was kept
                          z["mnlos_snr_db"][sl["mnlos"]] if "mnlos_snr_db" in z else None,
                          *((z["hidden_velocity"][sl["mnlos"]], z["mnlos_velocity"][sl["mnlos"]])
-                           if "hidden_velocity" in z else ()))
+                           if "hidden_velocity" in z else ()),
+                         los_radial_velocity=metas[i].get("doppler", {}).get("los_radial_velocity"))
         doppler = (z["ra_velocity"][i], z["ra_velocity_std"][i]) if "ra_velocity" in z else ()
         ra = RAMap(z["ra"][i], z["range_axis"], z["azimuth_axis"], radar, *doppler)
         meta = {**metas[i], "shard": name, "split": split, "scene_index": int(z["scene_index"][i]),

@@ -125,6 +125,11 @@ def test_sequence_shards_carry_object_truth_doppler_maps_and_point_velocities(se
     assert truth["id"] == [0] and truth["motion"][0] in ("straight", "turning", "braking")
     assert f.ra_map.velocity is not None and f.ra_map.velocity.shape == f.ra_map.data.shape
     assert f.ground_truth.hidden_velocity is not None
+    # LOS range rates (GroundTruth.los_radial_velocity) come back row-aligned, from the frame meta's Doppler truth.
+    for g in frames:
+        lrv = g.ground_truth.los_radial_velocity
+        assert lrv is not None and lrv.shape == (len(g.ground_truth.los_points),)
+        np.testing.assert_array_equal(lrv, g.meta["doppler"]["los_radial_velocity"])
     # Centres move with the recorded velocity (a straight or braking road user over one 0.2 s step).
     same = [g for g in frames if g.meta["scene_index"] == f.meta["scene_index"]]
     p = np.array([g.meta["object_truth"]["position"][0] for g in same])

@@ -37,6 +37,20 @@ def test_render_path_records_the_owner_of_each_los_point(model):
     assert np.sum(gt.mnlos_object == kiosk) == 0 and np.sum(gt.mnlos_object == car) > 0
 
 
+@pytest.mark.parametrize("model", [ImageForwardModel(QUIET), RaytraceForwardModel(QUIET)], ids=["image", "raytrace"])
+def test_a_moving_object_in_line_of_sight_carries_its_range_rate(model):
+    # GroundTruth.los_radial_velocity: r̂ᵀv on the kiosk's LOS points when it moves, 0 on the walls.
+    table = tomllib.loads((BUILTIN_DIR / "corner.toml").read_text())
+    table["objects"].append({**KIOSK, "trajectory": {"model": "constant_velocity", "velocity": [3.0, -1.0]}})
+    gt = model.simulate(Scene.model_validate(table), RADAR, np.random.default_rng(0)).ground_truth
+    own = gt.los_object == gt.object_names.index("kiosk")
+    assert gt.los_radial_velocity is not None and own.sum() > 0
+    p = gt.los_points[own]
+    np.testing.assert_allclose(gt.los_radial_velocity[own], p @ [3.0, -1.0] / np.linalg.norm(p, axis=1), atol=1e-6)
+    np.testing.assert_array_equal(gt.los_radial_velocity[~own], 0.0)
+    assert np.array_equal(gt.above_snr(-np.inf).los_radial_velocity, gt.los_radial_velocity)
+
+
 def _record(mirror, los=None, errors=None):
     m = {"mirror_paths": mirror}
     if los is not None:

@@ -30,6 +30,17 @@ def test_noise_free_oracle_returns_the_ground_truth():
     np.testing.assert_allclose(det.velocity, [0.0, 0.0, 2.0 * 10.0 / math.sqrt(116.0)], atol=1e-12)
 
 
+def test_a_road_user_in_line_of_sight_keeps_its_range_rate():
+    # GroundTruth.los_radial_velocity: the second LOS point is on a car driving away at 3 m/s radially.
+    f = _frame()
+    gt = f.ground_truth
+    moving = GroundTruth(gt.los_points, gt.mnlos_points, gt.hidden_points, hidden_velocity=gt.hidden_velocity,
+                         mnlos_velocity=gt.mnlos_velocity, los_radial_velocity=[0.0, 3.0])
+    det = OracleDetector({"range_sigma": 0, "azimuth_sigma": 0, "velocity_sigma": 0}).detect(
+        Frame(f.ra_map, ground_truth=moving, index=3))
+    np.testing.assert_allclose(det.velocity, [0.0, 3.0, 2.0 * 10.0 / math.sqrt(116.0)], atol=1e-12)
+
+
 def test_noise_is_seeded_per_frame_and_has_its_sigma():
     o = OracleDetector({"range_sigma": 0.5, "seed": 7})
     a, b = o.detect(_frame(index=3)), o.detect(_frame(index=3))

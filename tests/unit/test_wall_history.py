@@ -164,9 +164,9 @@ def _with_velocity(det: Detections, v) -> Detections:
 
 def test_a_road_users_los_echoes_are_not_held():
     """A car in line of sight drives 1 m a frame along y = 5 m (5 m/s radial, 4 echoes a frame): with
-    Doppler its echoes are not held, so after 5 frames only the facade pools earlier frames (the car's
-    own echoes of this frame give what one frame gives); without Doppler they line up into a 'wall' of
-    20 points along its path."""
+    Doppler its echoes are not held, so after 5 frames only the facade pools earlier frames (with
+    wall_max_speed None the car's own echoes of this frame give what one frame gives; by default they are
+    no wall at all); without Doppler they line up into a 'wall' of 20 points along its path."""
     rng = np.random.default_rng(10)
     frames = []
     for k in range(5):
@@ -174,10 +174,12 @@ def test_a_road_users_los_echoes_are_not_held():
         facade = _with_velocity(_frame(_wall_points(rng, 6)), 0.0)
         frames.append(Detections.concat(facade, _with_velocity(_frame(car), -5.0)))
     doppler, blind = LSQWallEstimator({"history_frames": 5}), LSQWallEstimator({"history_frames": 5})
+    this_frame = LSQWallEstimator({"history_frames": 5, "wall_max_speed": None})
     fields = ("range", "azimuth", "label", "confidence", "range_std", "azimuth_std")
     for f in frames:
-        seen = doppler.estimate(f)
+        seen, seen_now = doppler.estimate(f), this_frame.estimate(f)
         unseen = blind.estimate(Detections(*(getattr(f, a) for a in fields)))
     assert sorted(w.n_points for w in unseen) == [20, 30], "without Doppler the car's path reads as a wall"
-    assert sorted((w.n_points, w.info["history_points"]) for w in seen) == [(4, 0), (30, 24)]
+    assert sorted((w.n_points, w.info["history_points"]) for w in seen_now) == [(4, 0), (30, 24)]
+    assert [(w.n_points, w.info["history_points"]) for w in seen] == [(30, 24)]
     assert sum(len(d) for d in doppler.history.held) == 4 * 6
