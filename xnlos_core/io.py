@@ -202,6 +202,10 @@ def json_default(o):
     return str(o)
 
 
+# GroundTruth fields a frame file holds only when the truth records them (gt_<name>)
+GT_OPTIONAL = ("hidden_velocity", "mnlos_velocity", "los_object", "los_radial_velocity")
+
+
 def save_frame(path: str | Path, frame: Frame) -> None:
     """Write a Frame (RA map, axes, its velocity maps if any, radar config, ground truth) as ``.npz``, atomically."""
     import io as _io
@@ -226,7 +230,11 @@ def save_frame(path: str | Path, frame: Frame) -> None:
             gt_object=gt.mnlos_object, gt_names=np.array(gt.object_names, dtype=str),
             gt_walls=np.array([[w.start, w.end] for w in gt.walls]).reshape(-1, 2, 2),
             gt_wall_names=np.array([w.name for w in gt.walls], dtype=str),
+            gt_los_snr_db=gt.los_snr_db, gt_mnlos_snr_db=gt.mnlos_snr_db,
         )
+        for name in GT_OPTIONAL:  # only what the truth records: a still frame keeps its members
+            if getattr(gt, name) is not None:
+                arrays[f"gt_{name}"] = getattr(gt, name)
     buf = _io.BytesIO()
     np.savez_compressed(buf, **arrays)
     atomic_write_bytes(path, buf.getvalue())
@@ -246,8 +254,10 @@ def load_frame(path: str | Path) -> Frame:
             gt = None
             if bool(z["has_gt"]):
                 walls = tuple(WallSegment(s, e, str(n)) for (s, e), n in zip(z["gt_walls"], z["gt_wall_names"]))
+                snr = [z[k] if k in z.files else None for k in ("gt_los_snr_db", "gt_mnlos_snr_db")]  # older files: none
                 gt = GroundTruth(z["gt_los"], z["gt_mnlos"], z["gt_hidden"], z["gt_object"],
-                                 tuple(str(n) for n in z["gt_names"]), walls)
+                                 tuple(str(n) for n in z["gt_names"]), walls, *snr,
+                                 **{k: z[f"gt_{k}"] for k in GT_OPTIONAL if f"gt_{k}" in z.files})
             return Frame(ra, float(z["timestamp"]), gt, int(z["index"]), json.loads(str(z["meta_json"])))
     except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         if isinstance(exc, InputError):

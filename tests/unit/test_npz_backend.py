@@ -38,6 +38,22 @@ def test_save_load_round_trip(tmp_path):
     assert load_frame(tmp_path / "n.npz").ground_truth is None
 
 
+def test_a_moving_frames_truth_survives_the_round_trip(tmp_path):
+    # velocities, LOS owners and range rates, SNRs: what a moving scene's ground truth records
+    gt = make_frame(3).ground_truth
+    moving = GroundTruth(gt.los_points, gt.mnlos_points, gt.hidden_points, gt.mnlos_object, gt.object_names, gt.walls,
+                         los_snr_db=[12.5], mnlos_snr_db=[20.0, 21.0], hidden_velocity=[[0.0, 5.0], [0.0, 5.0]],
+                         mnlos_velocity=[[5.0, 0.0], [5.0, 0.0]], los_object=[-1], los_radial_velocity=[0.0])
+    f = make_frame(3)
+    save_frame(tmp_path / "m.npz", Frame(f.ra_map, f.timestamp, moving, f.index, f.meta))
+    g = load_frame(tmp_path / "m.npz").ground_truth
+    for name in ("los_snr_db", "mnlos_snr_db", "hidden_velocity", "mnlos_velocity", "los_object", "los_radial_velocity"):
+        np.testing.assert_array_equal(getattr(g, name), getattr(moving, name), err_msg=name)
+    save_frame(tmp_path / "s.npz", make_frame(5))
+    s = load_frame(tmp_path / "s.npz").ground_truth
+    assert s.hidden_velocity is None and s.los_object is None and s.los_radial_velocity is None
+
+
 def test_backend_yields_frames_in_name_order(tmp_path):
     for i in (2, 0, 1):
         save_frame(tmp_path / f"frame_{i:06d}.npz", make_frame(i))
