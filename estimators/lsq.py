@@ -406,7 +406,8 @@ def los_clusters(detections: Detections, params, who: str) -> tuple[np.ndarray, 
     moving = ""
     if params.wall_max_speed is not None and detections.velocity is not None:
         still = np.abs(detections.velocity[idx]) <= params.wall_max_speed
-        moving = f" ({int(np.sum(~still))} LOS detection(s) faster than wall_max_speed = {params.wall_max_speed:g} m/s left out)"
+        moving = (f" ({int(np.sum(~still))} LOS detection(s) faster than wall_max_speed = "
+                  f"{params.wall_max_speed:g} m/s left out)")
         idx = idx[still]
     if len(idx) < 2:
         raise InsufficientDataError(

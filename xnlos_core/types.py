@@ -160,7 +160,7 @@ class GroundTruth(_ReadOnlyArrays):
     did not record it (dataset shards, recordings).
     los_radial_velocity (N,) [m/s] or None: the range rate r̂ᵀv of each LOS point (0 on static
     surfaces; a road user in line of sight moves), row-aligned with los_points; None where the
-    source did not record it (still scenes rendered before issue 28, recordings).
+    source did not record it (datasets rendered without Doppler, recordings).
     """
 
     los_points: np.ndarray = None
