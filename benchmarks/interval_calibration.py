@@ -38,8 +38,8 @@ LEVELS = (0.5, 0.9)
 
 def scales(tracker_params: dict) -> dict[str, tuple[float, float]]:
     """{class: (s50, s90)}: the disc factors a run's tracker applied (1 where its config sets none)."""
-    cv = tuple(tracker_params.get("interval_scale", (1.0, 1.0)))
-    return {"cv": cv, "model": tuple(tracker_params.get("model_interval_scale", (1.0, 1.0)))}
+    return {cls: tuple(tracker_params.get(key, (1.0, 1.0)))
+            for cls, key in (("cv", "interval_scale"), ("model", "model_interval_scale"))}
 
 
 def pairs(run_dir: Path) -> dict[str, dict[float, np.ndarray]]:
