@@ -2,9 +2,7 @@
 
 1. LOS detections' Cartesian positions x_i [m] are split into clusters by single linkage
    (scipy.cluster.hierarchy, cut at ``cluster_distance``), and each cluster into straight pieces at
-   its corners (:func:`split_corners`): one piece per wall. A building corner seen from the radar
-   (both facades, or a facade and a chamfer) chains into one single-linkage cluster; one line through
-   that L would be a wall that is not there, and every point mirrored through it would land metres off.
+   its corners (:func:`estimators.corners.split_corners`): one piece per wall.
 2. Per cluster (n points, centroid c): the line normal n = (cos φ, sin φ) is the eigenvector of
    the smallest eigenvalue of the scatter matrix Σ (x_i − c)(x_i − c)ᵀ, b = −nᵀc, made canonical
    (b ≥ 0, the radar side positive). Residuals d_i = nᵀx_i + b.
@@ -24,11 +22,9 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree, shortest_path
-from scipy.spatial import Delaunay, QhullError
-from scipy.spatial.distance import pdist, squareform
+from scipy.spatial.distance import pdist
 
+from estimators.corners import split_corners
 from estimators.history import LOSHistory
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
@@ -83,215 +79,6 @@ def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
         return np.zeros(len(pts), dtype=np.int64)
     # condensed distances, not the points: a 2 × 2 point array can look like a distance matrix to linkage
     return fcluster(linkage(pdist(pts), method="single"), t=distance, criterion="distance").astype(np.int64) - 1
-
-
-MIN_SIDE = 5  # points on each side of a corner cut (split_corners)
-
-
-def split_corners(points: np.ndarray, tolerance: float, corner_angle: float = 15.0,
-                  sigma: np.ndarray | None = None) -> list[np.ndarray]:
-    """Straight pieces of one cluster of LOS points (n, 2) [m]: index arrays into ``points``.
-
-    Split-and-merge line extraction (Pavlidis & Horowitz) on the points in chain order: by their
-    distance from one end of the longest path through the cluster's minimum spanning tree, so the
-    chain runs along one facade, round the corner and along the next. (Azimuth seen from the radar
-    orders a noise-free chain too, but scrambles a facade seen at grazing incidence, where 0.1 m of
-    noise moves a point across a hundred of its neighbours' azimuths.) ``sigma`` (n,) [m]: each
-    point's position standard deviation (largest axis; None: 0).
-
-    1. Split (iterative end-point fit, as in Douglas–Peucker): a piece whose farthest point from the
-       chord between its first and last point lies more than ``tolerance`` [m] and more than 3 σ of
-       its own from the chord is cut at that point when it is a corner:
-
-       * the two sides' total-least-squares lines differ in direction by at least ``corner_angle``
-         [deg] (a lone outlier leaves two sides along one line), and each side's direction is known
-         to within ``corner_angle`` at 3 standard deviations (σ_φ² = σ²/Σt², t the coordinates along
-         the line, σ² the larger of the points' mean variance and the side's scatter about its line,
-         which clutter or a further corner in the side raise): a few noisy points bend any way.
-
-       Both sides are examined again (a side may hold the next corner); a piece that is not
-       straight but has no such corner stays whole, as without the split.
-    2. Adjust: in noise the farthest point misses the corner by a sample or two, which tilts both
-       lines. Each cut between neighbouring pieces moves to where the two pieces' residuals Σd²
-       (smaller eigenvalues of their scatter matrices, from prefix sums) add up least; two sweeps.
-    3. Merge: cuts go while the polyline's BIC falls without them (:func:`_merge_pieces`): a short
-       piece left at a corner by a cut a few samples off joins its neighbours.
-    4. Arc or corners: when one circle explains the whole cluster better than the polyline of its
-       pieces (BIC, :func:`_arc_beats_polyline`), the cluster stays whole: a curved facade (the
-       'arc' wall model) is not a chain of corners, while a chamfered corner (three facades) is.
-
-    Each side of a cut keeps ≥ :data:`MIN_SIDE` points: with fewer, an outlier and two wall points
-    pass every test above (three points nearly always lie along a line). A cluster whose points all
-    lie within ``tolerance`` of their total-least-squares line is one wall without further tests. Written out here rather
-    than taken from shapely's ``simplify`` (step 1 without the corner test): that needs a new
-    dependency and returns coordinates, not member indices.
-    """
-    x = np.asarray(points, dtype=np.float64)
-    if len(x) < 2 * MIN_SIDE or _straight(x, tolerance):
-        return [np.arange(len(x))]  # no cut possible, or every point within tolerance of one line
-    sd = np.zeros(len(x)) if sigma is None else np.asarray(sigma, dtype=np.float64)
-    order = _chain_order(x)
-    pieces, todo = [], [order]
-    while todo:
-        g = todo.pop()
-        chord = x[g[-1]] - x[g[0]]
-        length = float(np.hypot(*chord))
-        dist = np.abs((x[g] - x[g[0]]) @ np.array([-chord[1], chord[0]])) / max(length, 1e-300)
-        k = int(np.argmax(dist))  # 0 < k < len(g) − 1 when dist[k] > 0: the ends lie on the chord
-        if (length > 0.0 and dist[k] > max(tolerance, 3.0 * sd[g[k]])
-                and _is_corner(x[g], sd[g], k, corner_angle)):
-            todo += [g[:k], g[k:]]
-        else:
-            pieces.append(g)
-    position = np.empty(len(x), np.int64)
-    position[order] = np.arange(len(x))
-    pieces.sort(key=lambda g: int(position[g[0]]))
-    chain = np.concatenate(pieces)
-    cuts = np.cumsum([0] + [len(g) for g in pieces])
-    for _ in range(2):
-        for i in range(1, len(cuts) - 1):
-            lo, hi = cuts[i - 1], cuts[i + 1]
-            cuts[i] = lo + MIN_SIDE + int(np.argmin(_tls_residuals(x[chain[lo:hi]])[MIN_SIDE:hi - lo - MIN_SIDE + 1]))
-    cuts = _merge_pieces(x[chain], list(cuts))
-    pieces = [np.sort(chain[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
-    if len(pieces) > 1 and _arc_beats_polyline(x, pieces):
-        return [np.arange(len(x))]
-    return pieces
-
-
-def _bic(rss: float, n: int, params: int) -> float:
-    """Bayesian information criterion n ln(RSS/n) + params · ln n of a fit to n points; RSS/n [m²]
-    gets a floor of 1e-6 m² (noise-free points)."""
-    return n * np.log(max(rss / n, 1e-6)) + params * np.log(n)
-
-
-def _merge_pieces(x: np.ndarray, cuts: list[int]) -> list[int]:
-    """The merge step (split_corners, step 3): fewer cuts of the chain x (n, 2) [m] while that lowers
-    the polyline's BIC (m lines: 3m − 1 parameters, two per line and one per cut). Each round tries
-    removing one cut (its two pieces become one line) and dissolving one inner piece (its two
-    neighbours and it become two lines, cut where their residuals add up least, ≥ MIN_SIDE points a
-    side), and applies the best."""
-    n = len(x)
-    while len(cuts) > 2:
-        rss = [_tls_residual(x[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
-        m, total = len(rss), sum(rss)
-        best, best_bic = None, _bic(total, n, 3 * m - 1)
-        for i in range(1, m):  # remove cut i
-            merged = _tls_residual(x[cuts[i - 1]:cuts[i + 1]])
-            b = _bic(total - rss[i - 1] - rss[i] + merged, n, 3 * m - 4)
-            if b < best_bic:
-                best, best_bic = cuts[:i] + cuts[i + 1:], b
-        for j in range(1, m - 1):  # dissolve piece j
-            lo, hi = cuts[j - 1], cuts[j + 2]
-            r = _tls_residuals(x[lo:hi])[MIN_SIDE:hi - lo - MIN_SIDE + 1]
-            b = _bic(total - rss[j - 1] - rss[j] - rss[j + 1] + float(r.min()), n, 3 * m - 4)
-            if b < best_bic:
-                best, best_bic = cuts[:j] + [lo + MIN_SIDE + int(np.argmin(r))] + cuts[j + 2:], b
-        if best is None:
-            return cuts
-        cuts = best
-    return cuts
-
-
-def _arc_beats_polyline(x: np.ndarray, pieces: list[np.ndarray]) -> bool:
-    """Whether one circle explains the cluster x (n, 2) [m] better than the polyline of its m
-    ``pieces``, by BIC = n ln(RSS/n) + p ln n with p = 3 for the circle and 3m − 1 for the polyline
-    (two per line, one per cut); RSS/n gets a floor of 1e-6 m² (noise-free points)."""
-    rss_poly = sum(_tls_residual(x[p]) for p in pieces)
-    return bool(_bic(_circle_residual(x), len(x), 3) < _bic(rss_poly, len(x), 3 * len(pieces) - 1))
-
-
-def _straight(x: np.ndarray, tolerance: float) -> bool:
-    """Whether every point of x (n, 2) [m] lies within ``tolerance`` of their total-least-squares line
-    (the fast path of split_corners: most clusters are one straight facade)."""
-    z = x - x.mean(axis=0)
-    normal = np.linalg.eigh(z.T @ z)[1][:, 0]
-    return bool(np.abs(z @ normal).max() <= tolerance)
-
-
-DELAUNAY_FROM = 200  # points from which spanning_tree searches the Delaunay edges instead of all pairs
-
-
-def spanning_tree(x: np.ndarray):
-    """Euclidean minimum spanning tree of x (n, 2) [m] as a sparse (n, n) matrix of edge lengths.
-
-    Below DELAUNAY_FROM points, the tree of all n(n − 1)/2 pairs. From there, the tree of the Delaunay
-    triangulation's ≤ 3n edges, which holds every Euclidean MST edge (scipy.spatial.Delaunay, Qhull):
-    the same tree at O(n log n) instead of sorting n² pairs (1000 pooled LOS points: 91 → 5 ms). Points
-    that Qhull cannot triangulate (all on one line, exact duplicates: the tree would not span them)
-    fall back to all pairs. Edge lengths get 1e-12 m added: csgraph reads a 0 as "no edge".
-    """
-    n = len(x)
-    if n >= DELAUNAY_FROM:
-        try:
-            s = Delaunay(x).simplices
-        except QhullError:
-            s = None
-        if s is not None:
-            e = np.unique(np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1), axis=0)
-            w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + 1e-12
-            tree = minimum_spanning_tree(coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr())
-            if tree.nnz == n - 1:
-                return tree
-    return minimum_spanning_tree(squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(n)))
-
-
-def _chain_order(x: np.ndarray) -> np.ndarray:
-    """Indices of x (n, 2) [m] by tree distance from one end of the longest path of their Euclidean
-    minimum spanning tree (scipy.sparse.csgraph; the far end of a far end is an end of that path)."""
-    if len(x) < 3:
-        return np.arange(len(x))
-    tree = spanning_tree(x)
-    end = int(np.argmax(shortest_path(tree, directed=False, indices=0)))
-    return np.argsort(shortest_path(tree, directed=False, indices=end), kind="stable")
-
-
-def _is_corner(x: np.ndarray, sd: np.ndarray, k: int, corner_angle: float) -> bool:
-    """Whether the chain x (n, 2) [m] with position errors sd (n,) [m] bends at x[k] (split_corners)."""
-    if min(k, len(x) - k) < MIN_SIDE:
-        return False
-    sides = []
-    for side, s in ((x[:k + 1], sd[:k + 1]), (x[k:], sd[k:])):
-        w, v = np.linalg.eigh(np.cov(side.T, bias=True))
-        noise2 = max(float(np.mean(s ** 2)), float(w[0]))  # the points' σ², or the side's scatter about its line
-        sides.append((v[:, 1], noise2 / (len(side) * max(float(w[1]), 1e-300))))  # direction, Var φ = σ²/Σt² [rad²]
-    (u0, var0), (u1, var1) = sides
-    angle = float(np.arccos(min(1.0, abs(float(u0 @ u1)))))
-    return bool(angle >= np.radians(corner_angle) and 3.0 * np.sqrt(max(var0, var1)) <= np.radians(corner_angle))
-
-
-def _circle_residual(x: np.ndarray) -> float:
-    """Σ(|x_i − c| − R)² [m²] of the algebraic (Kåsa) circle fit to x (n, 2) [m]: solve
-    x² + y² + D x + E y + F = 0 by linear least squares, c = −(D, E)/2, R² = |c|² − F."""
-    z = x - x.mean(axis=0)
-    (d, e, f), *_ = np.linalg.lstsq(np.c_[z, np.ones(len(z))], -np.sum(z ** 2, axis=1), rcond=None)
-    c = -0.5 * np.array([d, e])
-    r = np.sqrt(max(float(c @ c) - f, 0.0))
-    return float(np.sum((np.linalg.norm(z - c, axis=1) - r) ** 2))
-
-
-def _tls_residual(x: np.ndarray) -> float:
-    """Total-least-squares Σd² [m²] of one line through x (n, 2) [m]: the scatter matrix's smaller eigenvalue."""
-    z = x - x.mean(axis=0)
-    return max(float(np.linalg.eigvalsh(z.T @ z)[0]), 0.0)
-
-
-def _tls_residuals(x: np.ndarray) -> np.ndarray:
-    """(n + 1,) total-least-squares Σd² [m²] of x[:k] plus that of x[k:], for every cut k = 0 … n."""
-    def sums(v):
-        ones = np.ones(len(v))
-        c = np.cumsum(np.c_[ones, v, v[:, 0] ** 2, v[:, 0] * v[:, 1], v[:, 1] ** 2], axis=0)
-        return np.vstack([np.zeros(6), c])  # rows: the first k points
-
-    def smallest_eigenvalue(s):
-        n = np.maximum(s[:, 0], 1.0)
-        sxx = s[:, 3] - s[:, 1] ** 2 / n
-        sxy = s[:, 4] - s[:, 1] * s[:, 2] / n
-        syy = s[:, 5] - s[:, 2] ** 2 / n
-        return np.maximum(0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy ** 2), 0.0)
-
-    centred = x - x.mean(axis=0)  # prefix sums of squares lose digits far from the origin otherwise
-    return smallest_eigenvalue(sums(centred)) + smallest_eigenvalue(sums(centred[::-1]))[::-1]
 
 
 def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPosterior:

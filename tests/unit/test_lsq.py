@@ -107,7 +107,7 @@ def test_a_seen_building_corner_gives_one_wall_per_facade():
 
 
 def test_split_corners_keeps_straight_walls_arcs_and_outliers_whole():
-    from estimators.lsq import split_corners
+    from estimators.corners import split_corners
 
     rng = np.random.default_rng(5)
     wall = on_line([-1, 0], 25.0, np.linspace(-10, 10, 60)) + rng.normal(0, 0.2, (60, 2))
@@ -137,7 +137,7 @@ def test_a_short_chamfer_beside_a_short_facade_needs_the_smaller_split_tolerance
     # points of 0.1 m noise, 0.2 m stated σ): the corner lies ≈ 0.9 m off the chord of the cluster's ends,
     # so at split_tolerance 1 m they stay one wall 20° off both; the tracking ablation's 0.5 m splits
     # them, and does not cut a straight facade of the same noise.
-    from estimators.lsq import split_corners
+    from estimators.corners import split_corners
 
     rng = np.random.default_rng(seed)
     facade = np.c_[np.full(20, 24.6), np.linspace(9.0, 12.0, 20)]
@@ -151,6 +151,45 @@ def test_a_short_chamfer_beside_a_short_facade_needs_the_smaller_split_tolerance
     assert set(range(20, 30)) - set(short.tolist()) <= {20} and np.sum(short < 20) <= 4, pieces
     straight = np.c_[np.full(40, 24.6), np.linspace(0.0, 8.0, 40)] + rng.normal(0, 0.1, (40, 2))
     assert len(split_corners(straight, 0.5, 15.0, np.full(40, 0.2))) == 1
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_three_runs_meeting_at_a_corner_are_three_walls(seed):
+    # A facade (x = 19.9, y 9.6…13.3), the chamfer below it (45°, 6.2 m) and a road user's side beside
+    # the corner (4.4 m to the lower left): three runs of LOS points meeting in a T, not an L. One chain
+    # order interleaves two of them and no cut of it is a corner: one line 35° off every run came out.
+    # Taking the arm off the spanning tree's longest path first gives each run its wall.
+    from estimators.corners import split_corners
+
+    rng = np.random.default_rng(seed)
+    facade = np.c_[np.full(60, 19.9), np.linspace(9.6, 13.3, 60)]
+    chamfer = np.array([19.9, 9.3]) + np.linspace(0, 1, 70)[:, None] * np.array([4.4, -4.4])
+    side = np.array([19.6, 9.3]) + np.linspace(0.05, 1, 40)[:, None] * np.array([-3.6, -2.6])
+    pts = np.concatenate([facade, chamfer, side]) + rng.normal(0, 0.15, (170, 2))
+    pieces = split_corners(pts, 0.5, 15.0, np.full(170, 0.23))
+    assert len(pieces) == 3
+    for truth, n in ((range(60), [-1, 0]), (range(60, 130), [-1, -1]), (range(130, 170), [-2.6, 3.6])):
+        piece = max(pieces, key=lambda p: len(set(p.tolist()) & set(truth)))
+        assert len(set(piece.tolist()) ^ set(truth)) <= 3, (len(piece), len(truth))
+        n = np.asarray(n, float) / np.linalg.norm(n)
+        assert abs(fit_line(pts[piece]).normal @ n) > np.cos(np.radians(3.0))
+
+
+def test_noise_and_clutter_hanging_off_a_facade_are_no_arms():
+    # A straight facade with every tenth point 1 m off (N(0, 1) across it) and a noisy L corner: the
+    # spanning tree's longest path wanders through stray points, and what hangs off it stays on the
+    # path's wall — one piece, and two.
+    from estimators.corners import split_corners
+
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        wall = np.c_[np.full(200, 25.0), np.linspace(-12, 8, 200)] + rng.normal(0, 0.1, (200, 2))
+        ends = np.r_[np.arange(20), np.arange(180, 200)]
+        wall[ends[::4], 0] += rng.choice([-1.0, 1.0], 10) * rng.uniform(0.7, 1.2, 10)
+        assert len(split_corners(wall, 0.5, 15.0, np.full(200, 0.2))) == 1, seed
+        corner = np.concatenate([np.c_[np.full(120, 25.0), np.linspace(-12, -2, 120)],
+                                 np.c_[np.linspace(25.2, 35, 120), np.full(120, -2.0)]]) + rng.normal(0, 0.2, (240, 2))
+        assert len(split_corners(corner, 0.5, 15.0, np.full(240, 0.25))) == 2, seed
 
 
 def test_collinear_facades_across_a_street_stay_two_walls_where_the_radar_sees_through():
@@ -176,7 +215,7 @@ def test_the_delaunay_spanning_tree_is_the_all_pairs_one(shape):
     from scipy.sparse.csgraph import minimum_spanning_tree
     from scipy.spatial.distance import pdist, squareform
 
-    from estimators.lsq import DELAUNAY_FROM, spanning_tree
+    from estimators.corners import DELAUNAY_FROM, spanning_tree
 
     rng = np.random.default_rng(11)
     n = DELAUNAY_FROM + 150
