@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import pdist
 
-from estimators.corners import split_corners
+from estimators.corners import snap_corners, split_corners
 from estimators.history import LOSHistory
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
@@ -70,6 +70,9 @@ class LSQParams(ClusterParams):
                                      "this [m/s] are held for later frames: walls stand still, and a road user's LOS "
                                      "echoes of K frames line up along its path into a wall that is not there "
                                      "(detections without Doppler are all held)")
+    corner_snap: float | None = Field(1.0, gt=0, le=100, description="two walls meeting at a corner end at their "
+                                      "lines' intersection when an end of each lies within this distance [m] of it "
+                                      "(estimators.corners.snap_corners); None keeps the extents of the points")
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
@@ -155,6 +158,8 @@ class LSQWallEstimator(WallEstimator):
             walls.append(w)
         if not walls:
             raise InsufficientDataError("LSQWallEstimator: no cluster gave a line: " + "; ".join(skipped))
+        if self.params.corner_snap is not None:
+            walls = snap_corners(walls, self.params.corner_snap, self.params.corner_angle)
         return walls
 
     @property

@@ -230,3 +230,36 @@ def test_the_delaunay_spanning_tree_is_the_all_pairs_one(shape):
     edges = lambda tree: {tuple(sorted(e)) for e in zip(*tree.nonzero())}  # noqa: E731
     assert fast.nnz == n - 1 and edges(fast) == edges(full)
     assert fast.sum() == pytest.approx(full.sum(), rel=1e-12)
+
+
+def test_walls_meeting_at_a_corner_end_at_its_vertex():
+    # A chamfer (y = x − 36.18, from (27.86, −8.32) to (20.32, −15.86)) and the side street's facade
+    # (x = 20.32, y ≤ −15.86). The chamfer's piece took two facade points by the corner, so its extent
+    # runs 0.5 m on past the vertex, and the facade's starts 0.35 m short of it: the ray to a virtual
+    # point 0.2 m past the corner crossed the chamfer's extent and was mirrored through it, while the
+    # wave went by way of the facade. Snapped, both walls end at the lines' intersection, and the
+    # anchoring takes the facade.
+    from dataclasses import replace
+
+    from estimators.corners import snap_corners
+    from plugins.mirror.association import anchor_points
+
+    chamfer_pts = np.c_[np.linspace(27.86, 20.32, 30), np.linspace(-8.32, -15.86, 30)]
+    facade_pts = np.c_[np.full(40, 20.32), np.linspace(-16.2, -30.0, 40)]
+    chamfer = fit_line(np.concatenate([chamfer_pts, [[20.32, -16.1], [20.32, -16.3]]]))
+    chamfer = replace(chamfer, mean=np.array([np.arctan2(-1, 1) + np.pi, 36.18 / np.sqrt(2)]))  # its true line
+    facade = fit_line(facade_pts)
+    vertex = np.array([20.32, -15.86])
+    assert np.linalg.norm(chamfer.extent - vertex, axis=1).min() > 0.3  # overshoots
+    assert np.linalg.norm(facade.extent - vertex, axis=1).min() > 0.3  # stops short
+    virtual = np.array([[21.88, -17.3]])  # its ray meets x = 20.32 at y = −16.04, 0.18 m past the corner
+    assert anchor_points(virtual, [chamfer, facade]).wall_index.tolist() == [0]
+    snapped = snap_corners([chamfer, facade], 1.0)
+    for w in snapped:
+        assert np.linalg.norm(w.extent - vertex, axis=1).min() == pytest.approx(0.0, abs=1e-9)
+        assert w.info["snapped_ends"] == 1
+    assert anchor_points(virtual, snapped).wall_index.tolist() == [1]
+    # a corner farther than the distance, or two parallel walls, keep their extents
+    assert snap_corners([chamfer, facade], 0.2)[0] is chamfer
+    parallel = fit_line(np.c_[np.full(20, 30.0), np.linspace(-16.2, -30.0, 20)])
+    assert snap_corners([facade, parallel], 5.0) == [facade, parallel]
