@@ -33,3 +33,18 @@ def test_factors_of_the_config_are_divided_out(tmp_path, benchmark_module):
     assert ic.conformal_factor(raw["cv"][0.5], 0.5) == pytest.approx(3.0)
     assert ic.conformal_factor(raw["cv"][0.9], 0.9) == pytest.approx(2.5)
     assert ic.conformal_factor(raw["cv"][0.9][:5], 0.99) == float("inf")
+
+
+def test_pac_factor_over_whole_sequences(benchmark_module):
+    ic = benchmark_module("interval_calibration")
+    same = [np.linspace(0.1, 2.0, 20) for _ in range(10)]
+    # every draw of identical sequences holds the same ratios: the PAC factor is the pooled one
+    assert ic.sequence_factor(same, 0.9) == pytest.approx(ic.conformal_factor(np.concatenate(same), 0.9))
+    # half the sequences easy, half hard: a draw with more hard ones needs a larger factor, and the
+    # 0.9-confidence factor lies above the pooled one (below the hard sequences' own)
+    mixed = [np.linspace(0.1, 1.0, 20)] * 5 + [np.linspace(1.0, 3.0, 20)] * 5
+    pooled = ic.conformal_factor(np.concatenate(mixed), 0.9)
+    pac = ic.sequence_factor(mixed, 0.9, confidence=0.9, resamples=400, seed=1)
+    assert pooled < pac < ic.conformal_factor(mixed[-1], 0.9)
+    assert pac == ic.sequence_factor(mixed, 0.9, confidence=0.9, resamples=400, seed=1)  # seeded
+    assert ic.sequence_factor([], 0.9) == float("inf")
