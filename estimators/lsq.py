@@ -139,7 +139,8 @@ class LSQWallEstimator(WallEstimator):
 
         info: residual_rms [m], cluster_size (LOS points of the pooled frames), sigma2 [m²],
         detection_index (indices into ``detections``, this frame's rows only), history_points (the
-        cluster's points from earlier frames). If no cluster reaches min_points, the largest cluster
+        cluster's points from earlier frames); with ``corner_snap``, walls meeting at a corner end at its
+        vertex (:func:`estimators.corners.snap_corners`, info snapped_ends). If no cluster reaches min_points, the largest cluster
         is fitted if it has ≥ 2 points. Raises InsufficientDataError with < 2 LOS points (pooled
         over the frames held) or no usable cluster; this frame's LOS points are held all the same.
         """
