@@ -202,19 +202,20 @@ def _chains(x: np.ndarray, sd: np.ndarray, tolerance: float, corner_angle: float
     arms: list[np.ndarray] = []
     if len(off) >= 2 * MIN_SIDE:
         _, label = connected_components(tree[off][:, off], directed=False)
+        along = cKDTree(x[path])  # built once: every candidate arm asks it
         for k in range(int(label.max()) + 1):
             idx = off[label == k]
             if (len(idx) >= 2 * MIN_SIDE and 3.0 * np.sqrt(_direction(x[idx], sd[idx])[1]) <= np.radians(corner_angle)
-                    and _leaves_path(x[path], np.delete(x, idx, axis=0), x[idx], np.maximum(tolerance, 3.0 * sd[idx]))):
+                    and _leaves_path(along, np.delete(x, idx, axis=0), x[idx], np.maximum(tolerance, 3.0 * sd[idx]))):
                 main[idx] = False
                 arms += [idx[c] for c in _chains(x[idx], sd[idx], tolerance, corner_angle)]
     kept = np.flatnonzero(main)
     return [kept[np.argsort(dist[kept], kind="stable")]] + arms
 
 
-def _leaves_path(path: np.ndarray, rest: np.ndarray, arm: np.ndarray, reach: np.ndarray) -> bool:
+def _leaves_path(path: cKDTree, rest: np.ndarray, arm: np.ndarray, reach: np.ndarray) -> bool:
     """Whether the points ``arm`` (m, 2) [m] hanging off a chain's longest path run away from it, as a
-    second wall does: ``path`` (p, 2) [m] the path's points, ``rest`` (r, 2) [m] every point of the
+    second wall does: ``path`` a cKDTree of the path's points (p, 2) [m], ``rest`` (r, 2) [m] every point of the
     chain but the arm's, ``reach`` (m,) [m] the larger of the split tolerance and 3 σ per arm point.
 
     * Some arm point lies beyond twice its reach from every path point (noise about one facade hangs
@@ -224,9 +225,9 @@ def _leaves_path(path: np.ndarray, rest: np.ndarray, arm: np.ndarray, reach: np.
       facade hanging off a path that ends on a stray point lies along the rest of that facade (one
       such test alone is fooled when a stray point or two tilt the line of a short run).
     """
-    if not np.any(cKDTree(path).query(arm)[0] > 2.0 * reach):
+    if not np.any(path.query(arm)[0] > 2.0 * reach):
         return False
-    root = path[int(np.argmin(cKDTree(arm).query(path)[0]))]
+    root = path.data[int(np.argmin(cKDTree(arm).query(path.data)[0]))]
     near = rest[np.linalg.norm(rest - root, axis=1) <= np.linalg.norm(arm - root, axis=1).max()]
     if len(near) < 2:
         return True
