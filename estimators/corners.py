@@ -15,6 +15,8 @@ from scipy.sparse.csgraph import connected_components, minimum_spanning_tree, sh
 from scipy.spatial import Delaunay, QhullError, cKDTree
 from scipy.spatial.distance import pdist, squareform
 
+from xnlos_core.numerics import simplest_within
+
 MIN_SIDE = 5  # points on each side of a corner cut (split_corners)
 
 
@@ -102,7 +104,8 @@ def _split_chain(x: np.ndarray, sd: np.ndarray, order: np.ndarray, tolerance: fl
 
 def _bic(rss: float, n: int, params: int) -> float:
     """Bayesian information criterion n ln(RSS/n) + params · ln n of a fit to n points; RSS/n [m²]
-    gets a floor of 1e-6 m² (noise-free points)."""
+    gets a floor of 1e-6 m² (noise-free points; a millimetre, far above the float rounding of
+    coordinates within the project's ±10 km bound, so rounding never enters the criterion)."""
     return n * np.log(max(rss / n, 1e-6)) + params * np.log(n)
 
 
@@ -116,21 +119,22 @@ def _merge_pieces(x: np.ndarray, cuts: list[int]) -> list[int]:
     while len(cuts) > 2:
         rss = [_tls_residual(x[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
         m, total = len(rss), sum(rss)
-        best, best_bic = None, _bic(total, n, 3 * m - 1)
+        options = [(cuts, _bic(total, n, 3 * m - 1), 3 * m - 1)]  # the current polyline first
         for i in range(1, m):  # remove cut i
             merged = _tls_residual(x[cuts[i - 1]:cuts[i + 1]])
-            b = _bic(total - rss[i - 1] - rss[i] + merged, n, 3 * m - 4)
-            if b < best_bic:
-                best, best_bic = cuts[:i] + cuts[i + 1:], b
+            options.append((cuts[:i] + cuts[i + 1:], _bic(total - rss[i - 1] - rss[i] + merged, n, 3 * m - 4),
+                            3 * m - 4))
         for j in range(1, m - 1):  # dissolve piece j
             lo, hi = cuts[j - 1], cuts[j + 2]
             r = _tls_residuals(x[lo:hi])[MIN_SIDE:hi - lo - MIN_SIDE + 1]
-            b = _bic(total - rss[j - 1] - rss[j] - rss[j + 1] + float(r.min()), n, 3 * m - 4)
-            if b < best_bic:
-                best, best_bic = cuts[:j] + [lo + MIN_SIDE + int(np.argmin(r))] + cuts[j + 2:], b
-        if best is None:
+            options.append((cuts[:j] + [lo + MIN_SIDE + int(np.argmin(r))] + cuts[j + 2:],
+                            _bic(total - rss[j - 1] - rss[j] - rss[j + 1] + float(r.min()), n, 3 * m - 4),
+                            3 * m - 4))
+        # ties within the criterion tolerance go to fewer pieces, then the first option (xnlos_core.numerics)
+        pick = simplest_within([o[1] for o in options], [o[2] for o in options])
+        if pick == 0:
             return cuts
-        cuts = best
+        cuts = options[pick][0]
     return cuts
 
 
@@ -139,7 +143,8 @@ def _arc_beats_polyline(x: np.ndarray, pieces: list[np.ndarray]) -> bool:
     ``pieces``, by BIC = n ln(RSS/n) + p ln n with p = 3 for the circle and 3m − 1 for the polyline
     (two per line, one per cut); RSS/n gets a floor of 1e-6 m² (noise-free points)."""
     rss_poly = sum(_tls_residual(x[p]) for p in pieces)
-    return bool(_bic(_circle_residual(x), len(x), 3) < _bic(rss_poly, len(x), 3 * len(pieces) - 1))
+    values = [_bic(rss_poly, len(x), 3 * len(pieces) - 1), _bic(_circle_residual(x), len(x), 3)]
+    return simplest_within(values, [3 * len(pieces) - 1, 3]) == 1  # ties: the fewer parameters
 
 
 def _straight(x: np.ndarray, tolerance: float) -> bool:

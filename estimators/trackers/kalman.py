@@ -52,9 +52,9 @@ from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
-from scipy.optimize import linear_sum_assignment
 
 from xnlos_core.interfaces import Tracker
+from xnlos_core.numerics import gated_assignment
 from xnlos_core.types import HiddenPoints, Tracks
 
 from . import forecast as fc
@@ -323,11 +323,8 @@ class KalmanTracker(Tracker):
         r = z[None, :, :] - x[:, None, :2]                       # (T, C, 2)
         S = P[:, None, :2, :2] + R[None, :, :, :]                # (T, C, 2, 2)
         d2 = np.einsum("tci,tci->tc", r, np.linalg.solve(S, r[..., None])[..., 0])
-        gate = chi2_2_ppf(self.params.gate_probability)
-        big = gate * (min(d2.shape) + 1)  # any gated match beats all out-of-gate ones
-        rows, cols = linear_sum_assignment(np.where(d2 <= gate, d2, big))
-        ok = d2[rows, cols] <= gate
-        return which[rows[ok]], cols[ok]
+        rows, cols = gated_assignment(d2, chi2_2_ppf(self.params.gate_probability))  # ties: the lower index
+        return which[rows], cols
 
     def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
         gate = self.params.doppler_gate

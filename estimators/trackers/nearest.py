@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
-from scipy.optimize import linear_sum_assignment
 
 from xnlos_core.interfaces import Tracker
+from xnlos_core.numerics import gated_assignment
 from xnlos_core.types import HiddenPoints, Tracks
 
 from ..lsq import single_linkage
@@ -145,10 +145,7 @@ class NearestTracker(Tracker):
         if len(pred) == 0 or len(z) == 0:
             return np.empty(0, np.int64), np.empty(0, np.int64)
         d = np.hypot(*(pred[:, None, :] - z[None, :, :]).transpose(2, 0, 1))
-        big = self.params.gate * (min(d.shape) + 1)  # any gated match beats all out-of-gate ones
-        rows, cols = linear_sum_assignment(np.where(d <= self.params.gate, d, big))
-        ok = d[rows, cols] <= self.params.gate
-        return rows[ok], cols[ok]
+        return gated_assignment(d, self.params.gate)  # ties up to rounding: the lower index (xnlos_core.numerics)
 
     def _report(self, t: float) -> Tracks:
         trs = self._tracks

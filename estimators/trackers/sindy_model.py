@@ -32,7 +32,9 @@ Identification (``identify_motion``):
 3. Selection by the Bayesian information criterion on the *positions*: each candidate's (p₀, v₀, β, ω)
    on its support is refitted to the positions by nonlinear least squares with the exact Jacobian (CV:
    linear least squares); BIC = χ² + k ln(2n) with χ² = Σ |z − p(t)|²/σ² and k = 4 + the terms (β, ω). The
-   sparsest model wins ties (CV when nothing more is supported). ``MotionModel.evidence`` is
+   sparsest model wins ties within :func:`xnlos_core.numerics.criterion_tolerance` (CV when nothing more is
+   supported), and every profiled-out variance is floored at (√ε · the data's magnitude)² per sample, so a
+   noiseless track's rounding-level residuals never choose the model (:mod:`xnlos_core.numerics`). ``MotionModel.evidence`` is
    BIC(CV) − BIC(selected) ≥ 0, for a caller that demands stronger evidence than the BIC's own.
    Candidates with the same support share one refit. Correlated errors: the wander of a car's
    centroid (which parts of the body reflect) lasts many frames, and n correlated residuals carry the
@@ -94,6 +96,7 @@ from scipy.linalg import expm
 from scipy.optimize import least_squares
 
 from xnlos_core.errors import InputError, InsufficientDataError
+from xnlos_core.numerics import data_scale, simplest_within, variance_floor
 from xnlos_core.validation import as_array
 
 if TYPE_CHECKING:
@@ -584,15 +587,19 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     candidates = ([(np.inf, np.zeros(2))] + [(th, _sindy_fit(_stlsq(th), v, a)) for th in thresholds]
                   + [(0.0, full)])
     n2 = 2 * len(t)
+    # Variance floors per sample [m², m²/s²] from the data's magnitude and the float precision: a noiseless
+    # track's residuals are rounding noise, whose logarithm must not choose the model (xnlos_core.numerics).
+    floor_p = variance_floor(data_scale(z))
+    floor_r = variance_floor(data_scale(doppler[1], np.linalg.norm(v, axis=1))) if doppler is not None else 0.0
     rad = None
     if doppler is not None:  # λ = σ_p/σ_r from the richest candidate's residuals (the least biased noise levels)
         ok = np.flatnonzero(np.isfinite(doppler[1]))
         rad = _Radial(ok, doppler[0][ok], doppler[1][ok], sigma_smooth / sigma_r)
         _, _, _, rss_p, rss_r, _ = _refit(full, t, z, rad)
         sp, sr = sigma or np.sqrt(rss_p / n2), np.sqrt(rss_r / len(ok))
-        # each floored at 1e-6 (m, m/s): a noiseless fit leaves both at rounding level, and their ratio
-        # would weight one kind of residual by 1e6
-        rad = _Radial(ok, rad.g, rad.y, float(max(sp, 1e-6) / max(sr, 1e-6)))
+        # each floored at the data's rounding scale (xnlos_core.numerics): a noiseless fit leaves both at
+        # rounding level, and their ratio would weight one kind of residual by whatever the rounding gives
+        rad = _Radial(ok, rad.g, rad.y, float(max(sp, np.sqrt(floor_p)) / max(sr, np.sqrt(floor_r))))
     cache = {}  # support → refit: the nonlinear refit depends on (β, ω) only through its support and start
     for _, xi in candidates:
         key = (xi != 0).tobytes()
@@ -601,17 +608,18 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     refits = [cache[(xi != 0).tobytes()] for _, xi in candidates]
     k = np.array([4 + mask.sum() for mask, *_ in refits])
     rss = np.array([r[3] for r in refits])
-    tiny = np.finfo(np.float64).tiny
     f_p, f_r = _effective_share(cache[(full != 0).tobytes()][5], len(t), rad, radial_share)
     if sigma is None:  # Gaussian likelihood with the variance profiled out
-        bic = f_p * n2 * np.log(np.maximum(rss, tiny) / n2)
-    else:
-        bic = f_p * rss / sigma ** 2
+        bic = f_p * n2 * np.log(np.maximum(rss, n2 * floor_p) / n2)
+    else:  # a given σ below the floor would let rounding-level RSS differences count
+        bic = f_p * rss / max(sigma ** 2, floor_p)
     m = 0 if rad is None else len(rad.idx)
     if m:  # the radial velocities' own variance, profiled out likewise
-        bic = bic + f_r * m * np.log(np.maximum(np.array([r[4] for r in refits]), tiny) / m)
+        bic = bic + f_r * m * np.log(np.maximum(np.array([r[4] for r in refits]), m * floor_r) / m)
     bic = bic + k * np.log(f_p * n2 + f_r * m)
-    best = int(np.argmin(bic))  # candidates run sparsest-first (CV, then decreasing threshold): ties → sparser
+    # Ties within the criterion tolerance go to the fewest terms, then the earliest candidate (they run
+    # sparsest-first: CV, then decreasing threshold): the choice never follows a last-bit difference.
+    best = simplest_within(bic, k)
     threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:
         sigma = float(np.sqrt(rss[best] / (n2 - k[best])))

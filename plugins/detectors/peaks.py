@@ -36,6 +36,7 @@ from scipy import ndimage
 
 from xnlos_core.detection_doppler import with_cell_velocity
 from xnlos_core.errors import InputError
+from xnlos_core.numerics import PEAK_RTOL
 from xnlos_core.types import UNCLASSIFIED, Detections, RAMap
 
 
@@ -135,10 +136,25 @@ def cfar_threshold(power: np.ndarray, guard: tuple[int, int], train: tuple[int, 
     return thr, mean, n
 
 
-def local_maxima(power: np.ndarray) -> np.ndarray:
-    """Cells ≥ all 8 neighbours (3×3 maximum filter; borders compare only with cells inside)."""
+def local_maxima(power: np.ndarray, rtol: float = PEAK_RTOL) -> np.ndarray:
+    """One cell per local maximum: cells within ``rtol`` (relative) of the largest of their 3×3
+    neighbourhood (borders compare only with cells inside) are peak cells; of each 8-connected group of
+    peak cells (a plateau, or two cells equal up to rounding) only the largest is kept, the first in
+    raster order among equals. So two adjacent cells whose powers differ in the last bits give one
+    detection on every machine, never one on some and two on others (:mod:`xnlos_core.numerics`; the
+    sub-bin refinement puts either cell's peak at the same place)."""
     p = np.asarray(power, dtype=np.float64)
-    return p >= ndimage.maximum_filter(p, size=3, mode="constant", cval=-np.inf)
+    near = p >= (1.0 - rtol) * ndimage.maximum_filter(p, size=3, mode="constant", cval=-np.inf)
+    labels, n = ndimage.label(near, structure=np.ones((3, 3), bool))
+    out = np.zeros(p.shape, bool)
+    if n == 0:
+        return out
+    flat = labels.ravel()
+    cells = np.flatnonzero(flat)
+    order = np.lexsort((cells, -p.ravel()[cells]))  # largest first, raster order among equals
+    _, first = np.unique(flat[cells[order]], return_index=True)
+    out.ravel()[cells[order[first]]] = True
+    return out
 
 
 def parabolic_offset(left: np.ndarray, centre: np.ndarray, right: np.ndarray) -> np.ndarray:

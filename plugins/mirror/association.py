@@ -30,6 +30,7 @@ import numpy as np
 
 from xnlos_core.errors import InputError
 from xnlos_core.geometry import ray_segment_intersection
+from xnlos_core.numerics import snap
 from xnlos_core.types import WallPosterior
 
 from xnlos_core.wall import ray_hits, signed_distance
@@ -125,12 +126,14 @@ def anchor_points(points, walls: list[WallPosterior], margin: float = 2.0, fallb
     seen = crossing_parameters(pts, walls, 0.0) if margin > 0 else t  # crossings inside the observed extents
     t = np.where(np.isfinite(seen).any(axis=1, keepdims=True), seen, t)
     crossed = np.isfinite(t).any(axis=1)
-    choice = np.where(crossed, np.argmin(t, axis=1), -1)
+    # the first wall crossed; walls crossed at the same parameter up to rounding (two walls meeting at a
+    # corner's vertex) go to the lower index on every machine (xnlos_core.numerics.snap)
+    choice = np.where(crossed, np.argmin(snap(t), axis=1), -1)
     via = np.where(crossed, "ray", "none")
     if fallback == "nearest":
         d = signed_distances(pts, walls)
         far = np.where(d < 0, -d, np.inf)
-        nearest = np.where(np.isfinite(far).any(axis=1), np.argmin(far, axis=1), -1)
+        nearest = np.where(np.isfinite(far).any(axis=1), np.argmin(snap(far), axis=1), -1)
         via = np.where(~crossed & (nearest >= 0), "nearest", via)
         choice = np.where(crossed, choice, nearest)
     unanchored = np.flatnonzero(choice < 0)
