@@ -15,7 +15,7 @@ from scipy.sparse.csgraph import connected_components, minimum_spanning_tree, sh
 from scipy.spatial import Delaunay, QhullError, cKDTree
 from scipy.spatial.distance import pdist, squareform
 
-from xnlos_core.numerics import simplest_within
+from xnlos_core.numerics import SQRT_EPS, data_scale, first_best, simplest_within, variance_floor
 
 MIN_SIDE = 5  # points on each side of a corner cut (split_corners)
 
@@ -78,12 +78,15 @@ def _split_chain(x: np.ndarray, sd: np.ndarray, order: np.ndarray, tolerance: fl
     """Steps 1–3 of :func:`split_corners` on one chain: ``order`` indexes x (n, 2) [m] in chain order;
     returns its straight pieces as sorted index arrays into x."""
     pieces, todo = [], [order]
+    scale = data_scale(x)  # [m]: rounding of coordinates, distances and residual sums is relative to it
     while todo:
         g = todo.pop()
         chord = x[g[-1]] - x[g[0]]
         length = float(np.hypot(*chord))
         dist = np.abs((x[g] - x[g[0]]) @ np.array([-chord[1], chord[0]])) / max(length, 1e-300)
-        k = int(np.argmax(dist))  # 0 < k < len(g) − 1 when dist[k] > 0: the ends lie on the chord
+        # the farthest point, the first of those equally far up to rounding; 0 < k < len(g) − 1 when
+        # dist[k] > 0: the ends lie on the chord
+        k = first_best(dist, SQRT_EPS * scale, larger_is_better=True)
         if (length > 0.0 and dist[k] > max(tolerance, 3.0 * sd[g[k]])
                 and _is_corner(x[g], sd[g], k, corner_angle)):
             todo += [g[:k], g[k:]]
@@ -97,7 +100,10 @@ def _split_chain(x: np.ndarray, sd: np.ndarray, order: np.ndarray, tolerance: fl
     for _ in range(2):
         for i in range(1, len(cuts) - 1):
             lo, hi = cuts[i - 1], cuts[i + 1]
-            cuts[i] = lo + MIN_SIDE + int(np.argmin(_tls_residuals(x[chain[lo:hi]])[MIN_SIDE:hi - lo - MIN_SIDE + 1]))
+            r = _tls_residuals(x[chain[lo:hi]])[MIN_SIDE:hi - lo - MIN_SIDE + 1]
+            # the first cut of least residual up to rounding: a point on both lines (a corner's vertex)
+            # fits either side exactly, and rounding must not choose its side
+            cuts[i] = lo + MIN_SIDE + first_best(r, variance_floor(scale, hi - lo))
     cuts = _merge_pieces(x[chain], list(cuts))
     return [np.sort(chain[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
 
@@ -127,7 +133,8 @@ def _merge_pieces(x: np.ndarray, cuts: list[int]) -> list[int]:
         for j in range(1, m - 1):  # dissolve piece j
             lo, hi = cuts[j - 1], cuts[j + 2]
             r = _tls_residuals(x[lo:hi])[MIN_SIDE:hi - lo - MIN_SIDE + 1]
-            options.append((cuts[:j] + [lo + MIN_SIDE + int(np.argmin(r))] + cuts[j + 2:],
+            options.append((cuts[:j] + [lo + MIN_SIDE + first_best(r, variance_floor(data_scale(x), hi - lo))]
+                            + cuts[j + 2:],
                             _bic(total - rss[j - 1] - rss[j] - rss[j + 1] + float(r.min()), n, 3 * m - 4),
                             3 * m - 4))
         # ties within the criterion tolerance go to fewer pieces, then the first option (xnlos_core.numerics)

@@ -126,3 +126,16 @@ def gated_assignment(cost, gate: float) -> tuple[np.ndarray, np.ndarray]:
     rows, cols = linear_sum_assignment(np.where(inside, snapped, big))
     ok = inside[rows, cols]
     return rows[ok].astype(np.int64), cols[ok].astype(np.int64)
+
+
+def first_best(values, tol: float, *, larger_is_better: bool = False) -> int:
+    """Index of the first of ``values`` (K,) within ``tol`` of the best (the smallest, or the largest
+    with ``larger_is_better``): an argmin/argmax whose answer does not follow rounding when several
+    values tie (a point on both sides of a corner, equal distances). Non-finite values never win
+    unless all are."""
+    v = np.asarray(values, dtype=np.float64)
+    s = -v if larger_is_better else v
+    fin = np.isfinite(s)
+    if not fin.any():
+        return 0
+    return int(np.flatnonzero(fin & (s <= s[fin].min() + tol))[0])

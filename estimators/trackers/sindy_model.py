@@ -96,7 +96,7 @@ from scipy.linalg import expm
 from scipy.optimize import least_squares
 
 from xnlos_core.errors import InputError, InsufficientDataError
-from xnlos_core.numerics import data_scale, simplest_within, variance_floor
+from xnlos_core.numerics import criterion_tolerance, data_scale, simplest_within, variance_floor
 from xnlos_core.validation import as_array
 
 if TYPE_CHECKING:
@@ -131,7 +131,10 @@ class MotionModel:
     use, α = β/|v(t_last)| (:func:`instantaneous_xi`); ensemble (M, 2, 2) the bagging members' SINDy
     rates in that form; fits (M,) per member (support (2,) bool over (β, ω), θ = (p, v at ``t_last``,
     the supported ones of β, ω), covariance of θ); t_last [s]; sigma [m] the per-axis measurement noise;
-    evidence the BIC difference BIC(CV) − BIC(this model) ≥ 0 (0 for CV)."""
+    evidence the BIC difference BIC(CV) − BIC(this model) ≥ 0 (0 for CV); margin [nats] how far the
+    selection is from changing: the least |ΔBIC − tolerance| over the candidates of another support, ΔBIC
+    their BIC above the best one's (:func:`xnlos_core.numerics.criterion_tolerance`; inf without
+    another support). Inputs that move a BIC by less than ``margin`` cannot change the model."""
 
     coefficients: np.ndarray
     ensemble: np.ndarray
@@ -140,6 +143,7 @@ class MotionModel:
     sigma: float
     evidence: float = 0.0
     rates: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    margin: float = float("inf")
 
     def terms(self) -> list[str]:
         """Names of the nonzero terms, e.g. ``["vx'=vy", "vy'=vx"]`` for a turn; [] for CV."""
@@ -620,6 +624,9 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     # Ties within the criterion tolerance go to the fewest terms, then the earliest candidate (they run
     # sparsest-first: CV, then decreasing threshold): the choice never follows a last-bit difference.
     best = simplest_within(bic, k)
+    other = np.array([not np.array_equal(r[0], refits[best][0]) for r in refits])
+    gap = np.abs(bic[other] - bic.min() - criterion_tolerance(bic))
+    margin = float(gap.min()) if gap.size else float("inf")
     threshold, (mask, theta, *_) = candidates[best][0], refits[best]
     if sigma is None:
         sigma = float(np.sqrt(rss[best] / (n2 - k[best])))
@@ -637,4 +644,4 @@ def identify_motion(t, xy, sigma: float | None = None, *, direction=None, radial
     rates = np.array(_rates(theta, mask))
     speed = float(np.linalg.norm(theta[2:4]))
     return MotionModel(instantaneous_xi(rates, speed), instantaneous_xi(ensemble, speed), fits, float(t[-1]),
-                       float(sigma), float(bic[0] - bic[best]), rates)
+                       float(sigma), float(bic[0] - bic[best]), rates, margin)

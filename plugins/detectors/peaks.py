@@ -36,7 +36,7 @@ from scipy import ndimage
 
 from xnlos_core.detection_doppler import with_cell_velocity
 from xnlos_core.errors import InputError
-from xnlos_core.numerics import PEAK_RTOL
+from xnlos_core.numerics import EPS, PEAK_RTOL
 from xnlos_core.types import UNCLASSIFIED, Detections, RAMap
 
 
@@ -138,13 +138,15 @@ def cfar_threshold(power: np.ndarray, guard: tuple[int, int], train: tuple[int, 
 
 def local_maxima(power: np.ndarray, rtol: float = PEAK_RTOL) -> np.ndarray:
     """One cell per local maximum: cells within ``rtol`` (relative) of the largest of their 3×3
-    neighbourhood (borders compare only with cells inside) are peak cells; of each 8-connected group of
+    neighbourhood (borders compare only with cells inside), or within ε of the map's largest power of it,
+    are peak cells; of each 8-connected group of
     peak cells (a plateau, or two cells equal up to rounding) only the largest is kept, the first in
     raster order among equals. So two adjacent cells whose powers differ in the last bits give one
     detection on every machine, never one on some and two on others (:mod:`xnlos_core.numerics`; the
     sub-bin refinement puts either cell's peak at the same place)."""
     p = np.asarray(power, dtype=np.float64)
-    near = p >= (1.0 - rtol) * ndimage.maximum_filter(p, size=3, mode="constant", cval=-np.inf)
+    atol = EPS * float(np.abs(p).max(initial=0.0))  # cells at rounding level of the map (zeros) tie too
+    near = p >= (1.0 - rtol) * ndimage.maximum_filter(p, size=3, mode="constant", cval=-np.inf) - atol
     labels, n = ndimage.label(near, structure=np.ones((3, 3), bool))
     out = np.zeros(p.shape, bool)
     if n == 0:

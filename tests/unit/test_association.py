@@ -12,6 +12,8 @@ from plugins.residual_mirror.features import build_inputs, reflection_frames
 from xnlos_core import MNLOS, Detections, InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
 
+pytestmark = pytest.mark.kernels  # numerically sensitive: `make test-kernels` runs it under several BLAS kernels
+
 
 def two_walls():
     a = WallPosterior.line(np.array([-1.0, 0.0]), 20.0, extent=np.array([[20.0, 2.0], [20.0, 12.0]]))  # x = 20

@@ -12,6 +12,8 @@ from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import PluginManager
 from xnlos_core.testing import small_pipeline_table
 
+pytestmark = pytest.mark.kernels  # numerically sensitive: `make test-kernels` runs it under several BLAS kernels
+
 RADAR = RadarConfig()
 H, W = RADAR.n_range_bins, RADAR.n_azimuth_bins
 

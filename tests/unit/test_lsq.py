@@ -5,6 +5,8 @@ import pytest
 from estimators.lsq import LSQWallEstimator, fit_line
 from xnlos_core import LOS, MNLOS, Detections, InsufficientDataError, WallPosterior
 
+pytestmark = pytest.mark.kernels  # numerically sensitive: `make test-kernels` runs it under several BLAS kernels
+
 def detections(points, label=LOS, range_std=0.0, azimuth_std=0.0):
     return Detections.from_points(points, label, 1.0, range_std, azimuth_std)
 

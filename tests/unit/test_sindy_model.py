@@ -6,6 +6,8 @@ import pytest
 from estimators.trackers.sindy_model import identify_motion
 from xnlos_core import InputError, InsufficientDataError
 
+pytestmark = pytest.mark.kernels  # numerically sensitive: `make test-kernels` runs it under several BLAS kernels
+
 T = np.arange(40) * 0.1  # 4 s at 10 Hz
 
 

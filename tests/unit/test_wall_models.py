@@ -12,6 +12,8 @@ from xnlos_core import InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
 from xnlos_core.wall import canonical, flip_normal, mirror, nearest_points, ray_hits, signed_distance
 
+pytestmark = pytest.mark.kernels  # numerically sensitive: `make test-kernels` runs it under several BLAS kernels
+
 
 def _arc(phi, b, kappa, anchor):
     return np.array([phi, b, kappa]), np.asarray(anchor, float)
