@@ -1,16 +1,35 @@
-# `make demo` and `make test` each set up .venv on a fresh machine (CPU torch + the project).
+# `make demo` and `make test` each set up .venv on a fresh machine from the committed lock
+# (requirements.lock: exact versions of every dependency, CPU torch included), then the project
+# itself without resolving anything again. `make lock` regenerates the lock from pyproject.toml's
+# ranges; `make test-latest` runs the suite against the newest releases in a venv of its own.
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
+LOCK   := requirements.lock
 
-.PHONY: demo test test-slow fuzz bench dataset table2 figures clean
+.PHONY: demo test test-slow test-kernels test-latest lock fuzz bench dataset table2 figures clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[test,dask]"
+	$(PY) -m pip install --quiet -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps -e .
 	@touch $(STAMP)
+
+# The lock: pip-compile (pip-tools) over pyproject.toml's ranges with the test and dask extras and the
+# CPU build of torch (requirements-cpu.in); --upgrade takes the newest releases that fit.
+lock:
+	@test -x .venv-lock/bin/pip-compile || ($(PYTHON) -m venv .venv-lock && .venv-lock/bin/pip install --quiet pip-tools==7.6.2)
+	.venv-lock/bin/pip-compile --quiet --upgrade --extra test --extra dask --strip-extras --no-emit-index-url \
+		--no-emit-find-links --output-file $(LOCK) pyproject.toml requirements-cpu.in
+
+# The suite against the newest releases of every dependency (torch stays the pinned CPU build), so an
+# upstream break is seen on purpose; the lock test is skipped there (XNLOS_UNLOCKED=1).
+test-latest:
+	@test -x .venv-latest/bin/python || $(PYTHON) -m venv .venv-latest
+	.venv-latest/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -r requirements-cpu.in -e ".[test,dask]"
+	.venv-latest/bin/lint-imports --no-cache
+	XNLOS_UNLOCKED=1 .venv-latest/bin/python -m pytest -q -n $(XDIST) -p no:cacheprovider
 
 demo: $(STAMP)
 	$(VENV)/bin/xnlos demo --out demo-out --overwrite
@@ -21,6 +40,13 @@ XDIST ?= auto
 test: $(STAMP)
 	$(VENV)/bin/lint-imports --no-cache
 	$(PY) -m pytest -q -n $(XDIST)
+
+# The numerically sensitive tests (marker `kernels`) under every OpenBLAS kernel of {Prescott, Nehalem,
+# Haswell, SkylakeX} this processor can run × OPENBLAS_NUM_THREADS ∈ {1, 2} (tests/kernels/matrix.py;
+# kernels the processor lacks are named as skipped). KERNEL_ARGS narrows the tests (CI runs a subset).
+KERNEL_ARGS ?= -q -m kernels -p no:cacheprovider
+test-kernels: $(STAMP)
+	$(PY) tests/kernels/matrix.py $(KERNEL_ARGS)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow

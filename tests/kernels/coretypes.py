@@ -10,7 +10,7 @@ import platform
 
 # kernel → the /proc/cpuinfo flags it needs
 KERNELS = {
-    "Prescott": ("sse3",),
+    "Prescott": ("pni",),  # SSE3 (Linux calls it pni)
     "Nehalem": ("ssse3", "sse4_2"),
     "Haswell": ("avx2", "fma"),
     "SkylakeX": ("avx512f", "avx512bw", "avx512vl", "avx512dq", "avx512cd"),
