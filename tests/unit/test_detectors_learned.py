@@ -13,7 +13,7 @@ from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig
 from xnlos_core.registry import get_registry
 from xnlos_core.testing import check_component, synthetic_frame
-from xnlos_core.types import Detections, Frame, RAMap
+from xnlos_core.types import LOS, Detections, Frame, RAMap
 
 pytestmark = pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")  # toy maps, not the models' grid
 
@@ -242,16 +242,31 @@ def test_cuda_device_without_cuda_is_a_clear_error():
         det.detect(synthetic_frame(SMALL))
 
 
-def test_shipped_swin_unet_finds_the_corner_scene_echoes(detectors):
-    from xnlos_core.metrics import dense_metrics, thin_to_resolution
+def test_shipped_swin_unet_runs_on_the_corner_scene_deterministically(detectors):
+    # Its quality (F1 per class over the test split) is a benchmark figure: benchmarks/detectors.md.
+    # Here: the shipped checkpoint fits the default grid (no mismatch warning), two calls agree bit for
+    # bit, and its most confident LOS detection is a ground-truth LOS echo (within one range cell).
+    import warnings
+
+    from xnlos_core.metrics import thin_to_resolution
     from xnlos_core.scene import load_scene
 
-    radar = RadarConfig(n_samples=256, max_range=60.0, n_azimuth_bins=121)
+    radar = RadarConfig()
     frame = get_registry().create("forward_model", "image", {}).simulate(
         load_scene({"builtin": "corner"}, "test"), radar, np.random.default_rng(0))
-    det = detectors["swin_unet"].detect(frame)
-    m = dense_metrics(det, thin_to_resolution(frame.ground_truth, radar), 1.0)
-    assert m["los"]["f1"] > 0.3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = detectors["swin_unet"].detect(frame)
+    b = detectors["swin_unet"].detect(frame)
+    np.testing.assert_array_equal(a.range, b.range)
+    np.testing.assert_array_equal(a.confidence, b.confidence)
+    los = a.label == LOS
+    assert los.any()
+    top = np.argmax(np.where(los, a.confidence, -1.0))
+    gt = thin_to_resolution(frame.ground_truth, radar)
+    truth = gt.los_points
+    p = a.range[top] * np.array([np.cos(a.azimuth[top]), np.sin(a.azimuth[top])])
+    assert np.min(np.linalg.norm(truth - p, axis=1)) < 1.0
 
 
 def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path, tiny_checkpoint, tiny_hparams):
@@ -270,7 +285,13 @@ def test_swin_unet_decoder_convs_and_checkpoints_made_before_the_field(tmp_path,
     del meta["hparams"]["decoder_convs"]
     save_checkpoint(tmp_path / "old.pt", sd, {k: v for k, v in meta.items() if k != "weights_sha256"})
     det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "old.pt"), "device": "cpu"})
-    assert isinstance(det.detect(synthetic_frame(SMALL)), Detections)
+    new = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "a.pt"), "device": "cpu"})
+    frame = synthetic_frame(SMALL)
+    assert det.metadata["hparams"].get("decoder_convs", 1) == 1
+    np.testing.assert_array_equal(det.output(frame), new.output(frame))  # the same network, read as before
+    a, b = det.detect(frame), new.detect(frame)
+    np.testing.assert_array_equal(a.range, b.range)
+    np.testing.assert_array_equal(a.label, b.label)
 
 
 def test_swin_unet_mlp_conv_adds_one_local_depthwise_conv_per_block(tiny_hparams):
@@ -313,6 +334,12 @@ def test_swin_unet_stem_levels_put_conv_levels_below_the_patch_embedding(tmp_pat
     assert three.eval()(torch.randn(1, 4, 16, 24)).shape == (1, 2, 16, 24)
     hc, c = base["head_channels"], base["embed_dim"]
     assert seen == {"stem2": (1, 2 * hc, 4, 6), "embed": (1, c, 4, 6)}  # 1/4 resolution, 2 · head_channels
-    # the detector pads any map to the multiple and crops back
+    # the detector pads any map to the multiple (8, 8) and crops back
     det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "three.pt"), "device": "cpu"})
-    assert isinstance(det.detect(_frame(np.random.default_rng(0).normal(size=(37, 13)) + 1j)), Detections)
+    frame = _frame(np.random.default_rng(0).normal(size=(37, 13)) + 1j)
+    assert det.output(frame).shape == (2, 40, 16)
+    assert det.heatmap(frame).shape == (2, 37, 13)
+    out = det.detect(frame)
+    ra = frame.ra_map
+    assert np.all((out.range >= ra.range_axis[0]) & (out.range <= ra.range_axis[-1]))
+    assert np.all((out.azimuth >= ra.azimuth_axis[0]) & (out.azimuth <= ra.azimuth_axis[-1]))

@@ -83,11 +83,29 @@ def test_tracks_without_forecast_draw_no_cones():
     assert art["cone50"] == art["cone90"] == art["paths"] == [] and len(art["positions"]) == 3
 
 
-def test_plot_tracks_writes_a_png(tmp_path):
+def test_plot_tracks_draws_walls_radar_tracks_and_a_legend_and_writes_a_png(tmp_path, monkeypatch):
+    import xnlos_core.track_figure as tf
+    from xnlos_core.bev import save_png
+
+    figs = []
+    monkeypatch.setattr(tf, "save_png", lambda fig, path, **kw: (figs.append(fig), save_png(fig, path, **kw))[1])
     out = plot_tracks(_tracks(), tmp_path / "tracks.png", history={1: np.array([[20.0, -12.0]])},
                       region=[[10, 2], [30, 2], [30, -2]], walls=[[[5, -4], [18, -4]]], title="hand-made tracks")
     with Image.open(out) as im:
-        assert im.format == "PNG" and im.size[0] > 300
+        assert im.format == "PNG" and im.size == (700, 700)  # figsize 7 × 7 in at 100 dpi
+    (fig,) = figs
+    ax = fig.axes[0]
+    assert ax.get_title() == "hand-made tracks"
+    (wall,) = [ln for ln in ax.lines if ln.get_label() == "walls"]
+    assert np.allclose(np.c_[wall.get_xdata(), wall.get_ydata()], np.c_[tf.bev(np.array([[5, -4], [18, -4]]))])
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "walls" in labels and "radar" in labels
+    # every track, the radar, the region and the history lie inside the axes (3 m margin)
+    x0, x1 = sorted(ax.get_xlim())
+    y0, y1 = sorted(ax.get_ylim())
+    shown = np.c_[tf.bev(np.array([[20.0, -10.0], [25.0, -5.0], [15.0, 3.0], [0.0, 0.0], [20.0, -12.0]]))]
+    assert np.all((shown[:, 0] > x0) & (shown[:, 0] < x1) & (shown[:, 1] > y0) & (shown[:, 1] < y1))
+    assert sorted(t.get_text().split()[0] for t in ax.texts if t.get_text().startswith("#")) == ["#1", "#4", "#9"]
 
 
 def test_the_frame_figures_draw_the_tracks_of_a_result(tmp_path, monkeypatch):
