@@ -24,9 +24,18 @@ range bin. DCA1000 chirps are in transmission order (loop m, TDM slot i), so the
 slot i is tx_order[i]·n_rx + j (tx-major, xnlos's order). Cubes (``.npy``/``.npz``/HDF5) are laid out
 by ``axes`` (a permutation of sample, chirp, channel, with an optional frame axis),
 ``sample_format`` and ``channel_order`` as :class:`xnlos_core.adc.AdcLayout` describes.
+
+The data file is read as :mod:`xnlos_core.datafiles` reads every data file: a regular file only (a
+FIFO or device is refused before a byte is read), an HDF5 file that reads no other file (external
+links, external storage and virtual datasets are refused), declared sizes checked before memory is
+allocated, damaged bytes an InputError naming the file. On opening, a cube must have the rank,
+axis lengths and dtype the description and the radar give, and at least one frame (an empty
+recording is refused, as is a DCA1000 file shorter than one frame), so that ``xnlos check``, which
+opens the recording, refuses what a run would.
 """
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -271,6 +280,21 @@ class Recording:
 
     def chirp_cube(self, i: int) -> np.ndarray:
         """Frame ``i`` → (n_samples, n_chirps, n_channels) complex128 [√W], channels tx-major by array position."""
+        with self._naming_frame(i):
+            return self._chirp_cube(i)
+
+    @contextlib.contextmanager
+    def _naming_frame(self, i: int):
+        """Prefix an InputError raised inside (the ADC layout's, the RA map's: NaN or infinite samples,
+        e.g. 1e300 counts that overflow the FFT) with the file and frame, unless it names the file."""
+        try:
+            yield
+        except InputError as exc:
+            if str(self.path) in str(exc):
+                raise
+            raise InputError(f"{self.path}: frame {i}: {exc}") from None
+
+    def _chirp_cube(self, i: int) -> np.ndarray:
         radar, spec = self.radar, self.spec
         raw = self.raw_frame(i)
         x = raw.astype(np.float64) - spec.adc_offset if spec.adc_offset else raw
@@ -299,7 +323,9 @@ class Recording:
 
     def ra_map(self, i: int) -> RAMap:
         """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain."""
-        return ra_map_from_cube(self.chirp_cube(i).mean(axis=1), self.radar)
+        cube = self.chirp_cube(i).mean(axis=1)
+        with self._naming_frame(i):
+            return ra_map_from_cube(cube, self.radar)
 
     def check(self, i: int = 0) -> RAMap:
         """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
@@ -307,7 +333,8 @@ class Recording:
         if self.spec.adc_offset == 0:
             check_unsigned(self.raw_frame(i), f"{self.source} frame {i}")
         cube = self.chirp_cube(i).mean(axis=1)
-        ra = ra_map_from_cube(cube, self.radar)
+        with self._naming_frame(i):
+            ra = ra_map_from_cube(cube, self.radar)
         check_leakage(ra, f"{self.source} frame {i}", self.spec.leakage_range, self.spec.leakage_db)
         check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar,
                             f"{self.source} frame {i}", skip_range=self.spec.leakage_range)

@@ -35,6 +35,7 @@ import math
 import os
 import stat
 import struct
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -52,10 +53,11 @@ MAX_HDF5_LINKS = 10_000  # links walked in one HDF5 file; the files xnlos reads 
 
 # Exceptions the parsers (h5py, numpy.lib.format, zipfile, scipy.io) raise on damaged or foreign
 # bytes; each becomes an InputError naming the file. MemoryError: a declared size that got past the
-# checks (e.g. many medium arrays); RecursionError: deeply nested MATLAB structs.
+# checks (e.g. many medium arrays); RecursionError: deeply nested MATLAB structs; SyntaxError,
+# TokenError: a damaged .npy header (numpy tokenizes it).
 PARSE_ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError, RuntimeError, EOFError,
                 OverflowError, NotImplementedError, UnicodeError, zlib.error, struct.error, zipfile.BadZipFile,
-                MemoryError, RecursionError)
+                MemoryError, RecursionError, SyntaxError, tokenize.TokenError)
 
 # HDF5 filter ids read without a plugin: deflate, shuffle, fletcher32, szip, n-bit, scale-offset, LZF
 # (h5py registers LZF itself).
@@ -333,12 +335,135 @@ def load_npz_array(path: str | Path, key: str, *, what: str, max_bytes: int = MA
 
 # --- MATLAB -----------------------------------------------------------------------------------------
 
+# MAT v5 codes (MATLAB "MAT-File Format", 2019): array classes whose data is numbers, and the numeric
+# data types (miINT8 … miUINT64) with their item sizes [bytes].
+_MX_NUMERIC = range(6, 16)  # mxDOUBLE … mxUINT64
+_MX_NAMES = {1: "a cell array", 2: "a struct", 3: "an object", 4: "a char array", 5: "a sparse matrix",
+             16: "a function handle", 17: "an opaque object"}
+_MI_NUMERIC = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8}
+_MI_MATRIX, _MI_COMPRESSED = 14, 15
+
+
+class _Mat5Stream:
+    """Sequential reads of one MAT v5 top-level element's content: the file itself, or the zlib
+    stream of an miCOMPRESSED element inflated piece by piece (never more than a block in memory)."""
+
+    def __init__(self, f: BinaryIO, nbytes: int, compressed: bool, where: str):
+        self.f, self.left, self.where = f, nbytes, where
+        self.z = zlib.decompressobj() if compressed else None
+        self.buf = b""
+
+    def read(self, n: int) -> bytes:
+        if self.z is None:
+            if n > self.left:
+                raise InputError(f"{self.where}: an element runs past its variable (damaged file)")
+            data = self.f.read(n)
+            self.left -= len(data)
+        else:
+            while len(self.buf) < n:
+                if self.z.unconsumed_tail:
+                    src = self.z.unconsumed_tail
+                elif self.left > 0:
+                    src = self.f.read(min(self.left, 1 << 16))
+                    self.left -= len(src)
+                    if not src:
+                        break
+                else:
+                    break
+                self.buf += self.z.decompress(src, max(n - len(self.buf), 1 << 16))
+            data, self.buf = self.buf[:n], self.buf[n:]
+        if len(data) != n:
+            raise InputError(f"{self.where}: truncated (damaged file)")
+        return data
+
+    def skip(self, n: int) -> None:
+        while n > 0:
+            k = min(n, 1 << 20)
+            self.read(k)
+            n -= k
+
+
+def _mat5_tag(stream: _Mat5Stream, order: str) -> tuple[int, bytes]:
+    """(data type, payload) of the next sub-element; small elements (type and size in 4 bytes) too."""
+    mdtype, nbytes = struct.unpack(order + "II", stream.read(8))
+    if mdtype >> 16:  # small data element: size in the upper half, ≤ 4 bytes of data in the second word
+        size = mdtype >> 16
+        if size > 4:
+            raise InputError(f"{stream.where}: small data element of {size} bytes (damaged file)")
+        return mdtype & 0xFFFF, struct.pack(order + "I", nbytes)[:size]
+    if nbytes > 2**16:
+        raise InputError(f"{stream.where}: array header element of {nbytes} bytes (damaged file)")
+    data = stream.read(nbytes)
+    stream.read(-nbytes % 8)  # padding to 8 bytes
+    return mdtype, data
+
+
+def _check_mat5(f: BinaryIO, names: tuple[str, ...], what: str) -> None:
+    """Walk a MAT v5 file's variables and, for those named in ``names``, check before scipy reads them
+    that each is a numeric array whose data elements have numeric MATLAB data types and the byte
+    counts its dimensions need. scipy's reader indexes a table with the data type it reads from the
+    file without a range check, so a damaged type code crashes the interpreter (segmentation fault)
+    instead of raising; this is what prevents it. InputError naming ``what`` and the variable."""
+    f.seek(0)
+    head = f.read(128)
+    if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
+        return  # not v5 (v4 is read by scipy's pure-Python reader): scipy says what it is
+    order = "<" if head[126:128] == b"IM" else ">"
+    size = file_size(f)
+    pos = 128
+    while pos + 8 <= size:
+        f.seek(pos)
+        mdtype, nbytes = struct.unpack(order + "II", f.read(8))
+        nxt = pos + 8 + nbytes
+        if mdtype not in (_MI_MATRIX, _MI_COMPRESSED) or nxt > size:
+            return  # scipy refuses (or stops at) what is not a variable
+        where = f"{what}: variable at byte {pos}"
+        stream = _Mat5Stream(f, nbytes, mdtype == _MI_COMPRESSED, where)
+        if mdtype == _MI_COMPRESSED:
+            inner, inner_bytes = struct.unpack(order + "II", stream.read(8))
+            if inner != _MI_MATRIX:
+                raise InputError(f"{where}: compressed element holds MATLAB data type {inner}, expected an array "
+                                 "(miMATRIX): damaged file")
+        t, flags = _mat5_tag(stream, order)
+        t2, dims_raw = _mat5_tag(stream, order)
+        t3, name_raw = _mat5_tag(stream, order)
+        if t != 6 or len(flags) < 4 or t2 not in (5, 6) or len(dims_raw) % 4 or t3 not in (1, 16):
+            raise InputError(f"{where}: damaged array header (flags, dimensions, name)")
+        name = name_raw.decode("latin1")
+        if name in names:
+            word = struct.unpack(order + "I", flags[:4])[0]
+            mclass, complex_ = word & 0xFF, bool(word & 0x800)
+            if mclass not in _MX_NUMERIC:
+                raise InputError(f"{what}: variable {name!r} is {_MX_NAMES.get(mclass, f'of MATLAB class {mclass}')}; "
+                                 "expected a numeric array")
+            dims = struct.unpack(f"{order}{len(dims_raw) // 4}i", dims_raw)
+            if any(d < 0 for d in dims):
+                raise InputError(f"{what}: variable {name!r} has negative dimensions {dims} (damaged file)")
+            count = math.prod(dims)
+            for part in ("real", "imaginary")[:1 + complex_]:
+                dtype, dbytes = struct.unpack(order + "II", stream.read(8))
+                small = dtype >> 16
+                if small:
+                    dtype, dbytes = dtype & 0xFFFF, small
+                if dtype not in _MI_NUMERIC:
+                    raise InputError(f"{what}: variable {name!r}: its {part} part has MATLAB data type {dtype}; "
+                                     "expected a numeric type (damaged file)")
+                if dbytes != count * _MI_NUMERIC[dtype]:
+                    raise InputError(f"{what}: variable {name!r}: its {part} part holds {dbytes} bytes, its "
+                                     f"dimensions {dims} need {count * _MI_NUMERIC[dtype]} (damaged file)")
+                if not small and part == "real" and complex_:
+                    stream.skip(dbytes + (-dbytes % 8))
+        pos = nxt
+
+
 def load_mat(path: str | Path, names: tuple[str, ...], *, what: str,
              max_bytes: int = MAX_ARRAY_BYTES) -> dict[str, Any]:
     """The variables of ``names`` present in the MATLAB ``.mat`` file ``path`` (v4 to v7.2; scipy.io),
-    after their headers (``whosmat``) showed each at most ``max_bytes`` (as float64, complex counted
-    twice); other variables are skipped unread. InputError naming ``what`` for anything else (a v7.3
-    file, which is HDF5; a damaged header or compressed element)."""
+    each a numeric array: their headers (``whosmat``) must declare at most ``max_bytes`` (counted as
+    complex128) and, in a v5 file, their data elements numeric types and consistent sizes (checked
+    by :func:`_check_mat5` before scipy reads them: scipy's reader crashes on some damaged type
+    codes). Other variables are skipped unread. InputError naming ``what`` for anything else (a v7.3
+    file, which is HDF5; a damaged header or compressed element; a struct, cell or string)."""
     import scipy.io
 
     with open_regular(path, what=what) as f:
@@ -347,18 +472,19 @@ def load_mat(path: str | Path, names: tuple[str, ...], *, what: str,
             want = []
             for name, shape, cls in info:
                 if name in names and name not in want:
-                    per = 16 if "complex" in str(cls) else 8
-                    n = math.prod(int(s) for s in shape) * per
+                    n = math.prod(int(s) for s in shape) * 16
                     if n > max_bytes:
-                        raise InputError(f"{what}: variable {name!r} declares shape {tuple(shape)} ({_gib(n)}); "
-                                         f"expected at most {_gib(max_bytes)}")
+                        raise InputError(f"{what}: variable {name!r} declares shape {tuple(shape)} ({_gib(n)} as "
+                                         f"complex128); expected at most {_gib(max_bytes)}")
                     want.append(name)
             if not want:
                 return {}
+            _check_mat5(f, tuple(want), what)
             f.seek(0)
             m = scipy.io.loadmat(f, variable_names=want)
         except XnlosError:
             raise
-        except PARSE_ERRORS as exc:
+        except Exception as exc:  # noqa: BLE001 — scipy's MATLAB reader raises whatever its Cython code
+            # meets in damaged bytes (MatReadError, zlib.error, even UnboundLocalError), not one family
             raise InputError(f"{what}: not a readable MATLAB .mat file, v7.2 or older ({_first_line(exc)})") from None
     return {k: v for k, v in m.items() if k in want}
