@@ -305,32 +305,59 @@ def load_npy(path: str | Path, *, what: str, mmap: bool = True, max_bytes: int =
             raise InputError(f"{what}: cannot read the array ({_first_line(exc)})") from None
 
 
-def load_npz_array(path: str | Path, key: str, *, what: str, max_bytes: int = MAX_ARRAY_BYTES) -> np.ndarray:
-    """Array ``key`` of the ``.npz`` file ``path``: its ``.npy`` header is read first and the declared
-    size checked against ``max_bytes`` and the zip member's size before it is decompressed.
-    InputError naming ``what`` and ``key`` (a missing key lists the ones present)."""
-    with open_regular(path, what=what) as f:
+class NpzArchive:
+    """The arrays of an open ``.npz`` archive (from :func:`npz_archive`), read one by one: each
+    array's ``.npy`` header is read first and its declared size checked against ``max_bytes`` and
+    the zip member's size before anything is allocated or decompressed. Mirrors the part of
+    ``numpy.lib.npyio.NpzFile`` that readers use: ``files``, ``in``, ``[key]``."""
+
+    def __init__(self, z: zipfile.ZipFile, what: str, max_bytes: int):
+        self.zip, self.what, self.max_bytes = z, what, max_bytes
+        self._members = {(n[:-4] if n.endswith(".npy") else n): n for n in z.namelist()}
+        self.files = list(self._members)
+
+    def __contains__(self, key: str) -> bool:
+        return key in self._members
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        what = f"{self.what}: array {key!r}"
+        if key not in self._members:
+            raise InputError(f"{self.what}: no array {key!r}; it holds {sorted(self.files)[:20]}")
         try:
-            with zipfile.ZipFile(f) as z:
-                names = z.namelist()
-                keys = sorted(n[:-4] if n.endswith(".npy") else n for n in names)
-                member = f"{key}.npy" if f"{key}.npy" in names else key if key in names else None
-                if member is None:
-                    raise InputError(f"{what}: no array {key!r}; it holds {keys[:20]}")
-                info = z.getinfo(member)
-                with z.open(info) as m:
-                    shape, fortran, dtype = _npy_header(m, f"{what}: array {key!r}")
-                    nbytes = check_declared_size(f"{what}: array {key!r}", shape, dtype, max_bytes,
-                                                 info.file_size - m.tell())
-                    data = m.read(nbytes)
-                if len(data) != nbytes:
-                    raise InputError(f"{what}: array {key!r} holds {len(data)} of its {nbytes} bytes (truncated)")
-                return np.frombuffer(data, dtype=dtype).reshape(shape, order="F" if fortran else "C").copy()
+            info = self.zip.getinfo(self._members[key])
+            with self.zip.open(info) as m:
+                shape, fortran, dtype = _npy_header(m, what)
+                nbytes = check_declared_size(what, shape, dtype, self.max_bytes, info.file_size - m.tell())
+                data = m.read(nbytes)
+            if len(data) != nbytes:
+                raise InputError(f"{what}: holds {len(data)} of its {nbytes} bytes (truncated)")
+            return np.frombuffer(data, dtype=dtype).reshape(shape, order="F" if fortran else "C").copy()
         except XnlosError:
             raise
         except PARSE_ERRORS as exc:
-            raise InputError(f"{what}: not a readable .npz archive or array {key!r} is damaged "
-                             f"({_first_line(exc)}); expected a file written by numpy.savez") from None
+            raise InputError(f"{what}: damaged ({_first_line(exc)}); expected an array written by numpy.savez") from None
+
+
+@contextlib.contextmanager
+def npz_archive(path: str | Path, *, what: str, max_bytes: int = MAX_ARRAY_BYTES) -> Iterator[NpzArchive]:
+    """The ``.npz`` file ``path`` open as an :class:`NpzArchive` (through :func:`open_regular`), each
+    array at most ``max_bytes``. InputError naming ``what`` when it is not a readable zip archive."""
+    with open_regular(path, what=what) as f:
+        try:
+            z = zipfile.ZipFile(f)
+        except PARSE_ERRORS as exc:
+            raise InputError(f"{what}: not a readable .npz archive ({_first_line(exc)}); expected a file written "
+                             "by numpy.savez") from None
+        with z:
+            yield NpzArchive(z, what, max_bytes)
+
+
+def load_npz_array(path: str | Path, key: str, *, what: str, max_bytes: int = MAX_ARRAY_BYTES) -> np.ndarray:
+    """Array ``key`` of the ``.npz`` file ``path`` (:class:`NpzArchive`: header and declared size
+    checked before decompression). InputError naming ``what`` and ``key`` (a missing key lists the
+    ones present)."""
+    with npz_archive(path, what=what, max_bytes=max_bytes) as z:
+        return z[key]
 
 
 # --- MATLAB -----------------------------------------------------------------------------------------
@@ -415,10 +442,11 @@ def _check_mat5(f: BinaryIO, names: tuple[str, ...], what: str) -> None:
         f.seek(pos)
         mdtype, nbytes = struct.unpack(order + "II", f.read(8))
         nxt = pos + 8 + nbytes
-        if mdtype not in (_MI_MATRIX, _MI_COMPRESSED) or nxt > size:
-            return  # scipy refuses (or stops at) what is not a variable
+        if mdtype not in (_MI_MATRIX, _MI_COMPRESSED):
+            return  # scipy refuses what is not a variable
         where = f"{what}: variable at byte {pos}"
-        stream = _Mat5Stream(f, nbytes, mdtype == _MI_COMPRESSED, where)
+        # an element longer than the file is still read by scipy as far as the file goes: so is it here
+        stream = _Mat5Stream(f, min(nbytes, size - pos - 8), mdtype == _MI_COMPRESSED, where)
         if mdtype == _MI_COMPRESSED:
             inner, inner_bytes = struct.unpack(order + "II", stream.read(8))
             if inner != _MI_MATRIX:

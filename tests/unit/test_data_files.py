@@ -53,16 +53,17 @@ def outside(tmp_path_factory) -> Path:
 
 # --- regular files only ----------------------------------------------------------------------------
 
-@pytest.mark.parametrize("reader", ["open_regular", "npy", "npz", "hdf5", "spad_hdf5", "mat", "checkpoint"])
+@pytest.mark.parametrize("reader", ["open_regular", "npy", "npz", "hdf5", "spad_hdf5", "mat", "checkpoint", "frame"])
 def test_a_fifo_is_refused_before_it_is_opened_for_reading(tmp_path, reader):
     from plugins.training.checkpoint import load_checkpoint
+    from xnlos_core.io import load_frame
 
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)  # no writer: a blocking open would hang the test
     call = {"open_regular": lambda: open_regular(fifo, what="x"), "npy": lambda: load_cube(fifo, "npy", "adc"),
             "npz": lambda: load_cube(fifo, "npz", "adc"), "hdf5": lambda: load_cube(fifo, "hdf5", "adc"),
             "spad_hdf5": lambda: read_hdf5(fifo), "mat": lambda: read_mat(fifo),
-            "checkpoint": lambda: load_checkpoint(fifo)}[reader]
+            "checkpoint": lambda: load_checkpoint(fifo), "frame": lambda: load_frame(fifo)}[reader]
     with pytest.raises(InputError, match=r"(pipe|x).* is a FIFO \(named pipe\); expected a regular file"):
         call()
 
