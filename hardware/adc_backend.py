@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from xnlos_core.errors import InputError
 from xnlos_core.interfaces import Backend
 from xnlos_core.types import Frame
 from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
@@ -46,6 +47,15 @@ class ADCBackend(Backend):
     def n_frames(self) -> int:
         return max(self.recording.n_frames - self.params.start, 0)
 
+    def check_source(self) -> None:
+        """Open the recording (its description, file, header and cube shape) and check that ``start``
+        is one of its frames; ConfigError / InputError name the file."""
+        n = self.recording.n_frames
+        if self.params.start >= n:
+            raise InputError(f"{self.recording.path}: params.start = {self.params.start}, but the recording has "
+                             f"{n} frame(s) (0 … {n - 1}); expected a start inside it")
+
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         self.check_max_frames(max_frames)
+        self.check_source()
         yield from self.recording.frames(self.params.start, max_frames)

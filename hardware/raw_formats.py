@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from xnlos_core.datafiles import hdf5_file, load_npy, load_npz_array, read_hdf5_array
 from xnlos_core.errors import ConfigError, InputError
 
 
@@ -100,23 +101,20 @@ def analytic_signal(real_cube: np.ndarray, axis: int = 0) -> np.ndarray:
 
 
 def load_cube(path: Path, fmt: str, key: str) -> np.ndarray:
-    """The array of a ``.npy`` file, of key ``key`` in a ``.npz``, or of dataset ``key`` in an HDF5 file
-    (h5py). Memory-mapped for ``.npy``. Raises InputError on a missing key or unreadable file."""
-    try:
-        if fmt == "npy":
-            return np.load(path, mmap_mode="r", allow_pickle=False)
-        if fmt == "npz":
-            with np.load(path, allow_pickle=False) as z:
-                if key not in z.files:
-                    raise InputError(f"{path}: no array {key!r} (recording.key); it holds {sorted(z.files)}")
-                return z[key]
-        import h5py  # a dependency; imported here only because few recordings are HDF5
+    """The array of a ``.npy`` file, of key ``key`` in a ``.npz``, or of dataset ``key`` in an HDF5 file.
 
-        with h5py.File(path, "r") as f:
-            if key not in f:
-                raise InputError(f"{path}: no dataset {key!r} (recording.key); it holds {sorted(f.keys())}")
-            return np.asarray(f[key])
-    except (InputError, ConfigError):
-        raise
-    except Exception as exc:  # a damaged or foreign file
-        raise InputError(f"{path}: not a readable {fmt} cube ({type(exc).__name__}: {exc})") from None
+    Read through :mod:`xnlos_core.datafiles`: a regular file only (a FIFO or device is refused before
+    a byte is read), a self-contained HDF5 file (an external link, external storage or a virtual
+    dataset is refused: it would read another file), a numeric dtype, a declared size checked
+    before allocation (``.npy`` is memory-mapped and must hold what its header declares; ``.npz``
+    and HDF5 arrays are read whole, at most :data:`~xnlos_core.datafiles.MAX_ARRAY_BYTES`). Raises
+    InputError naming the file on a missing key, a damaged or foreign file."""
+    what = f"recording {path}"
+    if fmt == "npy":
+        return load_npy(path, what=what)
+    if fmt == "npz":
+        return load_npz_array(path, key, what=what)
+    with hdf5_file(path, what=what) as f:
+        return read_hdf5_array(f, key, what=what, kinds="biufc",
+                               expected="an ADC cube (recording.key): complex samples, or integer/float I/Q or "
+                                        "real samples")

@@ -24,9 +24,18 @@ range bin. DCA1000 chirps are in transmission order (loop m, TDM slot i), so the
 slot i is tx_order[i]·n_rx + j (tx-major, xnlos's order). Cubes (``.npy``/``.npz``/HDF5) are laid out
 by ``axes`` (a permutation of sample, chirp, channel, with an optional frame axis),
 ``sample_format`` and ``channel_order`` as :class:`xnlos_core.adc.AdcLayout` describes.
+
+The data file is read as :mod:`xnlos_core.datafiles` reads every data file: a regular file only (a
+FIFO or device is refused before a byte is read), an HDF5 file that reads no other file (external
+links, external storage and virtual datasets are refused), declared sizes checked before memory is
+allocated, damaged bytes an InputError naming the file. On opening, a cube must have the rank,
+axis lengths and dtype the description and the radar give, and at least one frame (an empty
+recording is refused, as is a DCA1000 file shorter than one frame), so that ``xnlos check``, which
+opens the recording, refuses what a run would.
 """
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +45,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from xnlos_core.adc import AdcLayout, chirp_cube
+from xnlos_core.datafiles import file_size, open_regular
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.files import load_toml, resolve_config_path
 from xnlos_core.radar import RadarConfig, load_radar
@@ -47,6 +57,7 @@ from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, l
 from .recording_checks import (RecordingWarning, check_bandwidth, check_channel_order, check_leakage,
                                check_single_receiver, check_unsigned)
 
+MAX_LEAKAGE_RANGE = 1000.0  # [m]: far beyond any radar's leakage, finite so that bin arithmetic stays exact
 _SUFFIXES = {"dca1000": (".bin", ".dat", ".raw"), "npy": (".npy",), "npz": (".npz",),
              "hdf5": (".h5", ".hdf5")}
 
@@ -66,11 +77,15 @@ class RecordingSpec(BaseModel):
         "complex", description="cubes: complex dtype, or a trailing axis of 2 holding I then Q")
     channel_order: Literal["tx_major", "rx_major"] = Field(
         "tx_major", description="tx_major: channel = slot·n_rx + rx (the DCA1000's order); rx_major: rx·n_tx + slot")
-    scale: float = Field(1.0, gt=0, description="amplitude per ADC count [√W]")
-    adc_offset: float = Field(0.0, description="subtracted from every raw count (32768 for offset-binary int16)")
+    scale: float = Field(1.0, gt=0, le=1e6, allow_inf_nan=False, description="amplitude per ADC count [√W]")
+    adc_offset: float = Field(0.0, ge=-2.0**32, le=2.0**32, allow_inf_nan=False,
+                              description="subtracted from every raw count (32768 for offset-binary int16)")
     remove_dc: bool = Field(False, description="subtract each channel's mean over a chirp's samples")
-    leakage_range: float = Field(1.0, ge=0, description="near range [m] checked for TX→RX leakage")
-    leakage_db: float = Field(30.0, gt=0, description="leakage warning threshold above the map's median [dB]")
+    leakage_range: float = Field(1.0, ge=0, le=MAX_LEAKAGE_RANGE, allow_inf_nan=False,
+                                 description="near range [m] checked for TX→RX leakage (and skipped by the "
+                                             "channel-order check), 0 … 1000 m")
+    leakage_db: float = Field(30.0, gt=0, le=300, allow_inf_nan=False,
+                              description="leakage warning threshold above the map's median [dB]")
 
     @field_validator("axes")
     @classmethod
@@ -79,6 +94,14 @@ class RecordingSpec(BaseModel):
         if core not in (["channel", "chirp", "sample"], ["channel", "sample"]) or v.count("frame") > 1:
             raise ValueError(f"axes must order sample, channel (and chirp, frame), each once; got {v}")
         return v
+
+    def cube_shape(self, radar: RadarConfig) -> tuple[str, ...]:
+        """The expected cube shape as text, one entry per axis of the file (``N ≥ 1`` where any
+        length is allowed), e.g. ``("frame: N ≥ 1", "sample: 128", …, "I/Q: 2")``."""
+        size = {"frame": "N ≥ 1", "sample": str(radar.n_samples), "chirp": "N ≥ 1",
+                "channel": str(radar.n_channels)}
+        iq = ("I/Q: 2",) if self.sample_format == "iq" and self.sampling == "complex" else ()
+        return tuple(f"{a}: {size[a]}" for a in self.axes) + iq
 
 
 class ChirpProfile(BaseModel):
@@ -143,14 +166,16 @@ class Recording:
                               f"(n_tx={radar.n_tx}), got {list(order)}")
         self._tx_order = None if order is None or not radar.mimo or list(order) == sorted(order) else np.array(order)
         if spec.format == "dca1000":
-            words = self.path.stat().st_size // 2
+            with open_regular(self.path, what=f"recording {self.path}") as f:
+                self._size = file_size(f)
+            words = self._size // 2
             self._frame_words = dca1000_frame_words(radar.n_samples, radar.n_chirps * radar.n_tdm,
                                                     radar.n_channels // radar.n_tdm, spec.sampling, spec.lanes)
             n, rest = divmod(words, self._frame_words)
             if n == 0:
                 raise InputError(f"{self.path}: {words} int16 words, fewer than one frame ({self._frame_words}: "
                                  f"n_samples × n_chirps·n_tdm × n_rx{' × 2 (I/Q)' if spec.sampling == 'complex' else ''})")
-            if rest or self.path.stat().st_size % 2:
+            if rest or self._size % 2:
                 import warnings
 
                 warnings.warn(f"{self.path}: {rest} int16 words after the last whole frame ({n} frames of "
@@ -159,7 +184,11 @@ class Recording:
             self._n_frames = n
             self._cube = None
         else:
+            if spec.sampling == "real" and spec.sample_format == "iq":
+                raise ConfigError(f"{self.source}: [recording] sampling = 'real' stores one real value per sample; "
+                                  "sample_format = 'iq' (I/Q pairs) contradicts it: leave sample_format out")
             cube = load_cube(self.path, spec.format, spec.key)
+            self._check_cube(cube)
             if "frame" not in spec.axes:
                 cube, axes = cube[None], ("frame",) + spec.axes
             else:
@@ -169,6 +198,37 @@ class Recording:
             self._cube = cube
             self._n_frames = int(cube.shape[0])
         check_single_receiver(radar, self.source)
+
+    def _check_cube(self, cube: np.ndarray) -> None:
+        """InputError naming the file unless ``cube`` has the rank, axis lengths and dtype that
+        ``[recording]`` (axes, sample_format, sampling) and the radar (n_samples, n_channels)
+        describe, and at least one frame and one chirp — checked once on opening, so that ``xnlos
+        check`` refuses what a run would and a run never starts on a cube it cannot read."""
+        spec, radar = self.spec, self.radar
+        iq = spec.sample_format == "iq" and spec.sampling == "complex"
+        want = spec.cube_shape(radar)
+        where = (f"{self.path}: recording cube (key {spec.key!r}) " if spec.format != "npy"
+                 else f"{self.path}: recording cube ")
+        expected = f"expected shape ({', '.join(want)}) from [recording] axes {list(spec.axes)}"
+        if cube.ndim != len(want):
+            raise InputError(f"{where}has shape {cube.shape} ({cube.ndim}-D); {expected}")
+        kinds, kind_text = (("iuf", "integer or float I/Q pairs") if iq else
+                            ("iuf", "integer or float real samples") if spec.sampling == "real" else
+                            ("c", "complex samples (or sample_format = 'iq' for integer I/Q pairs)"))
+        if cube.dtype.kind not in kinds:
+            raise InputError(f"{where}has dtype {cube.dtype}; expected {kind_text}")
+        sizes = {"sample": radar.n_samples, "channel": radar.n_channels}
+        for k, axis in enumerate(spec.axes):
+            n = cube.shape[k]
+            if axis in sizes and n != sizes[axis]:
+                raise InputError(f"{where}has {n} entries on its '{axis}' axis (shape {cube.shape}); {expected} "
+                                 f"(n_samples={radar.n_samples}, n_channels={radar.n_channels})")
+            if n == 0:
+                what = "no frames: an empty recording" if axis == "frame" else f"an empty '{axis}' axis"
+                raise InputError(f"{where}has {what} (shape {cube.shape}); {expected}")
+        if iq and cube.shape[-1] != 2:
+            raise InputError(f"{where}has {cube.shape[-1]} entries on its trailing I/Q axis (shape {cube.shape}); "
+                             f"{expected}")
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Recording":
@@ -202,12 +262,39 @@ class Recording:
         if not 0 <= i < self._n_frames:
             raise InputError(f"{self.path}: frame {i} out of range (the recording has {self._n_frames})")
         if self._cube is not None:
-            return np.asarray(self._cube[i])
-        mm = np.memmap(self.path, dtype="<i2", mode="r", offset=2 * i * self._frame_words, shape=(self._frame_words,))
-        return np.array(mm)
+            try:
+                return np.asarray(self._cube[i])
+            except (OSError, ValueError) as exc:  # a memory-mapped .npy that shrank since it was opened
+                raise InputError(f"{self.path}: frame {i} cannot be read ({type(exc).__name__}: {exc})") from None
+        n = 2 * self._frame_words
+        with open_regular(self.path, what=f"recording {self.path}") as f:
+            try:
+                f.seek(i * n)
+                data = f.read(n)
+            except OSError as exc:
+                raise InputError(f"{self.path}: frame {i} cannot be read ({exc.strerror or exc})") from None
+        if len(data) != n:
+            raise InputError(f"{self.path}: frame {i} holds {len(data)} of its {n} bytes (the file shrank since "
+                             "it was opened)")
+        return np.frombuffer(data, dtype="<i2").copy()
 
     def chirp_cube(self, i: int) -> np.ndarray:
         """Frame ``i`` → (n_samples, n_chirps, n_channels) complex128 [√W], channels tx-major by array position."""
+        with self._naming_frame(i):
+            return self._chirp_cube(i)
+
+    @contextlib.contextmanager
+    def _naming_frame(self, i: int):
+        """Prefix an InputError raised inside (the ADC layout's, the RA map's: NaN or infinite samples,
+        e.g. 1e300 counts that overflow the FFT) with the file and frame, unless it names the file."""
+        try:
+            yield
+        except InputError as exc:
+            if str(self.path) in str(exc):
+                raise
+            raise InputError(f"{self.path}: frame {i}: {exc}") from None
+
+    def _chirp_cube(self, i: int) -> np.ndarray:
         radar, spec = self.radar, self.spec
         raw = self.raw_frame(i)
         x = raw.astype(np.float64) - spec.adc_offset if spec.adc_offset else raw
@@ -236,7 +323,9 @@ class Recording:
 
     def ra_map(self, i: int) -> RAMap:
         """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain."""
-        return ra_map_from_cube(self.chirp_cube(i).mean(axis=1), self.radar)
+        cube = self.chirp_cube(i).mean(axis=1)
+        with self._naming_frame(i):
+            return ra_map_from_cube(cube, self.radar)
 
     def check(self, i: int = 0) -> RAMap:
         """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
@@ -244,7 +333,8 @@ class Recording:
         if self.spec.adc_offset == 0:
             check_unsigned(self.raw_frame(i), f"{self.source} frame {i}")
         cube = self.chirp_cube(i).mean(axis=1)
-        ra = ra_map_from_cube(cube, self.radar)
+        with self._naming_frame(i):
+            ra = ra_map_from_cube(cube, self.radar)
         check_leakage(ra, f"{self.source} frame {i}", self.spec.leakage_range, self.spec.leakage_db)
         check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar,
                             f"{self.source} frame {i}", skip_range=self.spec.leakage_range)

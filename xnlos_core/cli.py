@@ -85,7 +85,8 @@ def check_file(path: str | Path) -> str:
 
     Runs what ``run`` / ``simulate`` / ``train`` run before their first frame (for a pipeline: every
     sweep point's :class:`~xnlos_core.pipeline.Pipeline`, which reads the files it names and lets
-    the forward model check the scene). Every refusal is an :class:`~xnlos_core.errors.XnlosError`.
+    the forward model check the scene, and :meth:`~xnlos_core.pipeline.Pipeline.check_inputs`, which
+    loads learned checkpoints and opens a recording as a run does). Every refusal is an :class:`~xnlos_core.errors.XnlosError`.
     A pipeline that is valid but cannot deliver what it is configured for (e.g. it can never
     reconstruct: :meth:`~xnlos_core.pipeline.Pipeline.warn_unreachable`) is flagged, not refused:
     its :class:`~xnlos_core.errors.XnlosWarning` is issued again naming the sweep point, and the
@@ -111,7 +112,7 @@ def check_file(path: str | Path) -> str:
     for i, (assignment, t) in enumerate(points):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", XnlosWarning)
-            Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path))
+            Pipeline(parse_pipeline(t, str(path), path.resolve().parent), source=str(path)).check_inputs()
         ours = [w for w in caught if issubclass(w.category, XnlosWarning)]
         flagged += bool(ours)
         where = "" if len(points) == 1 else f" [sweep point {i}: " + ", ".join(

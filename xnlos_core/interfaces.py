@@ -169,6 +169,13 @@ class Backend(Plugin, abc.ABC):
         sensor, the default); progress bars use it."""
         return None
 
+    def check_source(self) -> None:
+        """Open what :meth:`frames` reads and check it as far as it can be without yielding a frame
+        (a recording's file: its format, header, shape and frame count), raising the typed error
+        (InputError, ConfigError) that :meth:`frames` would raise, naming the file. ``xnlos check``
+        calls it (:meth:`xnlos_core.pipeline.Pipeline.check_inputs`), so that it refuses the sources a
+        run would refuse. The default checks nothing (a live sensor is only reached by ``open``)."""
+
     def check_max_frames(self, max_frames: int | None) -> None:
         """InputError unless ``max_frames`` is None or an integer ≥ 0 (every :meth:`frames` checks it)."""
         if max_frames is not None and (not isinstance(max_frames, int) or max_frames < 0):

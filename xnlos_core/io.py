@@ -241,10 +241,14 @@ def save_frame(path: str | Path, frame: Frame) -> None:
 
 
 def load_frame(path: str | Path) -> Frame:
-    """Read a Frame written by :func:`save_frame` (no pickle is ever loaded)."""
+    """Read a Frame written by :func:`save_frame` (no pickle is ever loaded). The file is read as
+    :mod:`xnlos_core.datafiles` reads data: a regular file only (a FIFO or device is refused before a
+    byte is read), each array's declared size checked before it is decompressed."""
+    from .datafiles import npz_archive
+
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with npz_archive(path, what=str(path)) as z:
             schema = int(z["schema"])
             if schema != FRAME_SCHEMA:
                 raise InputError(f"{path}: frame schema {schema}, this xnlos reads schema {FRAME_SCHEMA}")

@@ -153,6 +153,18 @@ class Pipeline:
             self.stages["forward_model"].check(self.scene, self.radar)
         self.warn_unreachable()
 
+    def check_inputs(self) -> dict[str, str]:
+        """Read and check the files a run reads before its first frame, without running: every
+        stage's learned state (:meth:`state_sha256`, as a run's provenance does: a learned detector's
+        checkpoint is loaded with ``torch.load(weights_only=True)`` and its hashes checked) and the
+        backend's source (:meth:`xnlos_core.interfaces.Backend.check_source`: a recording's file is
+        opened and its shape checked). ``xnlos check`` calls it, so that it refuses a missing or
+        damaged checkpoint or recording as ``xnlos run`` would. Returns the state hashes."""
+        state = self.state_sha256()
+        if "backend" in self.stages:
+            self.stages["backend"].check_source()
+        return state
+
     def warn_unreachable(self) -> None:
         """:class:`PipelineWarning` when the configured stages can never deliver what they are there
         for: a detector that cannot classify (``Detector.classifies`` False: every detection

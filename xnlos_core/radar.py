@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from .errors import ConfigError
 from .files import load_toml, resolve_config_path
@@ -19,6 +19,7 @@ from .validation import validate_model
 SPEED_OF_LIGHT = 299_792_458.0  # m/s
 BOLTZMANN = 1.380_649e-23  # J/K
 OVERLAP_TOLERANCE = 1e-6  # [wavelengths]: two elements of one array closer than this are one place
+MIN_HALF_FOV = math.radians(1.0)  # [rad]: a narrower azimuth grid (5e-324 …) is a mistake, not a radar
 
 # one element's (y, z) in wavelengths: y along the array (azimuth), z up (elevation)
 _Coordinate = Annotated[float, Field(ge=-1000, le=1000, allow_inf_nan=False)]
@@ -94,7 +95,9 @@ class RadarConfig(BaseModel):
                           "shape (n_channels, n_channels); replaces the modelled one")
     coupling_compensation: bool = Field(
         False, description="the signal chain undoes the coupling (C⁻¹) before beamforming (calibrated radar)")
-    field_of_view: float = Field(math.radians(60), gt=0, lt=math.pi / 2, description="half FOV [rad]")
+    field_of_view: float = Field(math.radians(60), ge=MIN_HALF_FOV, lt=math.pi / 2,
+                                 description="half FOV [rad]: the azimuth grid spans ±field_of_view; "
+                                             "1° (0.01745 rad) ≤ field_of_view < 90° (π/2 rad)")
     n_azimuth_bins: int = Field(121, ge=3, le=4096)
     max_range: float = Field(100.0, gt=0, description="RA maps are cropped to [0, max_range] [m]")
     range_window: str = Field("hann", description="scipy.signal window for the range FFT")
@@ -107,6 +110,18 @@ class RadarConfig(BaseModel):
     frame_period: float | None = Field(
         None, gt=0, le=3600, description="start-to-start interval of frames [s], ≥ n_chirps·n_tdm·T_c; "
                                          "None: n_chirps·n_tdm·T_c (back-to-back frames)")
+
+    @field_validator("field_of_view", mode="before")
+    @classmethod
+    def _field_of_view_in_radians(cls, v: Any) -> Any:
+        # the bounds are the Field's; this says them in radians and degrees (a value in degrees, e.g.
+        # 60, or a denormal such as 5e-324 is the usual mistake)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not (MIN_HALF_FOV <= v < math.pi / 2):
+            deg = f" (= {math.degrees(v):.6g}°)" if math.isfinite(v) else ""
+            raise ValueError(f"field_of_view is the HALF field of view in radians: expected 1° "
+                             f"({MIN_HALF_FOV:.5f} rad) ≤ field_of_view < 90° ({math.pi / 2:.5f} rad), got {v!r} "
+                             f"rad{deg}; e.g. 1.0471975511965976 for ±60°")
+        return v
 
     @model_validator(mode="before")
     @classmethod

@@ -39,6 +39,7 @@ from typing import Any
 import torch
 from torch import nn
 
+from xnlos_core.datafiles import read_regular_bytes
 from xnlos_core.errors import InputError
 from xnlos_core.io import atomic_write_bytes, atomic_write_text
 
@@ -46,6 +47,7 @@ FORMAT, VERSION = "xnlos-detector", 1  # the name predates the residual mirror; 
 SEAL = b"xnlos-sealed-checkpoint 1\nsha256 "
 _SEAL_LEN = len(SEAL) + 64 + 1  # the header: SEAL, the hex digest, a newline
 _ZIP_MAGIC = b"PK\x03\x04"
+MAX_CHECKPOINT_BYTES = 4 * 2**30  # the shipped checkpoints are < 100 MB
 
 
 def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
@@ -107,17 +109,14 @@ def load_checkpoint(path: str | Path, architecture: str | None = None,
     """(state_dict, metadata, payload) of the checkpoint at ``path`` (plain or sealed; ``sealed``:
     only a sealed one, whose whole-file hash is then checked).
 
+    Only a regular file of at most :data:`MAX_CHECKPOINT_BYTES` is read (a FIFO, a device such as
+    ``/dev/zero`` or a directory is refused before a byte is read, :mod:`xnlos_core.datafiles`).
     Raises InputError (naming the file) when it is missing, not a readable torch file, not an
     xnlos detector checkpoint, corrupted (file or weights hash mismatch), or made for another
     ``architecture`` than the one asked for.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"checkpoint {str(path)!r}: no such file")
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"checkpoint {str(path)!r}: cannot be read ({exc.strerror or exc})") from None
+    raw = read_regular_bytes(path, what=f"checkpoint {str(path)!r}", max_bytes=MAX_CHECKPOINT_BYTES)
     data = _unseal(path, raw, sealed)
     try:
         payload = torch.load(io.BytesIO(data), map_location=map_location, weights_only=True)

@@ -20,7 +20,12 @@ HDF5 (subset of the Zaragoza NLOS dataset format, Galindo et al. 2019; confocal 
 
 Readers refuse NaN/inf, negative and all-zero counts, missing metadata, and a ``bin_width`` that
 disagrees with the file (relative tolerance 1e-6) with :class:`~xnlos_core.errors.InputError`
-naming the file and the variable.
+naming the file and the variable. Files are read as :mod:`xnlos_core.datafiles` reads data: regular
+files only (a FIFO or device is refused before a byte is read), HDF5 files self-contained (an
+external link, external storage or a virtual dataset is refused: they would read other files),
+declared sizes checked before allocation (at most :data:`xnlos_core.datafiles.MAX_ARRAY_BYTES` per
+variable), and damaged files (a corrupt compressed chunk, a truncated header) refused with an
+InputError naming the file, never a library traceback.
 """
 from __future__ import annotations
 
@@ -31,6 +36,7 @@ import h5py
 import numpy as np
 import scipy.io
 
+from xnlos_core.datafiles import hdf5_file, load_mat, read_hdf5_array
 from xnlos_core.errors import InputError
 from xnlos_core.transient import SPEED_OF_LIGHT, TransientVolume
 
@@ -64,20 +70,26 @@ def _bin_width(src: str, var: str, in_file: float | None, given: float | None) -
 
 
 def _scalar(src: str, name: str, value) -> float:
-    a = np.asarray(value, dtype=np.float64).ravel()
+    try:
+        a = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError, OverflowError):
+        a = np.array([np.nan, np.nan])  # a string, a struct, a cell: not one number
     if a.size != 1 or not np.isfinite(a[0]):
-        raise InputError(f"{src}: {name} expected one finite number, got {value!r}")
+        raise InputError(f"{src}: {name} expected one finite number, got {_short(value)}")
     return float(a[0])
+
+
+def _short(value) -> str:
+    """``value`` for an error message, at most 120 characters (a file can hold a large array)."""
+    text = repr(value) if np.size(value) <= 16 else f"an array of shape {np.shape(value)}"
+    return text if len(text) <= 120 else text[:117] + "..."
 
 
 def read_mat(path: str | Path, *, bin_width: float | None = None,
              time_axis: Literal["auto", "first", "last"] = "auto") -> TransientVolume:
     """A confocal ``.mat`` file (module docstring) as a TransientVolume (T, N, N)."""
     src = str(path)
-    try:
-        m = scipy.io.loadmat(src)
-    except (OSError, ValueError, NotImplementedError) as exc:
-        raise InputError(f"{src}: not a readable MATLAB .mat file (v7.2 or older) ({exc})") from None
+    m = load_mat(path, MAT_NAMES + ("width", "bin_resolution", "t0"), what=src)
     var = next((v for v in MAT_NAMES if v in m), None)
     if var is None:
         raise InputError(f"{src}: no measurement variable; expected one of {', '.join(MAT_NAMES)}")
@@ -126,31 +138,34 @@ def write_mat(path: str | Path, volume: TransientVolume) -> None:
 def read_hdf5(path: str | Path, *, bin_width: float | None = None) -> TransientVolume:
     """An HDF5 file of the module docstring's subset as a TransientVolume."""
     src = str(path)
-    try:
-        f = h5py.File(src, "r")
-    except OSError as exc:
-        raise InputError(f"{src}: not a readable HDF5 file ({exc})") from None
-    with f:
+    small = 2**16  # a metadata dataset: a few numbers
+
+    def meta(f, key: str, expected: str) -> np.ndarray:
+        return read_hdf5_array(f, key, what=src, kinds="biuf", max_bytes=small, expected=expected).ravel()
+
+    with hdf5_file(path, what=src) as f:
         for key in ("data", "deltaT", "cameraGridSize"):
             if key not in f:
                 raise InputError(f"{src}: no {key}; expected data, deltaT [m], cameraGridSize [m]")
-        d = np.asarray(f["data"][()])
+        d = read_hdf5_array(f, "data", what=src, kinds="biuf", expected="confocal counts (T, H, W), real numbers")
         while d.ndim > 3 and d.shape[0] == 1:
             d = d[0]
         if d.ndim != 3:
             raise InputError(f"{src}: data expected a confocal (T, H, W) volume, got shape {d.shape}")
-        size = np.asarray(f["cameraGridSize"][()], dtype=np.float64).ravel()
+        size = meta(f, "cameraGridSize", "(width, height) [m]").astype(np.float64)
         if size.size != 2:
-            raise InputError(f"{src}: cameraGridSize expected (width, height) [m], got {size}")
+            raise InputError(f"{src}: cameraGridSize expected (width, height) [m], got {_short(size)}")
         if "cameraGridPoints" in f:
-            pts = np.asarray(f["cameraGridPoints"][()]).ravel()
-            if pts.size != 2 or tuple(int(p) for p in pts) != (d.shape[2], d.shape[1]):
-                raise InputError(f"{src}: cameraGridPoints {pts} disagrees with data's (W, H) = "
+            pts = meta(f, "cameraGridPoints", "(W, H) grid points")
+            if pts.size != 2 or not np.all(np.isfinite(pts)) or tuple(pts.tolist()) != (d.shape[2], d.shape[1]):
+                raise InputError(f"{src}: cameraGridPoints {_short(pts)} disagrees with data's (W, H) = "
                                  f"({d.shape[2]}, {d.shape[1]})")
-        if "isConfocal" in f and not bool(np.asarray(f["isConfocal"][()]).ravel()[0]):
-            raise InputError(f"{src}: isConfocal is 0; only confocal captures are read")
-        delta = _scalar(src, "deltaT", f["deltaT"][()])
-        t0 = _scalar(src, "t0", f["t0"][()]) / SPEED_OF_LIGHT if "t0" in f else 0.0
+        if "isConfocal" in f:
+            flag = meta(f, "isConfocal", "1 (a confocal capture)")
+            if flag.size != 1 or not flag[0]:
+                raise InputError(f"{src}: isConfocal is {_short(flag)}; only confocal captures (1) are read")
+        delta = _scalar(src, "deltaT", meta(f, "deltaT", "the path length per bin [m]"))
+        t0 = _scalar(src, "t0", meta(f, "t0", "the path length of bin 0 [m]")) / SPEED_OF_LIGHT if "t0" in f else 0.0
     bw = _bin_width(src, "deltaT", delta / SPEED_OF_LIGHT, bin_width)
     return _volume(src, "data", d, bw, float(size[0]), float(size[1]), t0)
 
