@@ -36,7 +36,15 @@ class NPZBackend(Backend):
         if not d.is_dir():
             raise InputError(f"NPZBackend: directory {str(d)!r} does not exist or is not a directory "
                              "(params.directory)")
-        return sorted((f for f in d.glob("*.npz") if f.is_file()), key=lambda f: f.name)
+        files = sorted((f for f in d.glob("*.npz") if f.is_file()), key=lambda f: f.name)
+        if not files:  # an empty recording is a mistake, not a run of 0 frames
+            raise InputError(f"NPZBackend: directory {str(d)!r} holds no *.npz frame files (params.directory; "
+                             "expected frames written by xnlos_core.io.save_frame)")
+        return files
+
+    def check_source(self) -> None:
+        """What ``xnlos check`` asks: the folder exists and holds frame files (:meth:`files`)."""
+        self.files()
 
     def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
         """Yield up to ``max_frames`` frames (all when None) in file-name order."""

@@ -84,3 +84,16 @@ def test_missing_directory_and_params(tmp_path):
         NPZBackend({})
     with pytest.raises(InputError, match="max_frames"):
         list(NPZBackend({"directory": str(tmp_path)}).frames(max_frames=-1))
+
+
+def test_an_empty_replay_folder_is_refused_by_check_and_run(tmp_path):
+    import pytest
+
+    from hardware.npz import NPZBackend
+    from xnlos_core.errors import InputError
+
+    backend = NPZBackend(NPZBackend.Params(directory=str(tmp_path)))
+    with pytest.raises(InputError, match="holds no"):
+        backend.check_source()
+    with pytest.raises(InputError, match="holds no"):
+        list(backend.frames())
