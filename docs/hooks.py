@@ -5,7 +5,8 @@
   the repository at build time, never copied into docs/), with an index page that lists them by title
   and a nav entry per page under "Benchmarks".
 * The API reference renders docstrings written for Sphinx: the roles (``:func:``, ``:class:``, …) in
-  front of a name are dropped, and so is the ``~`` that shortens it, leaving the name as code.
+  front of a name are dropped, and so is the ``~`` that shortens it, leaving the name as code; a
+  paragraph that introduces a literal block ends in one colon, not reST's two.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from mkdocs.structure.files import File, Files
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 ROLE = re.compile(r":(?:py:)?(?:func|class|meth|attr|data|mod|exc|obj|const):(<code>)~?")
+LITERAL_INTRO = re.compile(r"::(</p>\s*<pre>)")
 
 
 def _title(md: Path) -> str:
@@ -55,5 +57,5 @@ def on_files(files: Files, config) -> Files:
 
 def on_page_content(html: str, page, config, files) -> str:
     if page.file.src_uri.startswith("reference/"):
-        return ROLE.sub(r"\1", html)
+        return LITERAL_INTRO.sub(r":\1", ROLE.sub(r"\1", html))
     return html
