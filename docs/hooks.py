@@ -21,10 +21,15 @@ ROLE = re.compile(r":(?:py:)?(?:func|class|meth|attr|data|mod|exc|obj|const):(<c
 LITERAL_INTRO = re.compile(r"::(</p>\s*<pre>)")
 
 
+TRACKER_REF = re.compile(r"issue \d+(?:,? item \d+)?(?:\s*,\s*issue \d+)*\s*[;,]?\s*")
+
+
 def _title(md: Path) -> str:
+    """A page's first heading, for the index: without the tracker references some titles carry."""
     for line in md.read_text(encoding="utf-8").splitlines():
         if line.startswith("# "):
-            return line[2:].strip()
+            title = re.sub(r"\s*\(\s*\)", "", TRACKER_REF.sub("", line[2:].strip()))
+            return re.sub(r"\(\s+", "(", title).strip()
     return md.stem
 
 
@@ -39,11 +44,13 @@ def benchmark_index(pages: list[Path]) -> str:
 
 
 def on_config(config):
-    """Fill the nav's "Benchmarks" entry: the generated index, then every benchmark page by file name."""
+    """Fill the nav's "Benchmarks" entry: the generated index, then every benchmark page, labelled by its
+    file name (their titles are long)."""
     pages = sorted(BENCHMARKS.glob("*.md"))
     for i, entry in enumerate(config.nav or []):
         if isinstance(entry, dict) and entry.get("Benchmarks") == "benchmarks/index.md":
-            config.nav[i] = {"Benchmarks": ["benchmarks/index.md", *(f"benchmarks/{p.name}" for p in pages)]}
+            config.nav[i] = {"Benchmarks": ["benchmarks/index.md",
+                                            *({p.stem.replace("_", " "): f"benchmarks/{p.name}"} for p in pages)]}
     return config
 
 

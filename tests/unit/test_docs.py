@@ -91,6 +91,21 @@ def test_site_builds_strict(tmp_path):
     out = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, f"mkdocs build --strict failed:\n{out.stdout[-3000:]}\n{out.stderr[-5000:]}"
-    for page in ("index.html", "api/index.html", "reference/types/index.html", "benchmarks/table2/index.html",
+    for page in ("index.html", "api.html", "reference/types.html", "benchmarks/index.html", "benchmarks/table2.html",
                  "benchmarks/table2_fig6_proposed.png"):
         assert (tmp_path / "site" / page).is_file(), f"the site lacks {page}"
+
+
+def test_front_door_files_agree_with_the_package():
+    """LICENSE, CITATION.cff and py.typed say what pyproject.toml says (version, licence, typed package)."""
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    assert "MIT License" in (ROOT / "LICENSE").read_text(encoding="utf-8") and project["project"]["license"]["text"] == "MIT"
+    cff = (ROOT / "CITATION.cff").read_text(encoding="utf-8")
+    assert re.search(r"^cff-version: 1\.2\.0$", cff, re.M) and re.search(r"^license: MIT$", cff, re.M)
+    assert re.search(rf"^version: {re.escape(project['project']['version'])}$", cff, re.M), \
+        "CITATION.cff's version differs from pyproject.toml's"
+    assert (ROOT / "xnlos_core" / "py.typed").is_file()
+    assert "py.typed" in project["tool"]["setuptools"]["package-data"]["xnlos_core"]
+    assert "docs" in project["project"]["optional-dependencies"]
