@@ -3,7 +3,7 @@
 * The benchmark pages stay where the benchmark scripts write them, ``benchmarks/*.md`` beside their
   figures ``benchmarks/*.png``: they join the site as generated files under ``benchmarks/`` (read from
   the repository at build time, never copied into docs/), with an index page that lists them by title
-  and a nav entry per page under "Benchmarks".
+  (less the tracker references some titles carry) and a nav entry per page under "Benchmarks".
 * The API reference renders docstrings written for Sphinx: the roles (``:func:``, ``:class:``, …) in
   front of a name are dropped, and so is the ``~`` that shortens it, leaving the name as code; a
   paragraph that introduces a literal block ends in one colon, not reST's two.
@@ -19,8 +19,6 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 ROLE = re.compile(r":(?:py:)?(?:func|class|meth|attr|data|mod|exc|obj|const):(<code>)~?")
 LITERAL_INTRO = re.compile(r"::(</p>\s*<pre>)")
-
-
 TRACKER_REF = re.compile(r"issue \d+(?:,? item \d+)?(?:\s*,\s*issue \d+)*\s*[;,]?\s*")
 
 
