@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
 LOCK   := requirements.lock
 
-.PHONY: demo test test-slow test-kernels test-latest lock fuzz bench dataset table2 figures clean
+.PHONY: demo test test-slow test-kernels test-latest lock fuzz docs bench dataset table2 figures clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -16,18 +16,18 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m pip install --quiet --no-deps -e .
 	@touch $(STAMP)
 
-# The lock: pip-compile (pip-tools) over pyproject.toml's ranges with the test and dask extras and the
-# CPU build of torch (requirements-cpu.in); --upgrade takes the newest releases that fit.
+# The lock: pip-compile (pip-tools) over pyproject.toml's ranges with the test, dask and docs extras and
+# the CPU build of torch (requirements-cpu.in); --upgrade takes the newest releases that fit.
 lock:
 	@test -x .venv-lock/bin/pip-compile || ($(PYTHON) -m venv .venv-lock && .venv-lock/bin/pip install --quiet pip-tools==7.6.2)
-	.venv-lock/bin/pip-compile --quiet --upgrade --extra test --extra dask --strip-extras --no-emit-index-url \
+	.venv-lock/bin/pip-compile --quiet --upgrade --extra test --extra dask --extra docs --strip-extras --no-emit-index-url \
 		--no-emit-find-links --output-file $(LOCK) pyproject.toml requirements-cpu.in
 
 # The suite against the newest releases of every dependency (torch stays the pinned CPU build), so an
 # upstream break is seen on purpose; the lock test is skipped there (XNLOS_UNLOCKED=1).
 test-latest:
 	@test -x .venv-latest/bin/python || $(PYTHON) -m venv .venv-latest
-	.venv-latest/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -r requirements-cpu.in -e ".[test,dask]"
+	.venv-latest/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -r requirements-cpu.in -e ".[test,dask,docs]"
 	.venv-latest/bin/lint-imports --no-cache
 	XNLOS_UNLOCKED=1 .venv-latest/bin/python -m pytest -q -n $(XDIST) -p no:cacheprovider
 
@@ -47,6 +47,11 @@ test: $(STAMP)
 KERNEL_ARGS ?= -q -m kernels -p no:cacheprovider
 test-kernels: $(STAMP)
 	$(PY) tests/kernels/matrix.py $(KERNEL_ARGS)
+
+# The documentation site (mkdocs.yml, docs/; the benchmark pages join it from benchmarks/) → site/
+docs: $(STAMP)
+	@test -x $(VENV)/bin/mkdocs || { echo "make docs: no mkdocs in $(VENV); the docs extra is not in the lock yet: make lock, or $(PY) -m pip install -e '.[docs]'"; exit 1; }
+	$(VENV)/bin/mkdocs build --strict --site-dir site
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
@@ -79,4 +84,4 @@ figures: $(STAMP)
 	$(PY) -m sims.raytrace.picture --out figures/raytrace_corner.png
 
 clean:
-	rm -rf demo-out figures .pytest_cache .hypothesis
+	rm -rf demo-out figures site .pytest_cache .hypothesis

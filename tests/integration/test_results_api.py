@@ -1,6 +1,6 @@
-"""The reader API (issue 29): load_results gives back, as core types, what the pipeline produced in
-the same run; schema-1 records still load; a damaged record is refused naming the key; the README's
-"Python API" block runs as written."""
+"""The reader API: load_results gives back, as core types, what the pipeline produced in
+the same run; schema-1 records still load; a damaged record is refused naming the key; the docs'
+"Python API" block (docs/api.md) runs as written."""
 import json
 import re
 import shutil
@@ -96,14 +96,14 @@ def test_a_damaged_record_is_refused_naming_file_frame_and_key(run, tmp_path):
         load_results(tmp_path / "nowhere")
 
 
-def test_the_readme_python_api_block_runs_as_written(tmp_path, monkeypatch, capsys):
-    readme = (ROOT / "README.md").read_text()
-    match = re.search(r"<!-- python-api -->\n```python\n(.*?)```", readme, re.S)
-    assert match, "README: no ```python block after <!-- python-api -->"
+def test_the_docs_python_api_block_runs_as_written(tmp_path, monkeypatch, capsys):
+    page = (ROOT / "docs" / "api.md").read_text()
+    match = re.search(r"<!-- python-api -->\n```python\n(.*?)```", page, re.S)
+    assert match, "docs/api.md: no ```python block after <!-- python-api -->"
     shutil.copytree(ROOT / "configs", tmp_path / "configs")  # the block's paths are the project's
     monkeypatch.chdir(tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("error", LegacyRecordWarning)
-        exec(compile(match.group(1), "README.md#python-api", "exec"), {"__name__": "readme"})
+        exec(compile(match.group(1), "docs/api.md#python-api", "exec"), {"__name__": "docs"})
     assert (tmp_path / "out" / "api-demo" / "results.jsonl").is_file()
     assert "line" in capsys.readouterr().out

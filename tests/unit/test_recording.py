@@ -211,15 +211,15 @@ def test_truncated_capture_warns_and_drops_the_partial_frame(tmp_path):
         assert Recording.from_toml(toml).n_frames == 1
 
 
-def test_readme_recipe_runs_as_written(tmp_path, monkeypatch):
-    """The README's raw-recording recipe: its TOML and Python, verbatim, on a synthetic capture."""
+def test_docs_recipe_runs_as_written(tmp_path, monkeypatch):
+    """The raw-recording recipe of docs/recordings.md: its TOML and Python, verbatim, on a synthetic capture."""
     import re
     from pathlib import Path
 
-    text = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    text = (Path(__file__).parents[2] / "docs" / "recordings.md").read_text(encoding="utf-8")
     part = text[text.index("<!-- recipe: raw-recording"):]
     toml_src = re.search(r"```toml\n(.*?)```", part, re.S).group(1)
-    py_src = re.search(r"```python\n(.*?)```", part, re.S).group(1)
+    py_src = next(b for b in re.findall(r"```python\n(.*?)```", part, re.S) if "Recording.from_toml" in b)
     (tmp_path / "capture.toml").write_text(toml_src, encoding="utf-8")
     import tomllib
 
@@ -232,6 +232,6 @@ def test_readme_recipe_runs_as_written(tmp_path, monkeypatch):
     ns: dict = {}
     with warnings.catch_warnings():
         warnings.simplefilter("error", RecordingWarning)
-        exec(compile(py_src, "README recipe", "exec"), ns)
+        exec(compile(py_src, "docs/recordings.md recipe", "exec"), ns)
     assert (tmp_path / "capture.png").stat().st_size > 1000
     assert _peak(ns["ra"])[0] == pytest.approx(5.221, abs=radar.range_resolution / 2)
