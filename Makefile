@@ -50,7 +50,7 @@ test-kernels: $(STAMP)
 
 # The documentation site (mkdocs.yml, docs/; the benchmark pages join it from benchmarks/) → site/
 docs: $(STAMP)
-	@test -x $(VENV)/bin/mkdocs || { echo "make docs: no mkdocs in $(VENV); the docs extra is not in the lock yet: make lock, or $(PY) -m pip install -e '.[docs]'"; exit 1; }
+	@test -x $(VENV)/bin/mkdocs || { echo "make docs: no mkdocs in $(VENV): rm $(STAMP) and run make docs again (the lock installs it)"; exit 1; }
 	$(VENV)/bin/mkdocs build --strict --site-dir site
 
 test-slow: $(STAMP)
