@@ -21,10 +21,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from xnlos_core.antenna import array_factor, beam_metrics, element_directivity, element_gain  # noqa: E402
+from xnlos_core.signal.antenna import array_factor, beam_metrics, element_directivity, element_gain  # noqa: E402
 from xnlos_core.io import atomic_write_bytes  # noqa: E402
 from xnlos_core.radar import RadarConfig  # noqa: E402
-from xnlos_core.signal_chain import beamform, dechirp, decouple, range_fft  # noqa: E402
+from xnlos_core.signal.chain import beamform, dechirp, decouple, range_fft  # noqa: E402
 
 
 def measured_beam(radar: RadarConfig, theta0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -35,12 +35,12 @@ from threadpoolctl import threadpool_limits
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the working tree's packages, not an installed copy
 
-from xnlos_core.antenna import coupling_matrix, steering_vector  # noqa: E402
-from xnlos_core.doppler import (DopplerRAMaps, _doppler_fft, _doppler_window,  # noqa: E402
+from xnlos_core.signal.antenna import coupling_matrix, steering_vector  # noqa: E402
+from xnlos_core.signal.doppler import (DopplerRAMaps, _doppler_fft, _doppler_window,  # noqa: E402
                                 add_chirp_noise, chirp_noise_power, chirp_sequence_cube, chirp_start_times,
                                 doppler_ra_maps, tdm_compensation)
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig  # noqa: E402
-from xnlos_core.signal_chain import _window, beam_weights, dechirp, processing_gain, sample_times  # noqa: E402
+from xnlos_core.signal.chain import _window, beam_weights, dechirp, processing_gain, sample_times  # noqa: E402
 from xnlos_core.validation import as_array  # noqa: E402
 
 

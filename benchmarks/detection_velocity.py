@@ -1,6 +1,6 @@
 """Which cell a detection's radial velocity should be read at (issue 28): the nearest cell to the detector's
 peak, or the strongest cell (|κ|²) within ±1 or ±2 cells of it, or the cell of smallest stated σ within ±1
-(:mod:`xnlos_core.detection_doppler`).
+(:mod:`plugins.detectors.detection_doppler`).
 
 Runs the detector of one case of ``configs/ablations/tracking.toml`` (default 8: the Swin-UNet fine-tuned on
 the 64-chirp sequences) with ``velocity_radius`` 0 on the first ``--sequences`` ``hidden_car_approach``
@@ -27,8 +27,8 @@ CHOICES = ("nearest cell", "strongest within ±1", "strongest within ±2", "smal
 
 def errors(case: int, config: str, dataset: str, split: str, n_seq: int) -> tuple[str, dict[str, np.ndarray]]:
     """(case name, {choice: errors (K,) [m/s]}) over the kept detections (module docstring)."""
-    from xnlos_core.detection_doppler import nearest_cells, strongest_cells
-    from xnlos_core.evaluation import plan_runs
+    from plugins.detectors.detection_doppler import nearest_cells, strongest_cells
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
     from xnlos_core.types import MNLOS
 

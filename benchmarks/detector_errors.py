@@ -189,7 +189,7 @@ def decoding_ceiling(det, frames, radius: float) -> dict[str, float]:
 
 
 def figure(res: dict, path: str) -> None:
-    from xnlos_core.figures import save_png
+    from xnlos_core.app.plot.figures import save_png
 
     import matplotlib.pyplot as plt
 

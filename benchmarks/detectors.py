@@ -185,8 +185,8 @@ def _class_panels(names, curves, x, xlabel: str, quantity: str, figure: str, tic
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from xnlos_core.figures import save_png
-    from xnlos_core.palette import detector_colour
+    from xnlos_core.app.plot.figures import save_png
+    from xnlos_core.app.plot.palette import detector_colour
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     for ax, c, title in zip(axes, ("los", "mnlos"), ("LOS", "mNLOS")):

@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/doppler.py [--repeats 20] [--cars 12] [--out benchmarks/doppler.md]
 
-1. Time: :func:`xnlos_core.doppler.doppler_ra_maps` on one frame's chirp-sequence cube at the default
+1. Time: :func:`xnlos_core.signal.doppler.doppler_ra_maps` on one frame's chirp-sequence cube at the default
    radar size (512 samples × 64 chirp loops × 32 virtual channels → 401 range × 121 azimuth bins) with
    one and two workers, and
    the coherent-mean RA path of the same cube for reference; median of ``--repeats`` after a warm-up.
@@ -10,7 +10,7 @@
    random directions along the street (seeded), rendered with the Doppler image model on the lighter
    radar of configs/pipelines/corner_doppler.toml, detected (nlos_cfar), wall by lsq, un-mirrored by
    the mirror reconstructor. Error per hidden point on the car: ĝᵀw − ĝᵀv_true, the observed component
-   (:mod:`xnlos_core.mirror_doppler`) against the truth; RMSE over points, and the mean predicted σ.
+   (:mod:`plugins.mirror.mirror_doppler`) against the truth; RMSE over points, and the mean predicted σ.
 """
 from __future__ import annotations
 
@@ -23,13 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-from xnlos_core.adc import AdcLayout, canonical_cube
+from hardware.adc import AdcLayout, canonical_cube
 from xnlos_core.config import parse_pipeline
-from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
+from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
 from xnlos_core.files import load_toml
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import ra_map_from_cube
+from xnlos_core.signal.chain import ra_map_from_cube
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "configs" / "pipelines" / "corner_doppler.toml"

@@ -31,7 +31,7 @@ BINS = ((0, 2), (2, 5), (5, 10), (10, 90), (90, 360))
 def rows(case: int, config: str, dataset: str, split: str, n_seq: int) -> tuple[str, np.ndarray]:
     """(case name, per kept cluster: spread [deg], points, error across, error along [m/s], stated σ across)."""
     from estimators.lsq import single_linkage
-    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
 
     r = plan_runs(config, dataset=dataset, split=split)[case]

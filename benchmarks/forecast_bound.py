@@ -49,7 +49,7 @@ AGES = ((0, 5), (5, 10), (10, 20), (20, 40), (40, 10_000))
 
 def run(config: str, case: int, dataset: str, split: str):
     """[(case name, per sequence: [frame dicts])] of the hidden-car sequences of the split."""
-    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
 
     r = plan_runs(config, dataset=dataset, split=split)[case]

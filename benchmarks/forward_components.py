@@ -26,7 +26,7 @@ from sims.image import ImageForwardModel
 from sims.params import COMPONENTS
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import AtmosphereSpec, ObjectSpec, Scene, WallSpec
-from xnlos_core.signal_chain import noise_floor
+from xnlos_core.signal.chain import noise_floor
 
 
 def scene_needing_everything() -> Scene:

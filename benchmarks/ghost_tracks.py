@@ -30,7 +30,7 @@ def _bin(value: float, edges) -> str:
 
 def count(config: str, case: int, dataset: str, split: str, history: int | None) -> tuple[str, int, Counter]:
     """(case name, lsq's history_frames, Counter {(distance bin, speed bin): track frames})."""
-    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
 
     r = plan_runs(config, dataset=dataset, split=split)[case]

@@ -68,7 +68,7 @@ def _truth(frame, prev, nxt, z, radius: float):
 
 def collect(config: str, case: int, dataset: str, split: str, radius: float) -> tuple[str, float, list]:
     """(case name, min_evidence, [(kind, speed, true a/v, {share: (evidence, α)}, window, v_true)])."""
-    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
 
     r = plan_runs(config, dataset=dataset, split=split)[case]

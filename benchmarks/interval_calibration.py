@@ -13,7 +13,7 @@ sequences alone gave factors that the test split did not share.
 
 Reads every run of an ``xnlos eval`` of sequences (``run-NNN/sequences.jsonl``: per forecast the error
 e [m] of the forecast mean against the truth at t + h and the tracker's disc radii r50, r90 [m],
-xnlos_core/sequence_eval.py), splits the (forecast, horizon) pairs by the track's model ("cv" or an
+xnlos_core/app/sequence_eval.py), splits the (forecast, horizon) pairs by the track's model ("cv" or an
 identified one) and gives, per run, class and level q ∈ {0.5, 0.9}, the split-conformal factor
 
     s_q = the ⌈(n + 1)·q⌉-th smallest of the ratios e / r_q  (n pairs),

@@ -22,7 +22,7 @@ import time
 import numpy as np
 from threadpoolctl import threadpool_info
 
-from xnlos_core.cli import DEMO_CONFIG
+from xnlos_core.app.cli import DEMO_CONFIG
 from xnlos_core.config import load_pipeline
 from xnlos_core.pipeline import Pipeline
 

@@ -5,12 +5,12 @@
         [--out benchmarks/ratio_intervals.md]
 
 The issue's forecast target is a ratio: the tracker's mean 2 s-ahead error over constant velocity's
-(CV, from the same track states) on cars of one motion kind (xnlos_core.sequence_eval,
+(CV, from the same track states) on cars of one motion kind (xnlos_core.app.sequence_eval,
 ``family_motions``). Its forecasts are not independent: one car gives up to 40 consecutive ones
 from one track, and the split holds a handful of braking cars. So the forecasts are resampled by
 whole sequences (the percentile bootstrap, Efron & Tibshirani 1993, ch. 13): each resample draws
 the split's sequences with replacement and recomputes the ratio from each sequence's
-``xnlos_core.sequence_eval.prediction_summary`` (the function eval.md's ratio comes from; pooled as
+``xnlos_core.app.sequence_eval.prediction_summary`` (the function eval.md's ratio comes from; pooled as
 sums, :func:`interval`). The
 table gives, per run and family/motion, the ratio on the split, its 90 % interval and the sequences
 that hold a scored 2 s forecast of that kind (the cars' count that decides the spread). Seeded.
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from xnlos_core.sequence_eval import prediction_summary
+from xnlos_core.app.sequence_eval import prediction_summary
 
 KINDS = ("hidden_car_approach/braking", "hidden_car_approach/turning", "hidden_car_approach/straight",
          "hidden_cyclist/turning", "hidden_cyclist/straight")

@@ -7,7 +7,7 @@
 Per map: ground truth thinned to the radar's resolution; detection-like noise (σ_r = 0.15 m,
 σ_θ = 1°, seeded by (seed, map index)) on the LOS points and the virtual points o'; walls fitted by
 ``lsq`` to the noisy LOS points; the same detections and walls go to ``mirror`` and
-``residual_mirror`` (:func:`plugins.residual_mirror.data.scene_inputs`). Reported, overall and per
+``residual_mirror`` (:func:`plugins.mirror.residual.data.scene_inputs`). Reported, overall and per
 scene family: mean and median hidden-point error [m] (each reconstructed point against its own
 true hidden point o), and the reconstruction F1 / Chamfer distance [m²] (mean over maps of
 :func:`xnlos_core.metrics.reconstruction_metrics`, radius 1 m, against all thinned hidden points),
@@ -26,8 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from plugins.mirror.mirror import MirrorReconstructor  # noqa: E402
-from plugins.residual_mirror.data import NoiseConfig, scene_inputs  # noqa: E402
-from plugins.residual_mirror.reconstructor import ResidualMirrorReconstructor, load_model  # noqa: E402
+from plugins.mirror.residual.data import NoiseConfig, scene_inputs  # noqa: E402
+from plugins.mirror.residual.reconstructor import ResidualMirrorReconstructor, load_model  # noqa: E402
 from xnlos_core.io import atomic_write_text  # noqa: E402
 from xnlos_core.metrics import reconstruction_metrics, thin_to_resolution  # noqa: E402
 

@@ -22,7 +22,7 @@ def family_sequences(pipe, family: str):
     """The sequences (each a list of frames, in order) of one scene family from the pipeline's frame
     source, the pipeline reset before each (the tracks and a wall estimator's history); the source is
     opened here and closed when the iteration ends."""
-    from xnlos_core.sequence_eval import sequences
+    from xnlos_core.app.sequence_eval import sequences
 
     backend = pipe.stages["backend"]
     backend.open(pipe.radar)

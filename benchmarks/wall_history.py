@@ -27,7 +27,7 @@ FAMILY = "hidden_car_approach"
 def errors(config: str, case: int, dataset: str, split: str, k: int, tol_deg: float, tol_m: float):
     """Per sequence, per frame: [(wall index, |Δφ| [deg] or NaN when missing, |Δd| [m] or NaN)]."""
     from xnlos_core.errors import InsufficientDataError
-    from xnlos_core.evaluation import plan_runs
+    from xnlos_core.app.evaluation import plan_runs
     from xnlos_core.pipeline import Pipeline
 
     r = plan_runs(config, dataset=dataset, split=split)[case]

@@ -31,7 +31,7 @@ if logging.getLogger(ISOTP_LOGGER).level == logging.NOTSET:
 
 # ISO-TP errors that end (or refuse) a transfer; UnexpectedConsecutiveFrameError only reports
 # the stray remainder of one already counted.
-_SIGNIFICANT = (isotp.errors.WrongSequenceNumberError, isotp.errors.ConsecutiveFrameTimeoutError,
+SIGNIFICANT_ERRORS = (isotp.errors.WrongSequenceNumberError, isotp.errors.ConsecutiveFrameTimeoutError,
                 isotp.errors.ReceptionInterruptedWithFirstFrameError,
                 isotp.errors.ReceptionInterruptedWithSingleFrameError, isotp.errors.FrameTooLongError,
                 isotp.errors.InvalidCanDataError, isotp.errors.ChangingInvalidRXDLError,
@@ -290,7 +290,7 @@ class CanLink:
         time.sleep(0.02)  # a dead bus raises on every recv: do not spin until the owner reconnects
 
     def _on_isotp_error(self, exc: Exception) -> None:
-        if isinstance(exc, _SIGNIFICANT):
+        if isinstance(exc, SIGNIFICANT_ERRORS):
             self._event("transfer_error", exc, time.time())
 
     def _event(self, kind: str, detail: Any, t: float) -> None:

@@ -29,7 +29,7 @@ Payload formats (little-endian, C order):
 * ``ADC_INT16``: the ADC cube (n_samples, n_channels, 2) int16 I/Q, ``Scale`` √W per LSB.
 * ``ADC_COMPLEX64``: the ADC cube (n_samples, n_channels) complex64 [√W].
 
-ADC cubes become RA maps on the host through the shared chain (:mod:`xnlos_core.adc`).
+ADC cubes become RA maps on the host through the shared chain (:mod:`hardware.adc`).
 """
 from __future__ import annotations
 
@@ -430,7 +430,7 @@ def encode_payload(fmt: PayloadFormat, radar: RadarConfig, ra_map: RAMap | None 
         raise InputError(f"encode_payload: ADC cube shape {c.shape}, expected (n_samples, n_channels) = {want}")
     if fmt == PayloadFormat.ADC_COMPLEX64:
         return np.ascontiguousarray(c, dtype="<c8").tobytes(), 1.0
-    from xnlos_core.adc import AdcLayout, encode_adc_cube
+    from hardware.adc import AdcLayout, encode_adc_cube
 
     peak = float(np.max(np.abs(np.concatenate([c.real.ravel(), c.imag.ravel()])))) if c.size else 0.0
     scale = float(np.nextafter(np.float32(peak / 32767.0), np.float32(np.inf))) if peak > 0 else 1.0
@@ -440,13 +440,13 @@ def encode_payload(fmt: PayloadFormat, radar: RadarConfig, ra_map: RAMap | None 
 
 
 def decode_payload(spec: PayloadSpec, header: dict[str, Any], payload: bytes, radar: RadarConfig) -> RAMap:
-    """The RAMap a checked payload carries (ADC cubes through :func:`xnlos_core.adc.adc_cube_to_ra_map`)."""
+    """The RAMap a checked payload carries (ADC cubes through :func:`hardware.adc.adc_cube_to_ra_map`)."""
     if len(payload) != spec.nbytes:
         raise ProtocolError(f"payload of {len(payload)} bytes, expected {spec.nbytes}")
     if spec.fmt == PayloadFormat.RA_COMPLEX64:
         data = np.frombuffer(payload, dtype="<c8").reshape(spec.shape).astype(np.complex64, copy=True)
         return RAMap.from_radar(data, radar)
-    from xnlos_core.adc import AdcLayout, adc_cube_to_ra_map
+    from hardware.adc import AdcLayout, adc_cube_to_ra_map
 
     if spec.fmt == PayloadFormat.ADC_INT16:
         raw = np.frombuffer(payload, dtype="<i2").reshape(*spec.shape, 2)

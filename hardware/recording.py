@@ -23,7 +23,7 @@ chirp_duration N/f_s (not S·T_ramp: that moves every range, see
 range bin. DCA1000 chirps are in transmission order (loop m, TDM slot i), so the channel of RX j in
 slot i is tx_order[i]·n_rx + j (tx-major, xnlos's order). Cubes (``.npy``/``.npz``/HDF5) are laid out
 by ``axes`` (a permutation of sample, chirp, channel, with an optional frame axis),
-``sample_format`` and ``channel_order`` as :class:`xnlos_core.adc.AdcLayout` describes.
+``sample_format`` and ``channel_order`` as :class:`hardware.adc.AdcLayout` describes.
 
 The data file is read as :mod:`xnlos_core.datafiles` reads every data file: a regular file only (a
 FIFO or device is refused before a byte is read), an HDF5 file that reads no other file (external
@@ -44,12 +44,12 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from xnlos_core.adc import AdcLayout, chirp_cube
+from hardware.adc import AdcLayout, chirp_cube
 from xnlos_core.datafiles import file_size, open_regular
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.files import load_toml, resolve_config_path
 from xnlos_core.radar import RadarConfig, load_radar
-from xnlos_core.signal_chain import decouple, range_fft, ra_map_from_cube
+from xnlos_core.signal.chain import decouple, range_fft, ra_map_from_cube
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 

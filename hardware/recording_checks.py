@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from xnlos_core.antenna import steering_vector
+from xnlos_core.signal.antenna import steering_vector
 from xnlos_core.errors import ConfigError, XnlosWarning
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import RAMap

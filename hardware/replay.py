@@ -30,7 +30,7 @@ from xnlos_core.types import Frame
 from xnlos_core.param_paths import RELATIVE_TO_CONFIG, ConfigPath
 
 from .assembler import FrameAssembler, LinkStats, LostFrame, on_radar_message
-from .link import _SIGNIFICANT, isotp_params, stop_quietly
+from .link import SIGNIFICANT_ERRORS, isotp_params, stop_quietly
 from .protocol import (FORMAT_NAMES, DeviceState, E2EError, PayloadFormat, PayloadSpec, Protocol, ProtocolError,
                        radar_hash)
 
@@ -154,7 +154,7 @@ class _Session:
         return self.rx.popleft() if self.rx else None
 
     def _isotp_error(self, exc):
-        if isinstance(exc, _SIGNIFICANT):
+        if isinstance(exc, SIGNIFICANT_ERRORS):
             self.stats.count("transfer_error")
 
     def _messages(self):

@@ -136,7 +136,7 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
     ``folder``; return the TOML's path (for ``Recording.from_toml`` or the ``adc`` backend).
 
     chirp_cubes: per frame (n_samples, n_chirps, n_channels) complex [√W], channels tx-major (the
-    layout of :func:`xnlos_core.doppler.chirp_sequence_cube`); stored as round(cube/scale) int16 in
+    layout of :func:`xnlos_core.signal.doppler.chirp_sequence_cube`); stored as round(cube/scale) int16 in
     transmission order (the real part only for ``sampling`` = "real"). The description gives the
     waveform as a chip's profile ([chirp] slope = B/T, sample_rate = N/T) and every other field of
     ``radar`` in [radar]; ``recording`` / ``chirp`` add or replace keys of those tables.
@@ -171,7 +171,7 @@ def make_adc_recording(folder: str | os.PathLike, radar: RadarConfig | None = No
     """A small DCA1000 recording of static points (a wall's LOS returns and one farther echo) for
     ``radar`` (default: :func:`small_radar` with 2 chirp loops): write it to ``folder`` and return its
     TOML description, e.g. ``check_component("backend", "adc", {"recording": str(make_adc_recording(tmp))})``."""
-    from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube
+    from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube
 
     radar = radar or small_radar(n_chirps=2)
     xy = np.array([[17.0, 8.0], [20.0, 5.0], [23.0, 2.0], [26.0, -1.0], [30.0, 9.0]])

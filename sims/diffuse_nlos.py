@@ -34,9 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from xnlos_core.antenna import element_gain, transmit_gain
+from xnlos_core.signal.antenna import element_gain, transmit_gain
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import processing_gain
+from xnlos_core.signal.chain import processing_gain
 
 from . import roughness
 from . import walls as wall_em

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from scipy.constants import epsilon_0, speed_of_light
 
-from sims.fresnel import _pol, as_theta, fresnel, slab
+from sims.fresnel import polarisation, as_theta, fresnel, slab
 from sims.materials import Material, get_material
 from sims.roughness import specular_field_factor
 from xnlos_core.errors import InputError
@@ -299,7 +299,7 @@ def wall_reflection(material: str | Material, thickness_m, theta_i, f_hz, *, met
     (θ ≤ 85°); TM only at normal incidence (θ = 0), since the TM mapping is dispersive — other
     TM angles raise InputError (use 'analytic'). At θ = 0 the TM value is −R_TE (P.2040 sign).
     """
-    p = _pol(pol)
+    p = polarisation(pol)
     m = get_material(material)
     th = as_theta(theta_i)
     f = np.asarray(f_hz, dtype=np.float64)

@@ -22,7 +22,7 @@ from xnlos_core.errors import InputError
 _HALF_PI = np.pi / 2
 
 
-def _pol(pol: str) -> str:
+def polarisation(pol: str) -> str:
     p = str(pol).strip().lower()
     if p in ("s", "te", "perp", "h"):
         return "s"
@@ -84,7 +84,7 @@ def fresnel(eps_r, theta_i, pol: str = "s") -> tuple[np.ndarray, np.ndarray]:
     passive η; |r| → 1 for θ → 90° and for a good conductor (metal, |η| ~ 1e6…1e10).
     The η = 1, θ = 90° corner (no interface, 0/0) returns r = 0, t = 1.
     """
-    p = _pol(pol)
+    p = polarisation(pol)
     eps = as_eps(eps_r)
     th = as_theta(theta_i)
     eps, c = np.broadcast_arrays(eps, np.cos(th))
@@ -142,7 +142,7 @@ def slab(eps_r, thickness_m, theta_i, f_hz, pol: str = "s") -> tuple[np.ndarray,
     Lossless layer: |R|² + |T|² = 1; lossy layer: < 1. R = 0 when 2q = 2πm (lossless), e.g.
     normal incidence at d = λ/(2√ε').
     """
-    p = _pol(pol)
+    p = polarisation(pol)
     eps = as_eps(eps_r)
     th = as_theta(theta_i)
     d = np.asarray(thickness_m, dtype=np.float64)

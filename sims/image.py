@@ -4,7 +4,7 @@ Each relay wall is a mirror (Eq. 2): a hidden scatterer o seen via wall Π appea
 image o' = R_Π(o) (Eq. 5), with unfolded round trip L = 2|o'| and path loss 1/L² per leg (Eq. 4).
 Walls also return diffusely in line of sight (extended targets sampled at ``wall.spacing``).
 The model finds these paths (:class:`sims.paths.Paths`); :func:`sims.render.render_paths` renders
-them through the FMCW chain of :mod:`xnlos_core.signal_chain` into a Frame.
+them through the FMCW chain of :mod:`xnlos_core.signal.chain` into a Frame.
 
 Components are added only when the scene or configuration asks for them (``Params``, shared with
 ``raytrace`` in :class:`sims.params.ForwardParams`: each "auto", "on" or "off"; the frame's
@@ -16,7 +16,7 @@ Components are added only when the scene or configuration asks for them (``Param
   per crossed wall (direct paths only); opaque walls (no material or no thickness) block.
 * ``atmosphere``: ITU-R P.676 gaseous loss over each round trip, when the scene declares an
   atmosphere and the loss over the longest path reaches ``tolerance_db``.
-* ``coupling``: the radar's mutual-coupling matrix mixes the channels (:mod:`xnlos_core.antenna`).
+* ``coupling``: the radar's mutual-coupling matrix mixes the channels (:mod:`xnlos_core.signal.antenna`).
 * ``diffuse_nlos`` (as ``raytrace``): the three-bounce path radar → rough relay wall → object → wall →
   radar through the diffuse lobe (:mod:`sims.diffuse_nlos`), the power a rough wall takes out of the
   mirror path; auto: on when a relay material wall is mostly diffuse at the carrier (ρ_s(0) < ½).

@@ -6,7 +6,7 @@ the recommendation fitted them. Evaluating a material outside that range raises
 check deliberately.
 
 Time convention: P.2040 (and all of ``sims.materials``, ``sims.fresnel``, ``sims.fdtd``) uses
-phasors with e^{+jωt}, the convention of the FMCW chain in :mod:`xnlos_core.signal_chain`.
+phasors with e^{+jωt}, the convention of the FMCW chain in :mod:`xnlos_core.signal.chain`.
 A plane wave travelling along +z is E·e^{j(ωt − kz)}; a lossy medium has a *negative* imaginary
 permittivity, η = ε' − jε''; a propagation delay τ multiplies a phasor by e^{−jωτ}. A reflection
 coefficient Γ = |Γ|e^{jφ} therefore advances the reflected wave by φ (φ < 0 is a lag). Anyone

@@ -14,7 +14,7 @@ def object_velocity(obj, t: float) -> np.ndarray:
     its trajectory's centre velocity (:mod:`xnlos_core.motion`; constant ``velocity`` without one).
 
     Every scatterer of the object gets the centre's velocity; a turning box's rigid-body term ω × r
-    (:func:`xnlos_core.scene_truth.point_velocities`) is left out of the paths' Doppler (|ω r| ≤ 0.5 m/s
+    (:func:`sims.scene_truth.point_velocities`) is left out of the paths' Doppler (|ω r| ≤ 0.5 m/s
     for a car turning at 0.2 rad/s, 2.5 m from its centre).
     """
     return np.asarray(obj.motion(np.array([float(t)])).velocity[0], dtype=np.float64)

@@ -6,20 +6,20 @@
 for a path with unfolded one-way range r [m] (both legs equal: |o| for a direct echo, |o'| for
 a mirrored one, Eq. 4–5), arrival direction (θ, ε), radar cross-section σ [m²] and specular
 amplitude reflectivity α per relay bounce (two bounces → |α|⁴). G_e is the element pattern
-B_t = B_r (:func:`xnlos_core.antenna.element_gain`), G_tx the factor from transmitting on
-several elements at once (:func:`xnlos_core.antenna.transmit_gain`, 1 for MIMO), L_atm the
+B_t = B_r (:func:`xnlos_core.signal.antenna.element_gain`), G_tx the factor from transmitting on
+several elements at once (:func:`xnlos_core.signal.antenna.transmit_gain`, 1 for MIMO), L_atm the
 gaseous loss over the 2r round trip (:mod:`sims.atmosphere`), applied only when asked for.
 The SNR in the RA map is P_r·G_p/(k·T·f_s·NF) with the processing gain G_p of
-:func:`xnlos_core.signal_chain.processing_gain`.
+:func:`xnlos_core.signal.chain.processing_gain`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from xnlos_core.antenna import element_gain, transmit_gain
+from xnlos_core.signal.antenna import element_gain, transmit_gain
 from xnlos_core.errors import InputError
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
-from xnlos_core.signal_chain import processing_gain
+from xnlos_core.signal.chain import processing_gain
 
 from . import atmosphere
 

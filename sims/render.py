@@ -4,7 +4,7 @@ Given the paths a forward model found (:class:`sims.paths.Paths`), :func:`render
 
 1. applies the ITU-R P.676 gaseous loss over each round trip when the ``atmosphere`` component is on;
 2. forms each path's complex amplitude √P·e^{j(arg α + φ)} with the scatterer's random phase φ;
-3. dechirps every path with positive power into the ADC cube (:func:`xnlos_core.signal_chain.dechirp`),
+3. dechirps every path with positive power into the ADC cube (:func:`xnlos_core.signal.chain.dechirp`),
    through the radar's coupling matrix only when the ``coupling`` component is on;
 4. adds receiver noise (``noise``), forms the RA map (coupling compensated as the radar says);
    with ``doppler`` on, steps 3–4 run over the chirp sequence instead (:func:`render_doppler`);
@@ -19,11 +19,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
+from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
 from xnlos_core.metrics import resolution_cell
 from xnlos_core.radar import RadarConfig
-from xnlos_core.scene_truth import image_velocities, point_velocities
-from xnlos_core.signal_chain import add_noise, dechirp, ra_map_from_cube
+from sims.scene_truth import image_velocities, point_velocities
+from xnlos_core.signal.chain import add_noise, dechirp, ra_map_from_cube
 from xnlos_core.types import Frame, GroundTruth, RAMap
 
 from .atmosphere import attenuation_db
@@ -97,8 +97,8 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
 def render_doppler(radar_syn: RadarConfig, radar: RadarConfig, paths: Paths, live: np.ndarray, amp: np.ndarray,
                    v_r: np.ndarray, rng: np.random.Generator, noise: bool) -> tuple[np.ndarray, RAMap, dict]:
     """Steps 3–4 with Doppler: chirp sequence of the ``live`` paths moving at range rate ``v_r`` (P,)
-    [m/s] (:func:`xnlos_core.doppler.chirp_sequence_cube`, synthesised with ``radar_syn``), per-chirp
-    noise from ``rng`` when ``noise``, then :func:`xnlos_core.doppler.doppler_ra_maps` with ``radar``.
+    [m/s] (:func:`xnlos_core.signal.doppler.chirp_sequence_cube`, synthesised with ``radar_syn``), per-chirp
+    noise from ``rng`` when ``noise``, then :func:`xnlos_core.signal.doppler.doppler_ra_maps` with ``radar``.
 
     The RA map is ``peak_power``, the strongest Doppler bin of each cell: it keeps the coherent
     gain over the n_chirps chirps, so a mover's SNR is the static one less the Hann window's

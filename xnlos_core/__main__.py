@@ -1,6 +1,6 @@
 """``python -m xnlos_core`` runs the xnlos command line."""
 import sys
 
-from .cli import main
+from xnlos_core.app.cli import main
 
 sys.exit(main())

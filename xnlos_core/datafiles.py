@@ -45,7 +45,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from .errors import InputError, XnlosError
-from .files import _kind, _os_reason
+from .files import file_kind, os_reason
 
 MAX_ARRAY_BYTES = 4 * 2**30  # one array read into memory from a data file (a recording cube, a volume)
 MAX_CHUNK_BYTES = 2**28  # one HDF5 chunk, decompressed whole to read any element of it
@@ -85,12 +85,12 @@ def open_regular(path: str | Path, *, what: str) -> BinaryIO:
     except FileNotFoundError:
         raise InputError(f"{what}: no such file (expected an existing regular file)") from None
     except (OSError, TypeError, ValueError) as exc:
-        reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
         raise InputError(f"{what}: cannot open: {reason}") from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            raise InputError(f"{what} is {_kind(mode)}; expected a regular file")
+            raise InputError(f"{what} is {file_kind(mode)}; expected a regular file")
         return os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
@@ -112,7 +112,7 @@ def read_regular_bytes(path: str | Path, *, what: str, max_bytes: int) -> bytes:
         try:
             data = f.read(max_bytes + 1)
         except OSError as exc:
-            raise InputError(f"{what}: cannot read: {_os_reason(exc)}") from None
+            raise InputError(f"{what}: cannot read: {os_reason(exc)}") from None
     if len(data) > max_bytes:
         raise InputError(f"{what} grew beyond {_gib(max_bytes)} while being read")
     return data

@@ -22,7 +22,7 @@ class InsufficientDataError(XnlosError, ValueError):
 
 
 class SchemaKeywordError(InputError):
-    """A JSON Schema uses a keyword that :mod:`xnlos_core.json_schema` does not implement."""
+    """A JSON Schema uses a keyword that :mod:`xnlos_core.app.json_schema` does not implement."""
 
 
 class SchemaViolation(InputError):

@@ -29,7 +29,7 @@ MAX_CONFIG_BYTES = 16 * 2**20  # a TOML config or preset; the shipped ones are <
 MAX_DATA_BYTES = 2**30  # a mesh or coupling matrix read whole into memory
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
     for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
                        (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
                        (stat.S_ISSOCK, "a socket")):
@@ -38,7 +38,7 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
-def _os_reason(exc: OSError) -> str:
+def os_reason(exc: OSError) -> str:
     if exc.errno == errno.ENAMETOOLONG:
         return "the path or one of its names is too long for the file system"
     if exc.errno == errno.ELOOP:
@@ -85,10 +85,10 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
     except FileNotFoundError:
         raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None
     except (OSError, RuntimeError) as exc:  # RuntimeError: a symlink loop on older Pythons
-        reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
         raise ConfigError(f"{where} cannot use file {value[:200]!r}: {reason}") from None
     if not stat.S_ISREG(mode):
-        raise ConfigError(f"{where} {value!r} ({real}) is {_kind(mode)}; expected a regular file")
+        raise ConfigError(f"{where} {value!r} ({real}) is {file_kind(mode)}; expected a regular file")
     return real
 
 
@@ -103,12 +103,12 @@ def read_file_bytes(path: str | Path, *, what: str, max_bytes: int = MAX_DATA_BY
     except FileNotFoundError:
         raise ConfigError(f"{what}: no such file") from None
     except (OSError, TypeError, ValueError) as exc:
-        reason = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
         raise ConfigError(f"{what}: cannot open: {reason}") from None
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            raise ConfigError(f"{what} is {_kind(st.st_mode)}; expected a regular file")
+            raise ConfigError(f"{what} is {file_kind(st.st_mode)}; expected a regular file")
         if st.st_size > max_bytes:
             raise ConfigError(f"{what} is {st.st_size} bytes; at most {max_bytes} are read")
         chunks, total = [], 0
@@ -119,7 +119,7 @@ def read_file_bytes(path: str | Path, *, what: str, max_bytes: int = MAX_DATA_BY
                 raise ConfigError(f"{what} grew beyond {max_bytes} bytes while being read")
         return b"".join(chunks)
     except OSError as exc:
-        raise ConfigError(f"{what}: cannot read: {_os_reason(exc)}") from None
+        raise ConfigError(f"{what}: cannot read: {os_reason(exc)}") from None
     finally:
         os.close(fd)
 

@@ -1,7 +1,7 @@
 """Detections, walls and hidden points ↔ their objects in a results.jsonl record (schema 2, issue 29).
 
-Written by :meth:`xnlos_core.pipeline.FrameResult.record`, read back by :mod:`xnlos_core.results`;
-the layout of a whole line is :data:`xnlos_core.results_schema.RESULTS_SCHEMA`.
+Written by :meth:`xnlos_core.pipeline.FrameResult.record`, read back by :mod:`xnlos_core.app.results`;
+the layout of a whole line is :data:`xnlos_core.app.results_schema.RESULTS_SCHEMA`.
 
 - ``detection_table``: one column per field, K rows, row k = detection k (the row a hidden
   point's ``source_index`` names): range [m], azimuth [rad], label (0 LOS, 1 mNLOS, 2 unclassified),

@@ -308,7 +308,7 @@ class NLOSSolver(Plugin, abc.ABC):
 class TransientModel(Plugin, abc.ABC):
     """Scene → TransientVolume: a forward model of the optical (SPAD) modality for the
     cross-modality comparison (Sec. 5.1.2; issue 30) — a confocal scan of a patch of the scene's
-    relay wall. Not a pipeline stage: the study (:mod:`xnlos_core.crossmodal`) calls it, so that
+    relay wall. Not a pipeline stage: the study (:mod:`xnlos_core.app.crossmodal.study`) calls it, so that
     the core composes the SPAD simulator of ``sims`` through the registry.
     """
 

@@ -193,7 +193,7 @@ def scene_metrics(detections: Detections, hidden_points, ground_truth: GroundTru
 @lru_cache(maxsize=32)
 def resolution_cell(radar: RadarConfig) -> tuple[float, float]:
     """(range [m], azimuth [rad]) extent of one resolution cell: c/2B and the −3 dB beamwidth."""
-    from .antenna import beam_metrics
+    from xnlos_core.signal.antenna import beam_metrics
 
     return radar.range_resolution, float(beam_metrics(radar)["beamwidth_3db"])
 

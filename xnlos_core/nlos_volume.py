@@ -12,12 +12,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
-from .types import _ReadOnlyArrays, _set
+from .types import ReadOnlyArrays, set_attribute
 from .validation import as_array, check_ascending
 
 
 @dataclass(frozen=True, eq=False)
-class NLOSVolume(_ReadOnlyArrays):
+class NLOSVolume(ReadOnlyArrays):
     """albedo (Z, H, W) float64, ≥ 0 and finite (arbitrary units: only relative values mean
     anything); z (Z,) [m] depth of each albedo slice, ascending; wall_width, wall_height [m] the
     lateral extent along W (x) and H (y), > 0. Arrays are read-only once validated."""
@@ -37,13 +37,13 @@ class NLOSVolume(_ReadOnlyArrays):
         if z.shape[0] != a.shape[0]:
             raise InputError(f"NLOSVolume.z: expected {a.shape[0]} depths (albedo's Z), got {z.shape[0]}")
         check_ascending("NLOSVolume.z", z)
-        _set(self, "albedo", a)
-        _set(self, "z", z)
+        set_attribute(self, "albedo", a)
+        set_attribute(self, "z", z)
         for name in ("wall_width", "wall_height"):
             v = float(getattr(self, name))
             if not (np.isfinite(v) and v > 0):
                 raise InputError(f"NLOSVolume.{name}: expected a positive finite value [m], got {getattr(self, name)}")
-            _set(self, name, v)
+            set_attribute(self, name, v)
 
     @property
     def shape(self) -> tuple[int, int, int]:

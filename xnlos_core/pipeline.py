@@ -55,7 +55,7 @@ class FrameResult:
         each wall's param_names, params, extent and anchor, and ``hidden`` (mean, cov, source_index,
         wall_index, velocity/velocity_cov with Doppler): :mod:`xnlos_core.frame_record`. The keys of
         version 1 stay as they were, so old readers and resumed runs keep working. The whole line is
-        described by :data:`xnlos_core.results_schema.RESULTS_SCHEMA`."""
+        described by :data:`xnlos_core.app.results_schema.RESULTS_SCHEMA`."""
         return _no_nan({**self._base_record(), **self._doppler_record()})
 
     def _doppler_record(self) -> dict[str, Any]:
@@ -145,7 +145,7 @@ class Pipeline:
         """The checks a run would fail on, without running (called on construction, so ``xnlos check``
         and ``xnlos run`` refuse the same configs): the radar's measured coupling matrix is read
         and checked, the forward model checks the scene (:meth:`ForwardModel.check`)."""
-        from .antenna import coupling_matrix
+        from xnlos_core.signal.antenna import coupling_matrix
 
         if self.radar.coupling_file is not None:
             coupling_matrix(self.radar)

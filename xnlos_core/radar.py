@@ -231,7 +231,7 @@ class RadarConfig(BaseModel):
         echo is the same in every chirp and the noise is independent, so averaging keeps the
         signal and divides the noise power by n_chirps (an SNR gain of 10·log10(n_chirps) dB;
         18.1 dB for the default 64). A mover's echo turns in phase from chirp to chirp and is lost
-        in the mean; :mod:`xnlos_core.doppler` keeps the chirps (per-chirp noise: n_chirps times this).
+        in the mean; :mod:`xnlos_core.signal.doppler` keeps the chirps (per-chirp noise: n_chirps times this).
         """
         return BOLTZMANN * self.temperature * self.sample_rate * 10 ** (self.noise_figure_db / 10) / self.n_chirps
 
@@ -290,7 +290,7 @@ class RadarConfig(BaseModel):
 
         Virtual element (i, j) sits at y_tx,i + y_rx,j, ordered tx-major (coinciding virtual
         elements are kept: their channels add). Without MIMO the channels are the RX elements
-        themselves, (n_rx,) centred on 0. Heights: :func:`xnlos_core.antenna.channel_positions`.
+        themselves, (n_rx,) centred on 0. Heights: :func:`xnlos_core.signal.antenna.channel_positions`.
         """
         lam = self.wavelength
         rx = self.rx_layout[:, 0] * lam
@@ -351,7 +351,7 @@ class RadarConfig(BaseModel):
         """Radial velocity v_r = λ₀·f_D/2 [m/s] of each Doppler bin, shape (n_chirps,), ascending from −v_max.
 
         v_r is the range rate dR/dt: positive receding (the sign
-        :func:`xnlos_core.signal_chain.dechirp` gives f_D); λ₀ is :attr:`doppler_wavelength`.
+        :func:`xnlos_core.signal.chain.dechirp` gives f_D); λ₀ is :attr:`doppler_wavelength`.
         """
         return 0.5 * self.doppler_wavelength * self.doppler_axis
 

@@ -16,14 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
-from .types import _ReadOnlyArrays, _set
+from .types import ReadOnlyArrays, set_attribute
 from .validation import as_array
 
 SPEED_OF_LIGHT = 299_792_458.0  # [m/s]
 
 
 @dataclass(frozen=True, eq=False)
-class TransientVolume(_ReadOnlyArrays):
+class TransientVolume(ReadOnlyArrays):
     """data (T, H, W) float64 photon counts (or expected counts), ≥ 0 and finite; bin_width [s] of a
     time bin (> 0); wall_width, wall_height [m] the scan grid's extent along W (x) and H (y), > 0;
     t0 [s] the round-trip time of bin 0 (default 0). Arrays are read-only once validated."""
@@ -40,16 +40,16 @@ class TransientVolume(_ReadOnlyArrays):
             raise InputError(f"TransientVolume.data: expected a non-empty (T, H, W) volume, got shape {d.shape}")
         if d.min() < 0:
             raise InputError(f"TransientVolume.data: photon counts must be ≥ 0, got min {d.min():g}")
-        _set(self, "data", d)
+        set_attribute(self, "data", d)
         for name in ("bin_width", "wall_width", "wall_height"):
             v = float(getattr(self, name))
             if not (np.isfinite(v) and v > 0):
                 raise InputError(f"TransientVolume.{name}: expected a positive finite value, got {getattr(self, name)}")
-            _set(self, name, v)
+            set_attribute(self, name, v)
         t0 = float(self.t0)
         if not np.isfinite(t0):
             raise InputError(f"TransientVolume.t0: expected a finite time [s], got {self.t0}")
-        _set(self, "t0", t0)
+        set_attribute(self, "t0", t0)
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -23,11 +23,11 @@ LOS, MNLOS, UNCLASSIFIED = 0, 1, 2
 CLASS_NAMES = ("LOS", "mNLOS", "unclassified")
 
 
-def _set(obj, name, value):
+def set_attribute(obj, name, value):
     object.__setattr__(obj, name, value)
 
 
-class _ReadOnlyArrays:
+class ReadOnlyArrays:
     """Keeps a validated type's arrays read-only through pickle and copy.deepcopy, which rebuild the
     object from its ``__dict__`` (bypassing ``__post_init__``) with writable array copies."""
 
@@ -46,14 +46,14 @@ def _points(name: str, value) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class RAMap(_ReadOnlyArrays):
+class RAMap(ReadOnlyArrays):
     """Complex range–azimuth map κ ∈ ℂ^{H×W} (Sec. 3.2).
 
     data: complex64 (n_range, n_azimuth); range_axis: float64 (n_range,) [m], ascending;
     azimuth_axis: float64 (n_azimuth,) [rad], ascending; radar: the configuration that made it;
     velocity, velocity_std: float64 (n_range, n_azimuth) or None: each cell's radial velocity
     v̂_r = dR/dt [m/s] (positive receding) and its σ [m/s] when the map came from Doppler
-    processing (:func:`xnlos_core.doppler.doppler_ra_maps`), both or neither.
+    processing (:func:`xnlos_core.signal.doppler.doppler_ra_maps`), both or neither.
     """
 
     data: np.ndarray
@@ -79,17 +79,17 @@ class RAMap(_ReadOnlyArrays):
             raise InputError("RAMap.azimuth_axis: azimuths must lie in [−π, π] rad")
         if not isinstance(self.radar, RadarConfig):
             raise InputError(f"RAMap.radar: expected a RadarConfig, got {type(self.radar).__name__}")
-        _set(self, "data", data)
-        _set(self, "range_axis", r)
-        _set(self, "azimuth_axis", a)
+        set_attribute(self, "data", data)
+        set_attribute(self, "range_axis", r)
+        set_attribute(self, "azimuth_axis", a)
         if (self.velocity is None) != (self.velocity_std is None):
             raise InputError("RAMap.velocity, RAMap.velocity_std: give both (Doppler maps) or neither")
         if self.velocity is not None:
-            _set(self, "velocity", as_array("RAMap.velocity", self.velocity, shape=data.shape, readonly=True))
+            set_attribute(self, "velocity", as_array("RAMap.velocity", self.velocity, shape=data.shape, readonly=True))
             std = as_array("RAMap.velocity_std", self.velocity_std, shape=data.shape, readonly=True)
             if np.any(std < 0):
                 raise InputError("RAMap.velocity_std: σ must be ≥ 0 m/s")
-            _set(self, "velocity_std", std)
+            set_attribute(self, "velocity_std", std)
 
     @classmethod
     def from_radar(cls, data, radar: RadarConfig) -> "RAMap":
@@ -112,7 +112,7 @@ class RAMap(_ReadOnlyArrays):
 
 
 @dataclass(frozen=True, eq=False)
-class WallSegment(_ReadOnlyArrays):
+class WallSegment(ReadOnlyArrays):
     """A vertical planar relay wall seen from above: the segment start→end [m], each (2,)."""
 
     start: np.ndarray
@@ -120,10 +120,10 @@ class WallSegment(_ReadOnlyArrays):
     name: str = "wall"
 
     def __post_init__(self):
-        _set(self, "start", as_array(f"{self.name}.start", self.start, shape=(2,), readonly=True))
-        _set(self, "end", as_array(f"{self.name}.end", self.end, shape=(2,), readonly=True))
+        set_attribute(self, "start", as_array(f"{self.name}.start", self.start, shape=(2,), readonly=True))
+        set_attribute(self, "end", as_array(f"{self.name}.end", self.end, shape=(2,), readonly=True))
         n, b = line_from_points(self.start, self.end)
-        _set(self, "_line", (frozen(np.asarray(n, dtype=np.float64)), b))
+        set_attribute(self, "_line", (frozen(np.asarray(n, dtype=np.float64)), b))
 
     @property
     def normal(self) -> np.ndarray:
@@ -141,7 +141,7 @@ class WallSegment(_ReadOnlyArrays):
 
 
 @dataclass(frozen=True, eq=False)
-class GroundTruth(_ReadOnlyArrays):
+class GroundTruth(ReadOnlyArrays):
     """What a simulator knows about a frame; only returns a radar could see are included.
 
     los_points (N, 2): visible scatterers of LOS surfaces (walls, LOS objects) [m];
@@ -177,7 +177,7 @@ class GroundTruth(_ReadOnlyArrays):
     los_radial_velocity: np.ndarray | None = None
 
     def __post_init__(self):
-        _set(self, "los_points", _points("GroundTruth.los_points", self.los_points))
+        set_attribute(self, "los_points", _points("GroundTruth.los_points", self.los_points))
         m = _points("GroundTruth.mnlos_points", self.mnlos_points)
         h = _points("GroundTruth.hidden_points", self.hidden_points)
         check_length("GroundTruth.hidden_points", h, len(m), "GroundTruth.mnlos_points")
@@ -185,19 +185,19 @@ class GroundTruth(_ReadOnlyArrays):
         obj = as_array("GroundTruth.mnlos_object", obj, dtype=np.int64, shape=(len(m),), readonly=True)
         if len(obj) and (obj.min() < 0 or obj.max() >= max(len(self.object_names), 1)):
             raise InputError("GroundTruth.mnlos_object: indices must address GroundTruth.object_names")
-        _set(self, "mnlos_points", m)
-        _set(self, "hidden_points", h)
-        _set(self, "mnlos_object", obj)
-        _set(self, "object_names", tuple(self.object_names))
-        _set(self, "walls", tuple(self.walls))
+        set_attribute(self, "mnlos_points", m)
+        set_attribute(self, "hidden_points", h)
+        set_attribute(self, "mnlos_object", obj)
+        set_attribute(self, "object_names", tuple(self.object_names))
+        set_attribute(self, "walls", tuple(self.walls))
         for name, n in (("los_snr_db", len(self.los_points)), ("mnlos_snr_db", len(m))):
             v = getattr(self, name)
             v = np.full(n, np.nan) if v is None else v
-            _set(self, name, as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False, readonly=True))
+            set_attribute(self, name, as_array(f"GroundTruth.{name}", v, shape=(n,), finite=False, readonly=True))
         if (self.hidden_velocity is None) != (self.mnlos_velocity is None):
             raise InputError("GroundTruth.hidden_velocity/mnlos_velocity: give both or neither")
         for name in ("hidden_velocity", "mnlos_velocity") if self.hidden_velocity is not None else ():
-            _set(self, name, as_array(f"GroundTruth.{name}", getattr(self, name), shape=(len(m), 2), readonly=True))
+            set_attribute(self, name, as_array(f"GroundTruth.{name}", getattr(self, name), shape=(len(m), 2), readonly=True))
         if self.los_object is not None:
             lo = as_array("GroundTruth.los_object", self.los_object, dtype=np.int64, shape=(len(self.los_points),),
                           readonly=True)
@@ -205,9 +205,9 @@ class GroundTruth(_ReadOnlyArrays):
                 raise InputError(f"GroundTruth.los_object: indices must be −1 (a wall) or address "
                                  f"GroundTruth.object_names (0 … {len(self.object_names) - 1}), got "
                                  f"[{lo.min()}, {lo.max()}]")
-            _set(self, "los_object", lo)
+            set_attribute(self, "los_object", lo)
         if self.los_radial_velocity is not None:
-            _set(self, "los_radial_velocity", as_array("GroundTruth.los_radial_velocity", self.los_radial_velocity,
+            set_attribute(self, "los_radial_velocity", as_array("GroundTruth.los_radial_velocity", self.los_radial_velocity,
                                                        shape=(len(self.los_points),), readonly=True))
 
     def above_snr(self, min_snr_db: float) -> "GroundTruth":
@@ -252,7 +252,7 @@ class Frame:
 
 
 @dataclass(frozen=True, eq=False)
-class Detections(_ReadOnlyArrays):
+class Detections(ReadOnlyArrays):
     """Peaks found in an RA map.
 
     range (K,) [m]; azimuth (K,) [rad]; label (K,) int8 in {LOS=0, MNLOS=1, UNCLASSIFIED=2};
@@ -294,8 +294,8 @@ class Detections(_ReadOnlyArrays):
             raise InputError("Detections.range_std/azimuth_std: standard deviations must be ≥ 0")
         for name, v in (("range", r), ("azimuth", a), ("label", lab), ("confidence", c),
                         ("range_std", rs), ("azimuth_std", az)):
-            _set(self, name, v)
-        _set(self, "position", frozen(polar_to_cartesian(r, a)))
+            set_attribute(self, name, v)
+        set_attribute(self, "position", frozen(polar_to_cartesian(r, a)))
         self._doppler(k)
 
     def _doppler(self, k: int):
@@ -308,8 +308,8 @@ class Detections(_ReadOnlyArrays):
                        shape=(k,), readonly=True)
         if k and var.min() < 0:
             raise InputError(f"Detections.velocity_var: variances must be ≥ 0 [m²/s²], got min {var.min()}")
-        _set(self, "velocity", v)
-        _set(self, "velocity_var", var)
+        set_attribute(self, "velocity", v)
+        set_attribute(self, "velocity_var", var)
 
     @classmethod
     def empty(cls) -> "Detections":
@@ -359,7 +359,7 @@ class Detections(_ReadOnlyArrays):
 
 
 @dataclass(frozen=True, eq=False)
-class WallPosterior(_ReadOnlyArrays):
+class WallPosterior(ReadOnlyArrays):
     """Estimate of one relay wall with its uncertainty.
 
     model: name of the wall model, with n = (cos φ, sin φ) the unit normal and u = (−sin φ, cos φ)
@@ -407,11 +407,11 @@ class WallPosterior(_ReadOnlyArrays):
         if p and np.linalg.eigvalsh(c).min() < -1e-9 * max(1.0, np.abs(c).max()):
             raise InputError("WallPosterior.cov: covariance must be positive semi-definite")
         if self.extent is not None:
-            _set(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2), readonly=True))
+            set_attribute(self, "extent", as_array("WallPosterior.extent", self.extent, shape=(2, 2), readonly=True))
         if self.samples is not None:
-            _set(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p), readonly=True))
+            set_attribute(self, "samples", as_array("WallPosterior.samples", self.samples, shape=(None, p), readonly=True))
         if self.anchor is not None:
-            _set(self, "anchor", as_array("WallPosterior.anchor", self.anchor, shape=(2,), readonly=True))
+            set_attribute(self, "anchor", as_array("WallPosterior.anchor", self.anchor, shape=(2,), readonly=True))
         if self.model in ("line", "arc"):
             want = {"line": 2, "arc": 3}[self.model]
             if p != want:
@@ -423,8 +423,8 @@ class WallPosterior(_ReadOnlyArrays):
                 if m[1] < 0:
                     m, c, _ = flip_normal(m, c)
                 m = np.concatenate([[np.arctan2(n[1], n[0]), b], m[2:]])
-        _set(self, "mean", frozen(m))
-        _set(self, "cov", frozen(c))
+        set_attribute(self, "mean", frozen(m))
+        set_attribute(self, "cov", frozen(c))
 
     @classmethod
     def line(cls, normal, offset: float, cov=None, **kw) -> "WallPosterior":
@@ -484,14 +484,14 @@ class WallPosterior(_ReadOnlyArrays):
 
 
 @dataclass(frozen=True, eq=False)
-class HiddenPoints(_ReadOnlyArrays):
+class HiddenPoints(ReadOnlyArrays):
     """Reconstructed hidden points o with uncertainty.
 
     mean (M, 2) [m]; cov (M, 2, 2) [m²]; source_index (M,): the mNLOS detection each came from;
     wall_index (M,): the wall (index into the estimator's list) used for the mirror;
     velocity (M, 2) [m/s] and velocity_cov (M, 2, 2) [m²/s²], or None: the hidden velocity where
     the reconstructor had one (from a radial velocity only its observed component,
-    :func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`);
+    :func:`plugins.mirror.mirror_doppler.unmirror_radial_velocity`);
     view (M, 2) [-] or None: the unit direction of the mirrored line of sight at o, from the bounce
     point on the wall towards o (the radar mirrored across the wall sees o from there). An object's
     seen points lie on its side facing that way; trackers use it to place the object's centre.
@@ -514,18 +514,18 @@ class HiddenPoints(_ReadOnlyArrays):
         if k and (s.min() < 0 or w.min() < 0):
             raise InputError("HiddenPoints.source_index/wall_index: indices must be ≥ 0")
         for name, v in (("mean", m), ("cov", c), ("source_index", s), ("wall_index", w)):
-            _set(self, name, v)
+            set_attribute(self, name, v)
         if (self.velocity is None) != (self.velocity_cov is None):
             raise InputError("HiddenPoints.velocity/velocity_cov: give both or neither")
         if self.velocity is not None:
-            _set(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
-            _set(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
+            set_attribute(self, "velocity", as_array("HiddenPoints.velocity", self.velocity, shape=(k, 2), readonly=True))
+            set_attribute(self, "velocity_cov", as_array("HiddenPoints.velocity_cov", self.velocity_cov, shape=(k, 2, 2),
                                                 readonly=True))
         if self.view is not None:
             v = as_array("HiddenPoints.view", self.view, shape=(k, 2), readonly=True)
             if k and not np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6):
                 raise InputError("HiddenPoints.view: expected unit vectors (M, 2), one per hidden point")
-            _set(self, "view", v)
+            set_attribute(self, "view", v)
 
     @classmethod
     def empty(cls) -> "HiddenPoints":
@@ -536,7 +536,7 @@ class HiddenPoints(_ReadOnlyArrays):
 
 
 @dataclass(frozen=True, eq=False)
-class Tracks(_ReadOnlyArrays):
+class Tracks(ReadOnlyArrays):
     """Tracked objects after a frame: id (T,), position (T, 2) [m], velocity (T, 2) [m/s],
     predicted (T, 2) [m] position at the next expected timestamp, timestamp [s].
 
@@ -570,9 +570,9 @@ class Tracks(_ReadOnlyArrays):
     def __post_init__(self):
         i = as_array("Tracks.track_id", self.track_id, dtype=np.int64, ndim=1, readonly=True)
         k = len(i)
-        _set(self, "track_id", i)
+        set_attribute(self, "track_id", i)
         for name in ("position", "velocity", "predicted"):
-            _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2), readonly=True))
+            set_attribute(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, 2), readonly=True))
         given = [getattr(self, n) is not None for n in self.FORECAST]
         if any(given) and not all(given):
             raise InputError(f"Tracks: give all of {', '.join(self.FORECAST)} or none")
@@ -580,20 +580,20 @@ class Tracks(_ReadOnlyArrays):
             h = as_array("Tracks.horizons", self.horizons, ndim=1, readonly=True)
             if len(h) and (h.min() < 0 or h.max() > 3.0):
                 raise InputError(f"Tracks.horizons: each must be within [0, 3] s, got {h.tolist()}")
-            _set(self, "horizons", h)
-            _set(self, "forecast", as_array("Tracks.forecast", self.forecast, shape=(k, len(h), 2), readonly=True))
+            set_attribute(self, "horizons", h)
+            set_attribute(self, "forecast", as_array("Tracks.forecast", self.forecast, shape=(k, len(h), 2), readonly=True))
             for name in ("radius50", "radius90"):
-                _set(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, len(h)),
+                set_attribute(self, name, as_array(f"Tracks.{name}", getattr(self, name), shape=(k, len(h)),
                                           finite=False, readonly=True))
             model = tuple(str(m) for m in self.model)
             if len(model) != k:
                 raise InputError(f"Tracks.model: expected {k} entries (one per track), got {len(model)}")
-            _set(self, "model", model)
+            set_attribute(self, "model", model)
         if (self.arrival is None) != (self.arrival_interval is None):
             raise InputError("Tracks.arrival/arrival_interval: give both or neither")
         if self.arrival is not None:
-            _set(self, "arrival", as_array("Tracks.arrival", self.arrival, shape=(k,), finite=False, readonly=True))
-            _set(self, "arrival_interval", as_array("Tracks.arrival_interval", self.arrival_interval, shape=(k, 2),
+            set_attribute(self, "arrival", as_array("Tracks.arrival", self.arrival, shape=(k,), finite=False, readonly=True))
+            set_attribute(self, "arrival_interval", as_array("Tracks.arrival_interval", self.arrival_interval, shape=(k, 2),
                                                     finite=False, readonly=True))
 
     def __len__(self) -> int:

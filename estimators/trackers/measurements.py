@@ -11,7 +11,7 @@ Points are grouped by single linkage (cut at ``distance`` [m]); cluster c of n_c
   W/2 behind the centroid of a face of span L, W/(2L) = 0.2 for a car; a cylinder 2R/π behind a span
   of 2R, 0.32;
 * where the points carry a velocity (HiddenPoints.velocity, the observed component w_i = y_i ĝ_i of
-  the hidden velocity along the mirrored line of sight ĝ_i, :mod:`xnlos_core.mirror_doppler`), the
+  the hidden velocity along the mirrored line of sight ĝ_i, :mod:`plugins.mirror.mirror_doppler`), the
   scalar radial measurement y_c = ĝ_cᵀ v + noise of variance s_c [m²/s²]:
   ĝ_i = w_i/|w_i| (the principal eigenvector of velocity_cov_i when w_i = 0), y_i = ĝ_iᵀ w_i,
   s_i = ĝ_iᵀ velocity_cov_i ĝ_i + doppler_floor². The points of one object see it along nearly the

@@ -1,6 +1,6 @@
 """Training data: RA maps → (features, ground-truth peak cells), held in memory.
 
-Maps come from a dataset directory (``sims.dataset.open_dataset``) or are simulated on the fly
+Maps come from a dataset directory (the registry's ``dataset`` backend, :mod:`plugins.training.frames`) or are simulated on the fly
 from a :class:`GenerateConfig` (frame k of a split from a generator seeded by
 ``SeedSequence([seed, split_index]).spawn`` child k). Features are stored as float16 (their
 range is [−3, 10] in 10 dB units, so 0.004 resolution costs nothing); targets are rendered per
@@ -89,10 +89,10 @@ def load_split(cfg: DataConfig, seed: int, split: str, keep_maps: bool, limit: i
     if cfg.generate is not None:
         frames = _generated(cfg.generate, seed, split, Path(base_dir))
     else:
-        from sims.dataset import open_dataset
+        from plugins.training.frames import dataset_backend
 
         name = {"train": cfg.train_split, "val": cfg.val_split}.get(split, split)
-        frames = open_dataset(Path(base_dir) / cfg.dataset, name)
+        frames = dataset_backend(cfg.dataset, name, base_dir).frames()
     return _add(frames, keep_maps, limit, f"load {split}", progress)
 
 
@@ -103,12 +103,8 @@ def dataset_record(cfg: DataConfig, base_dir: str | Path = ".") -> dict[str, Any
         spec = cfg.generate.model_dump(mode="json")
         return {"source": "generate", "spec": spec,
                 "sha256": hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()}
-    from sims.dataset import open_dataset
+    from plugins.training.frames import dataset_backend
 
-    ds = open_dataset(Path(base_dir) / cfg.dataset, None)
-    shard_hashes = sorted(s["sha256"] for s in ds.shards)
-    digest = hashlib.sha256(json.dumps({"config": ds.manifest.get("config_sha256"), "shards": shard_hashes},
-                                       sort_keys=True).encode()).hexdigest()
-    return {"source": "dataset", "path": str(cfg.dataset), "name": ds.manifest.get("name"),
-            "config_sha256": ds.manifest.get("config_sha256"), "sha256": digest, "n_maps": len(ds),
-            "splits": {k: v.get("n_maps") for k, v in ds.manifest.get("splits", {}).items()}}
+    rec = dataset_backend(cfg.dataset, "all", base_dir, verify=False).record()
+    return {"source": "dataset", "path": str(cfg.dataset), "name": rec["name"], "config_sha256": rec["config_sha256"],
+            "sha256": rec["sha256"], "n_maps": rec["n_maps"], "splits": rec["splits"]}

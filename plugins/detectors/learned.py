@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
 
-from xnlos_core.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
+from plugins.detectors.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.radar import RadarConfig
@@ -73,7 +73,7 @@ class LearnedParams(BaseModel):
     max_detections: int = Field(1000, ge=1, le=100_000, description="keep at most this many peaks")
     velocity_radius: int = Field(1, ge=0, le=3, description="with Doppler maps, each detection's radial velocity "
                                  "is read at the strongest cell within ± this many cells of its peak cell (0: the "
-                                 "peak cell; xnlos_core.detection_doppler.strongest_cells)")
+                                 "peak cell; plugins.detectors.detection_doppler.strongest_cells)")
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
     threads: int | None = Field(None, ge=1, le=1024, description="torch intra-op CPU threads during inference, "
                                 "restored afterwards; None: torch's setting (one per physical core), which the "
@@ -159,7 +159,7 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     Ordered by descending confidence, at most ``max_detections``. With Doppler maps on ``ra_map``
     each detection carries the radial velocity of the strongest cell (|κ|²) within ±``velocity_radius``
     cells of the cell nearest its refined position (0: that cell itself; refinement is ≤ ½ cell;
-    :func:`xnlos_core.detection_doppler.strongest_cells`), else velocity is None."""
+    :func:`plugins.detectors.detection_doppler.strongest_cells`), else velocity is None."""
     thr = (float(threshold),) * 2 if np.ndim(threshold) == 0 else (float(threshold[0]), float(threshold[1]))
     h, w = ra_map.shape
     if out.ndim != 3:

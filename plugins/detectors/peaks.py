@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from xnlos_core.detection_doppler import with_cell_velocity
+from plugins.detectors.detection_doppler import with_cell_velocity
 from xnlos_core.errors import InputError
 from xnlos_core.numerics import EPS, PEAK_RTOL
 from xnlos_core.types import UNCLASSIFIED, Detections, RAMap
@@ -213,7 +213,7 @@ def cfar_peaks(ra_map: RAMap, pfa: float, guard: tuple[int, int], train: tuple[i
     peak is; 1 only if all its training cells are exactly zero); stds from
     :func:`resolution_stds`. Detections are ordered by descending power. With Doppler maps on
     ``ra_map`` each detection carries the radial velocity of its peak cell (before refinement,
-    :func:`xnlos_core.detection_doppler.with_cell_velocity`); without, velocity is None.
+    :func:`plugins.detectors.detection_doppler.with_cell_velocity`); without, velocity is None.
     """
     if not isinstance(ra_map, RAMap):
         raise InputError(f"cfar_peaks: expected an RAMap, got {type(ra_map).__name__}")

@@ -30,7 +30,7 @@ recorded in ``last_unanchored_`` (indices into the detections) and logged, never
 Mirror Doppler: when the detections carry a radial velocity (``Detections.velocity``), each hidden
 point also gets the observed component of its velocity along the mirrored line of sight, with
 covariance from the velocity variance, the detection's position and the wall
-(:func:`xnlos_core.mirror_doppler.unmirror_radial_velocity`); otherwise velocity stays None.
+(:func:`plugins.mirror.mirror_doppler.unmirror_radial_velocity`); otherwise velocity stays None.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import mirror_jacobians, mirror_reflect
 from xnlos_core.interfaces import Reconstructor
-from xnlos_core.mirror_doppler import observed_direction, unmirror_radial_velocity
+from plugins.mirror.mirror_doppler import observed_direction, unmirror_radial_velocity
 from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
 from xnlos_core.wall_propagation import propagate
 
@@ -123,7 +123,7 @@ class MirrorReconstructor(Reconstructor):
     @staticmethod
     def _views(walls, pts, choice) -> np.ndarray:
         """(M, 2) unit direction of the mirrored line of sight at each hidden point, from its bounce point
-        towards it: ĝ = g/|g| with g = J_x⁻ᵀ r̂' (:func:`xnlos_core.mirror_doppler.observed_direction`)."""
+        towards it: ĝ = g/|g| with g = J_x⁻ᵀ r̂' (:func:`plugins.mirror.mirror_doppler.observed_direction`)."""
         view = pts / np.linalg.norm(pts, axis=1, keepdims=True)  # r̂', where an arc's mirror has no hit
         for j in np.unique(choice):
             m = choice == j

@@ -10,6 +10,6 @@
 - :mod:`.trainers`: the trainer chosen by a config's ``[model] name``
 - :mod:`.commands`: ``xnlos train`` and ``xnlos check`` of a training config
 
-A learned component (``plugins/detectors``, ``plugins/residual_mirror``) supplies its model, data,
+A learned component (``plugins/detectors``, ``plugins/mirror/residual``) supplies its model, data,
 loss and validation metric, and registers its trainer from its plugin module.
 """

@@ -1,7 +1,7 @@
 """Which trainer trains a config: the one registered for its ``[model] name``.
 
 Each learned component registers its :class:`Trainer` from its plugin module
-(``plugins/detectors/plugin.py``, ``plugins/residual_mirror/plugin.py``) when the plugin is loaded,
+(``plugins/detectors/plugin.py``, ``plugins/mirror/residual/plugin.py``) when the plugin is loaded,
 as a ``"module:attribute"`` string so that loading a plugin imports no training code. A dict
 rather than a pluggy hook: a trainer is not a pipeline component (the registry's kinds are the
 six stages), the lookup is one name, and a hook would add a contract to ``xnlos_core`` for a

@@ -61,6 +61,25 @@ class DatasetBackend(Backend):
         except DatasetError as exc:
             raise InputError(f"DatasetBackend (params.path {str(path)!r}, split {p.split!r}): {exc}") from None
 
+    def record(self) -> dict:
+        """Provenance of the whole dataset (every split), for a model trained on it: its name, the
+        sha256 of its generating config, a sha256 over its shards' hashes, its map count and the maps
+        per split. Training records it beside the checkpoint."""
+        import hashlib
+        import json
+
+        path = Path(self.params.path).expanduser()
+        try:
+            ds = open_dataset(path, None, verify=False)
+        except DatasetError as exc:
+            raise InputError(f"DatasetBackend (params.path {str(path)!r}): {exc}") from None
+        shards = sorted(s["sha256"] for s in ds.shards)
+        digest = hashlib.sha256(json.dumps({"config": ds.manifest.get("config_sha256"), "shards": shards},
+                                           sort_keys=True).encode()).hexdigest()
+        return {"name": ds.manifest.get("name"), "config_sha256": ds.manifest.get("config_sha256"),
+                "sha256": digest, "n_maps": len(ds),
+                "splits": {k: v.get("n_maps") for k, v in ds.manifest.get("splits", {}).items()}}
+
     @property
     def n_frames(self) -> int:
         """Number of maps this backend yields (after ``start`` and ``limit``)."""

@@ -4,7 +4,7 @@ Every shard keeps the full Scene of each of its scenes (``scenes_json``, :mod:`s
 so the true outline of each object at a map's time is recomputed when reading
 (``ObjectSpec.footprint(t)``); nothing is added to the shards, which keep their bytes. The reader puts
 it into ``frame.meta["object_outlines"]`` (JSON-ready: object name → list of [x, y] [m]), which
-``xnlos eval``'s figures draw (:func:`xnlos_core.figures.split_outlines`).
+``xnlos eval``'s figures draw (:func:`xnlos_core.app.plot.figures.split_outlines`).
 """
 from __future__ import annotations
 

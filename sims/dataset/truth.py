@@ -10,20 +10,20 @@ truth_position          float64 (T, 2)   centre at the map's timestamp [m]
 truth_velocity          float64 (T, 2)   centre velocity at the map's timestamp [m/s]
 truth_mirror            bool (T,)        it has a mirror path: ≥ 1 mNLOS ground-truth point of its own
 truth_motion            str (T,)         its motion over the whole sequence
-                                         (:func:`xnlos_core.scene_truth.motion_kind`)
+                                         (:func:`sims.scene_truth.motion_kind`)
 truth_offsets           int64 (N+1,)
 hidden_velocity         float64 (M, 2)   GroundTruth.hidden_velocity [m/s], rows as mnlos_points
 mnlos_velocity          float64 (M, 2)   GroundTruth.mnlos_velocity [m/s]
 ======================  ===============  =====================================================
 
-Only moving objects (:func:`xnlos_core.scene_truth.is_moving`) are road users; static clutter is not.
+Only moving objects (:func:`sims.scene_truth.is_moving`) are road users; static clutter is not.
 The reader turns map i's rows into ``frame.meta["object_truth"]`` (:func:`meta_from_arrays`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from xnlos_core.scene_truth import is_moving, motion_kind
+from sims.scene_truth import is_moving, motion_kind
 from xnlos_core.types import Frame
 
 KEYS = ("truth_id", "truth_name", "truth_position", "truth_velocity", "truth_mirror", "truth_motion")

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from xnlos_core.antenna import element_gain, transmit_gain
+from xnlos_core.signal.antenna import element_gain, transmit_gain
 from xnlos_core.radar import RadarConfig
 from sims import walls as wall_em
 from sims.paths import PathList

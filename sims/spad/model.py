@@ -1,6 +1,6 @@
 """The SPAD simulator as a registered ``transient_model`` ("spad"): :func:`.scene.simulate` with the
 seed given per call, and the hidden surfaces in the scan's wall coordinates as ground truth, so
-that the cross-modality study (:mod:`xnlos_core.crossmodal`) composes it through the registry."""
+that the cross-modality study (:mod:`xnlos_core.app.crossmodal.study`) composes it through the registry."""
 from __future__ import annotations
 
 import numpy as np

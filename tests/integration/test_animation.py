@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from xnlos_core.animation import shown_frames, snapshot_path, write_sequence_gif
+from xnlos_core.app.plot.animation import shown_frames, snapshot_path, write_sequence_gif
 from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import InputError
 from xnlos_core.files import load_toml
-from xnlos_core.frame_snapshot import FrameSnapshot
+from xnlos_core.app.plot.frame_snapshot import FrameSnapshot
 from xnlos_core.io import read_jsonl
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.scene import BUILTIN_DIR
 from xnlos_core.testing import small_pipeline_table
 

@@ -14,7 +14,7 @@ import pytest
 from hardware.assembler import LinkStats
 from hardware.frame_queue import FrameQueue
 from hardware.testing import NoiseModel, emulated_link, small_radar
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.types import Frame, RAMap
 
 ROOT = Path(__file__).resolve().parents[2]

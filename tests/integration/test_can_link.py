@@ -13,7 +13,7 @@ from hardware.faults import Fault, FaultyBus
 from hardware.link import BusSpec, CanLink, open_bus
 from hardware.protocol import LinkError, PayloadFormat, Protocol, crc8_j1850
 from hardware.testing import emulated_link, private_channel, small_radar
-from xnlos_core.adc import AdcLayout, adc_cube_to_ra_map, encode_adc_cube
+from hardware.adc import AdcLayout, adc_cube_to_ra_map, encode_adc_cube
 from xnlos_core.errors import InputError
 from xnlos_core.registry import get_registry
 from xnlos_core.scene import load_scene

@@ -5,7 +5,7 @@ import numpy as np
 
 from hardware.replay import ReplayBackend
 from hardware.testing import private_channel
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import load_pipeline, parse_pipeline
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.radar import RadarConfig

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.io import read_jsonl
 
 

@@ -5,7 +5,7 @@ import argparse
 import pytest
 
 from xnlos_core import PluginError, hookimpl
-from xnlos_core.cli import build_parser, check_file, main
+from xnlos_core.app.cli import build_parser, check_file, main
 from xnlos_core.registry import PluginManager
 
 

@@ -16,7 +16,7 @@ import xnlos_core.registry as registry_module
 from sims.dataset import load_dataset_config, parse_dataset_config, resolve
 from sims.dataset.shard import run_shard_job
 from xnlos_core import SceneGenerator, hookimpl
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import load_pipeline
 from xnlos_core.errors import ConfigError, PluginError
 from xnlos_core.pipeline import Pipeline

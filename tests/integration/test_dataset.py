@@ -17,7 +17,7 @@ from sims.dataset import (SCHEMA_VERSION, DatasetError, make_plan, open_dataset,
                           read_manifest, resolve, verify_dataset)
 from sims.dataset.plan import apportion, noise_seed, scene_seed, spread_labels
 from sims.dataset.shard import decode_npz
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.errors import ConfigError
 from xnlos_core.io import read_jsonl
 from xnlos_core.registry import get_registry

@@ -15,7 +15,7 @@ import pytest
 from sims.dataset import DatasetError, open_dataset, read_manifest, simulate_dataset, verify_dataset
 from sims.dataset.manifest import CHECKSUM, manifest_checksum, render_manifest
 from sims.dataset.shard import decode_npz, encode_npz
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.errors import InputError, XnlosError
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from xnlos_core.config import load_pipeline, parse_pipeline
 from xnlos_core.files import load_toml
 from xnlos_core.pipeline import Pipeline
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.testing import small_pipeline_table
 
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "pipelines" / "corner_doppler.toml"

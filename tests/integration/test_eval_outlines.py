@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 from sims.dataset import open_dataset  # noqa: E402
 from xnlos_core.bev import bev  # noqa: E402
 from xnlos_core.config import load_pipeline  # noqa: E402
-from xnlos_core.frame_figure import frame_panels_figure  # noqa: E402
+from xnlos_core.app.plot.frame_figure import frame_panels_figure  # noqa: E402
 from xnlos_core.pipeline import Pipeline  # noqa: E402
 
 OUTLINE = "hidden objects (true outline)"

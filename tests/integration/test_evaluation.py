@@ -11,10 +11,10 @@ import pytest
 
 from sims.dataset import open_dataset
 from xnlos_core import LOS, MNLOS, Detections, GroundTruth
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import expand_sweep
 from xnlos_core.errors import ConfigError, InputError
-from xnlos_core.evaluation import PAPER_TABLE2, aggregate, run_eval
+from xnlos_core.app.evaluation import PAPER_TABLE2, aggregate, run_eval
 from xnlos_core.io import read_jsonl
 from xnlos_core.metrics import dense_metrics
 from xnlos_core.registry import get_registry

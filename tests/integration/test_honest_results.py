@@ -10,8 +10,8 @@ import tomllib
 
 import pytest
 
-from xnlos_core import figures
-from xnlos_core.cli import main
+from xnlos_core.app.plot import figures
+from xnlos_core.app.cli import main
 from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import ConfigError, PipelineWarning
 from xnlos_core.io import read_jsonl

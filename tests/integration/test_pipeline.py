@@ -4,13 +4,13 @@ import json
 import numpy as np
 import pytest
 
-from xnlos_core.cli import DEMO_CONFIG
+from xnlos_core.app.cli import DEMO_CONFIG
 from xnlos_core.config import load_pipeline, parse_pipeline
 from xnlos_core.interfaces import STAGE_KINDS
 from xnlos_core.io import read_jsonl, save_frame
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import get_registry
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.testing import small_pipeline_table
 from xnlos_core.types import MNLOS
 
@@ -167,7 +167,7 @@ def test_resumable_runs_refuse_results_of_other_learned_weights(tmp_path, capsys
     """A model retrained into the same file under an unchanged config is neither resumed (run) nor
     reported as done (sweep): the provenance keeps each learned stage's weights hash."""
     from xnlos_core import ConfigError
-    from xnlos_core.cli import main
+    from xnlos_core.app.cli import main
 
     ckpt = tmp_path / "unet.pt"
     tiny_checkpoint(ckpt, "unet", seed=0)

@@ -13,8 +13,8 @@ import pytest
 from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import InputError, LegacyRecordWarning
 from xnlos_core.pipeline import Pipeline
-from xnlos_core.results import load_results
-from xnlos_core import runner
+from xnlos_core.app.results import load_results
+from xnlos_core.app import runner
 from xnlos_core.testing import small_pipeline_table
 
 ROOT = Path(__file__).resolve().parents[2]

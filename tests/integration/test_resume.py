@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import InputError
 from xnlos_core.io import append_jsonl, read_jsonl, read_keyed_jsonl
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.testing import small_pipeline_table
 
 N = 6

@@ -15,7 +15,7 @@ from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import CheckpointWarning
 from xnlos_core.io import read_jsonl
 from xnlos_core.pipeline import Pipeline
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.testing import small_pipeline_table
 from xnlos_core.checkpoint import STATE_FILE
 
@@ -166,7 +166,7 @@ def test_an_unusable_checkpoint_falls_back_to_the_replay(reference, killed_kalma
 
 
 def test_a_finished_run_rerun_rewrites_no_output_unless_it_is_stale(tmp_path, monkeypatch):
-    """outputs.json (xnlos_core.run_outputs): a rerun of a finished run leaves summary, figure and GIF
+    """outputs.json (xnlos_core.app.run_outputs): a rerun of a finished run leaves summary, figure and GIF
     alone (their mtimes, set to a known past value, stay), reruns no stage; a deleted GIF, an edited
     summary or another figure setting makes it write them again."""
     cfg = _cfg("kalman", frames=3, figure=True, animation=True)

@@ -6,7 +6,7 @@ import pytest
 from xnlos_core.config import RunConfig, parse_pipeline
 from xnlos_core.errors import ConfigError
 from xnlos_core.files import load_toml
-from xnlos_core.runner import run_to_dir
+from xnlos_core.app.runner import run_to_dir
 from xnlos_core.scene import BUILTIN_DIR
 from xnlos_core.testing import small_pipeline_table
 
@@ -28,7 +28,7 @@ def _pngs(out):
 @pytest.fixture
 def drawn(monkeypatch):
     """Record plot_frame's calls instead of drawing (the figure itself is tested in test_figures_trust)."""
-    import xnlos_core.figures as figures
+    import xnlos_core.app.plot.figures as figures
 
     calls = []
 

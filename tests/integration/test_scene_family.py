@@ -1,7 +1,7 @@
 """[scene] family = NAME: a registered scene generator builds the pipeline's scene (issue 29 item 6)."""
 import pytest
 
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import parse_pipeline
 from xnlos_core.errors import ConfigError
 from xnlos_core.pipeline import Pipeline

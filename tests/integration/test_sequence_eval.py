@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from sims.dataset import load_dataset_config, open_dataset, simulate_dataset
-from xnlos_core.evaluation import run_eval
+from xnlos_core.app.evaluation import run_eval
 from xnlos_core.io import read_jsonl
-from xnlos_core.sequence_eval import Step, pool, score_sequence, summarize
+from xnlos_core.app.sequence_eval import Step, pool, score_sequence, summarize
 from xnlos_core.types import HiddenPoints, Tracks
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -202,7 +202,7 @@ def test_a_run_over_several_sequences_tracks_each_on_its_own(seq_dataset, tmp_pa
     those of a pipeline that sees that sequence alone."""
     from xnlos_core.config import parse_pipeline
     from xnlos_core.pipeline import Pipeline
-    from xnlos_core.runner import run_to_dir
+    from xnlos_core.app.runner import run_to_dir
 
     table = {"name": "two-sequences", "backend": {"name": "dataset", "params": {"path": str(seq_dataset),
                                                                                "split": "test"}},

@@ -20,7 +20,7 @@ from plugins.detectors.nets import architectures
 from plugins.detectors.tasks import default_head
 from plugins.detectors.train import Batcher
 from plugins.detectors.train_config import load_train_config, parse_train_config
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.io import read_jsonl
 from xnlos_core.radar import RadarConfig

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from xnlos_core.adc import AdcLayout, adc_cube_to_ra_map, canonical_cube, encode_adc_cube
+from hardware.adc import AdcLayout, adc_cube_to_ra_map, canonical_cube, encode_adc_cube
 from xnlos_core.errors import InputError
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import add_noise, dechirp, ra_map_from_cube
+from xnlos_core.signal.chain import add_noise, dechirp, ra_map_from_cube
 
 RADAR = RadarConfig(n_samples=128, max_range=30.0, n_azimuth_bins=31)
 

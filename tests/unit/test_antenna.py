@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from xnlos_core.antenna import array_factor, beam_metrics, element_gain, steering_vector
+from xnlos_core.signal.antenna import array_factor, beam_metrics, element_gain, steering_vector
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import dechirp
+from xnlos_core.signal.chain import dechirp
 
 RADAR = RadarConfig()  # 4 TX × 8 RX → 32 virtual elements at λ/2
 N = RADAR.n_tx * RADAR.n_rx

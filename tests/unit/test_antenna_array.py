@@ -4,12 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from xnlos_core.antenna import (beam_pattern, channel_positions, column_factor, coupling_matrix,
+from xnlos_core.signal.antenna import (beam_pattern, channel_positions, column_factor, coupling_matrix,
                                 element_directivity, element_gain, radiation_efficiency, steering_vector,
                                 transmit_gain)
 from xnlos_core.errors import InputError
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import dechirp, ra_map_from_cube
+from xnlos_core.signal.chain import dechirp, ra_map_from_cube
 
 RADAR = RadarConfig()
 SMALL = dict(n_samples=128, max_range=30.0, n_azimuth_bins=61)

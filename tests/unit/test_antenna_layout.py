@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from sims.image import ImageForwardModel, received_power
-from xnlos_core.antenna import (aperture_taper, array_factor, azimuth_weights, channel_positions,
+from xnlos_core.signal.antenna import (aperture_taper, array_factor, azimuth_weights, channel_positions,
                                 coupling_matrix, has_elevation_aperture, steering_vector, virtual_layout)
-from xnlos_core.elevation_beam import azimuth_elevation_spectrum, elevation_spectrum
+from xnlos_core.signal.elevation import azimuth_elevation_spectrum, elevation_spectrum
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig, load_radar
 from xnlos_core.scene import ObjectSpec, Scene
-from xnlos_core.signal_chain import beamform, dechirp, ra_map_from_cube, range_fft
+from xnlos_core.signal.chain import beamform, dechirp, ra_map_from_cube, range_fft
 
 SMALL = dict(n_samples=128, max_range=30.0, n_azimuth_bins=61)
 # 3 TX × 4 RX board, middle transmitter raised by λ/2 (as on TI's AWR1843): [[y, z]] in wavelengths

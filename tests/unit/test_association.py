@@ -8,7 +8,7 @@ import pytest
 from xnlos_core.wall import mirror
 from plugins.mirror.association import anchor_points, crossing_parameters, wall_support
 from plugins.mirror.mirror import MirrorReconstructor
-from plugins.residual_mirror.features import build_inputs, reflection_frames
+from plugins.mirror.residual.features import build_inputs, reflection_frames
 from xnlos_core import MNLOS, Detections, InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
 

@@ -10,7 +10,7 @@ from hardware.protocol import (DEFAULT_DBC, PROTOCOL_VERSION, SEQ_PREFIX, E2EErr
                                Protocol, ProtocolError, UnknownMessageError, config_signals, crc8_j1850,
                                decode_payload, encode_payload, radar_from_signals, radar_hash)
 from hardware.testing import small_radar
-from xnlos_core.adc import AdcLayout, adc_cube_to_ra_map, encode_adc_cube
+from hardware.adc import AdcLayout, adc_cube_to_ra_map, encode_adc_cube
 from xnlos_core.registry import get_registry
 from xnlos_core.scene import load_scene
 

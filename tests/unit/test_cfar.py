@@ -179,7 +179,7 @@ def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
 
 def test_xnlos_check_and_run_refuse_the_window_alike(tmp_path, capsys):
     # Issue #26: train_cells (160, 160) passed `xnlos check` and then ran out of memory in `run`.
-    from xnlos_core.cli import main
+    from xnlos_core.app.cli import main
 
     p = tmp_path / "big_window.toml"
     p.write_text("[radar]\nn_samples = 256\nmax_range = 60.0\nn_azimuth_bins = 121\n[scene]\nbuiltin = 'corner'\n"
@@ -200,7 +200,7 @@ def test_detect_requires_frame():
 @pytest.mark.parametrize("module, kind, names", [
     ("plugins.detectors.plugin", "detector", ["cfar", "further_than_cfar", "nlos_cfar", "oracle", "rtn", "swin_unet", "unet"]),
     ("plugins.mirror.plugin", "reconstructor", ["mirror"]),
-    ("plugins.residual_mirror.plugin", "reconstructor", ["residual_mirror"]),
+    ("plugins.mirror.residual.plugin", "reconstructor", ["residual_mirror"]),
     ("estimators.plugin", "wall_estimator", ["casadi_map", "emcee", "laplace_is", "lsq"]),
     ("estimators.plugin", "tracker", ["kalman", "nearest", "sindy"]),
     ("estimators.plugin", "nlos_solver", ["fk", "lct"]),

@@ -103,7 +103,7 @@ def test_sweep_rejects_unknown_roots_and_empty_lists():
 def test_shipped_configs_are_valid():
     from pathlib import Path
 
-    from xnlos_core.cli import main
+    from xnlos_core.app.cli import main
 
     root = Path(__file__).parents[2]
     for p in sorted((root / "configs").rglob("*.toml")):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from xnlos_core.cli import main
+from xnlos_core.app.cli import main
 from xnlos_core.config import load_pipeline, parse_pipeline
 from xnlos_core.errors import ConfigError
 from xnlos_core.io import save_frame
@@ -159,7 +159,7 @@ def test_ablations_read_the_dataset_their_simulate_command_writes(monkeypatch, n
 
 
 def test_eval_dataset_option_is_relative_to_the_working_directory(tmp_path, monkeypatch):
-    from xnlos_core.evaluation import with_dataset
+    from xnlos_core.app.evaluation import with_dataset
 
     monkeypatch.chdir(tmp_path)
     table = {"backend": {"name": "dataset", "params": {"path": "../../out/data/sequences", "split": "test"}}}

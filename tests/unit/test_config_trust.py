@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from sims.meshes import ConfinedResolver, load_user_mesh
-from xnlos_core.antenna import coupling_matrix
-from xnlos_core.cli import check_file, main
+from xnlos_core.signal.antenna import coupling_matrix
+from xnlos_core.app.cli import check_file, main
 from xnlos_core.config import load_toml
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig

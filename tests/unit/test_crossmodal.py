@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from xnlos_core import crossmodal_score as cs
-from xnlos_core.crossmodal import load_study, run_study, scene_table
+from xnlos_core.app.crossmodal import score as cs
+from xnlos_core.app.crossmodal.study import load_study, run_study, scene_table
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.transient import SPEED_OF_LIGHT
 
@@ -192,7 +192,7 @@ def test_unknown_hidden_object_is_a_config_error(tmp_path):
 
 
 def test_check_and_conformance():
-    from xnlos_core.cli import check_file
+    from xnlos_core.app.cli import check_file
     from xnlos_core.testing import check_component
 
     assert "valid (cross-modality study: 5 row(s) × 14 distance(s))" in check_file(CONFIG)
@@ -204,7 +204,7 @@ def test_unknown_solver_is_an_error_naming_it(tmp_path):
 
     path = tmp_path / "bad.toml"
     path.write_text(CONFIG.read_text().replace('solvers = ["lct", "fk"]', 'solvers = ["lct", "phasor"]'))
-    from xnlos_core.cli import check_file
+    from xnlos_core.app.cli import check_file
 
     with pytest.raises(XnlosError, match="phasor"):
         check_file(path)

@@ -18,7 +18,7 @@ from hardware.raw_formats import load_cube
 from hardware.recording import Recording
 from hardware.recording_checks import RecordingWarning
 from sims.spad.io import read_hdf5, read_mat, write_hdf5
-from xnlos_core.cli import check_file
+from xnlos_core.app.cli import check_file
 from xnlos_core.datafiles import hdf5_file, load_npy, load_npz_array, open_regular, read_hdf5_array
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig

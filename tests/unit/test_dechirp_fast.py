@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from scipy.signal import get_window
 
-from xnlos_core.antenna import coupling_matrix, steering_vector
-from xnlos_core.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, chirp_start_times,
+from xnlos_core.signal.antenna import coupling_matrix, steering_vector
+from xnlos_core.signal.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, chirp_start_times,
                                 doppler_ra_maps, tdm_compensation)
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
-from xnlos_core.signal_chain import beam_weights, dechirp, decouple, processing_gain, range_fft, sample_times
+from xnlos_core.signal.chain import beam_weights, dechirp, decouple, processing_gain, range_fft, sample_times
 
 RADAR = RadarConfig()  # the default (largest default) size: 512 samples, 64 loops, 32 channels
 COUPLED = RadarConfig(n_samples=509, coupling_db=-15.0, coupling_phase=0.7)  # prime N: padded blocks

@@ -1,5 +1,5 @@
 """Every detector reads each detection's radial velocity from the RA map's Doppler maps at its peak cell
-(xnlos_core.detection_doppler; a learned detector's peak cell moved to the strongest cell beside it); None
+(plugins.detectors.detection_doppler; a learned detector's peak cell moved to the strongest cell beside it); None
 without the maps."""
 import dataclasses
 
@@ -10,7 +10,7 @@ from plugins.detectors.cfar import CFARDetector
 from plugins.detectors.learned import detections_from_output
 from plugins.detectors.nlos_cfar import NLOSCFARDetector
 from plugins.detectors.tasks import DenseHead
-from xnlos_core.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
+from plugins.detectors.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
 from xnlos_core.errors import InputError
 from xnlos_core.testing import synthetic_frame
 from xnlos_core.types import LOS, MNLOS, Detections

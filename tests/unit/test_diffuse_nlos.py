@@ -12,7 +12,7 @@ from sims.materials import get_material
 from sims.paths import MNLOS, OTHER
 from sims.raytrace.model import RaytraceForwardModel
 from sims.roughness import bistatic_sigma0, diffuse_fraction, specular_factor
-from xnlos_core.antenna import element_gain
+from xnlos_core.signal.antenna import element_gain
 from xnlos_core.radar import RadarConfig, load_radar
 
 X = RadarConfig()

@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from xnlos_core.adc import AdcLayout, canonical_cube
-from xnlos_core.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, doppler_ra_maps,
+from hardware.adc import AdcLayout, canonical_cube
+from xnlos_core.signal.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, doppler_ra_maps,
                                 range_doppler)
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig, load_radar
-from xnlos_core.signal_chain import beat_frequency, dechirp, noise_floor, ra_map_from_cube
+from xnlos_core.signal.chain import beat_frequency, dechirp, noise_floor, ra_map_from_cube
 
 RADAR = RadarConfig()
 # small radar for the many-cube tests: 2 TX × 4 RX, 32 chirps, 16 range bins of interest
@@ -131,7 +131,7 @@ def test_bad_inputs_raise_input_errors():
 def test_raw_recording_takes_the_same_doppler_chain():
     # a mover's chirp sequence laid out as a radar might record it (chirp, channel rx-major, sample;
     # I/Q pairs in counts) comes back through adc_cube_to_doppler_maps with the maps of the direct path
-    from xnlos_core.adc import adc_cube_to_doppler_maps, chirp_cube
+    from hardware.adc import adc_cube_to_doppler_maps, chirp_cube
 
     v = 3.3 * SMALL.velocity_resolution
     cube = add_chirp_noise(chirp_sequence_cube(SMALL, [6.0], [0.25], [2e-3], [v]), SMALL, np.random.default_rng(4))

@@ -1,4 +1,4 @@
-"""The compiled Doppler kernels (xnlos_core.doppler_kernels): mirrored azimuth pairs, the unpaired
+"""The compiled Doppler kernels (xnlos_core.signal.kernels): mirrored azimuth pairs, the unpaired
 fallback, non-finite input, thread counts, calls from several threads at once, a forked child, and
 cubes beyond single precision's range."""
 import threading
@@ -6,11 +6,13 @@ import threading
 import numpy as np
 import pytest
 
-from xnlos_core import doppler, doppler_kernels
-from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
+from xnlos_core.signal import doppler
+
+from xnlos_core.signal import kernels as doppler_kernels
+from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube, doppler_ra_maps
 from xnlos_core.errors import InputError
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import beam_weights
+from xnlos_core.signal.chain import beam_weights
 
 SMALL = RadarConfig(n_samples=64, max_range=15.0, n_tx=2, n_rx=4, n_chirps=16, n_azimuth_bins=9, field_of_view=0.8)
 

@@ -4,12 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from xnlos_core.adc import AdcLayout, canonical_cube
+from hardware.adc import AdcLayout, canonical_cube
 from xnlos_core.errors import InputError
 from xnlos_core.io import load_frame, save_frame
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import load_scene
-from xnlos_core.signal_chain import ra_map_from_cube
+from xnlos_core.signal.chain import ra_map_from_cube
 from xnlos_core.types import RAMap
 from sims.image import ImageForwardModel
 from sims.raytrace.model import RaytraceForwardModel

@@ -13,10 +13,10 @@ import zlib
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from xnlos_core import palette  # noqa: E402
+from xnlos_core.app.plot import palette  # noqa: E402
 from xnlos_core.bev import AZIMUTH_LABEL, bev  # noqa: E402
-from xnlos_core.figures import frame_figure  # noqa: E402
-from xnlos_core.frame_figure import frame_panels_figure  # noqa: E402
+from xnlos_core.app.plot.figures import frame_figure  # noqa: E402
+from xnlos_core.app.plot.frame_figure import frame_panels_figure  # noqa: E402
 from xnlos_core.pipeline import FrameResult  # noqa: E402
 from xnlos_core.testing import KIT_HIDDEN, synthetic_frame  # noqa: E402
 from xnlos_core.types import LOS, MNLOS, Detections, HiddenPoints  # noqa: E402
@@ -122,7 +122,7 @@ def test_titles_count_what_the_legends_count(fig):
 
 
 def test_one_colour_per_detector(monkeypatch):
-    import xnlos_core.figures as figures
+    import xnlos_core.app.plot.figures as figures
     from benchmarks.detectors import _class_panels
 
     made = []
@@ -143,8 +143,8 @@ def test_one_colour_per_detector(monkeypatch):
 
 
 def test_the_animation_frame_agrees_on_orientation_legends_and_zorder():
-    from xnlos_core.animation import animation_figure
-    from xnlos_core.frame_snapshot import FrameSnapshot
+    from xnlos_core.app.plot.animation import animation_figure
+    from xnlos_core.app.plot.frame_snapshot import FrameSnapshot
 
     f = animation_figure(FrameSnapshot.from_result(_result()), {})
     try:
@@ -224,7 +224,7 @@ def test_an_object_without_mirror_path_is_dashed_and_not_zoomed():
                                         ({"car": [[0.0, float("nan")]]}, "finite")])
 def test_malformed_outline_meta_is_an_input_error_naming_the_object(bad, match):
     from xnlos_core.errors import InputError
-    from xnlos_core.figures import outlines_from_meta
+    from xnlos_core.app.plot.figures import outlines_from_meta
 
     with pytest.raises(InputError, match=match):
         outlines_from_meta({"object_outlines": bad})

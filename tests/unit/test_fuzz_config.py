@@ -4,7 +4,7 @@ Each case mutates one shipped config (pipelines, datasets, training, and the cor
 in a pipeline): values replaced by other types, huge / NaN / ±inf / negative numbers, long
 strings, path traversal, deleted and unknown keys, deep nesting, invalid UTF-8, truncation. The
 config is written into a copy of ``configs/`` (the working directory during the test, as when
-``xnlos`` runs from the project) and checked in-process with :func:`xnlos_core.cli.check_file`.
+``xnlos`` runs from the project) and checked in-process with :func:`xnlos_core.app.cli.check_file`.
 Every case must either pass or raise an :class:`~xnlos_core.errors.XnlosError`, within a
 generous per-case bound (SIGALRM), and no config holding a NaN may pass. The case count comes
 from the ``fuzz_cases`` fixture (50 in ``make test``, 10,000 in ``make fuzz``).
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from xnlos_core.cli import check_file
+from xnlos_core.app.cli import check_file
 from xnlos_core.config import expand_sweep
 from xnlos_core.errors import XnlosError
 

@@ -8,7 +8,7 @@ from xnlos_core.geometry import cartesian_to_polar, mirror_reflect
 from xnlos_core.radar import RadarConfig
 from xnlos_core.registry import PluginManager
 from xnlos_core.scene import ObjectSpec, Scene, WallSpec, load_scene
-from xnlos_core.signal_chain import noise_floor, processing_gain
+from xnlos_core.signal.chain import noise_floor, processing_gain
 
 RADAR = RadarConfig()
 DR = RADAR.range_resolution

@@ -10,7 +10,7 @@ import pytest
 from sims.image import ImageForwardModel
 from sims.raytrace.model import RaytraceForwardModel
 from xnlos_core.radar import RadarConfig
-from xnlos_core.runner import object_verdict, summarise, summarise_objects
+from xnlos_core.app.runner import object_verdict, summarise, summarise_objects
 from xnlos_core.scene import BUILTIN_DIR, Scene
 
 RADAR = RadarConfig(n_samples=256, max_range=60.0, n_azimuth_bins=121)

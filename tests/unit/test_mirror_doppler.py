@@ -1,10 +1,10 @@
-"""Mirror Doppler (xnlos_core.mirror_doppler): closed forms across a known wall, covariance vs Monte Carlo."""
+"""Mirror Doppler (plugins.mirror.mirror_doppler): closed forms across a known wall, covariance vs Monte Carlo."""
 import numpy as np
 import pytest
 
 from xnlos_core import WallPosterior
 from xnlos_core.errors import InputError
-from xnlos_core.mirror_doppler import observed_direction, unmirror_radial_velocity, unmirror_velocity
+from plugins.mirror.mirror_doppler import observed_direction, unmirror_radial_velocity, unmirror_velocity
 from xnlos_core.wall import mirror
 
 # the wall x = 20 m (n = (−1, 0), b = 20: the radar side positive), (φ, b) uncertain

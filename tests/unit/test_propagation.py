@@ -11,7 +11,7 @@ from sims.atmosphere import attenuation_db, specific_attenuation
 from sims.propagation import free_space_path_loss_db, ra_snr_db, received_power
 from xnlos_core.errors import InputError
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
-from xnlos_core.signal_chain import dechirp, sample_times
+from xnlos_core.signal.chain import dechirp, sample_times
 
 RADAR = RadarConfig()
 
@@ -110,7 +110,7 @@ def test_phase_is_exact_at_two_kilometres(dtype):
 def test_ra_map_is_linear_across_200_db(log_amp, r):
     """Amplitudes from 1e-10 to 1 √W (200 dB in power): the RA peak scales exactly, stays finite."""
     radar = RadarConfig(n_samples=512, max_range=90.0, n_azimuth_bins=31, n_tx=1, n_rx=8)
-    from xnlos_core.signal_chain import ra_map_from_cube
+    from xnlos_core.signal.chain import ra_map_from_cube
 
     a = 10.0**log_amp
     m1 = ra_map_from_cube(dechirp(radar, [2 * r], [0.1], [a]), radar).data

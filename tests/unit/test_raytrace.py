@@ -12,7 +12,7 @@ from xnlos_core.errors import InputError
 from xnlos_core.geometry import cartesian_to_polar, mirror_reflect, ray_segment_intersection
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import ObjectSpec, Scene, WallSpec, load_scene
-from xnlos_core.signal_chain import noise_floor
+from xnlos_core.signal.chain import noise_floor
 
 RADAR = RadarConfig()
 DR = RADAR.range_resolution

@@ -10,10 +10,10 @@ from hardware.raw_formats import decode_dca1000, encode_dca1000
 from hardware.recording import Recording, recording_radar
 from hardware.recording_checks import RecordingWarning
 from hardware.testing import write_dca1000_recording
-from xnlos_core.doppler import add_chirp_noise, chirp_sequence_cube
+from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.radar import RadarConfig
-from xnlos_core.signal_chain import ra_map_from_cube
+from xnlos_core.signal.chain import ra_map_from_cube
 
 # a TI-like profile at X band: S = 30 MHz/µs, f_s = 10 MHz, N = 128 → B = 384 MHz, ΔR = 0.39 m
 RADAR = RadarConfig(n_samples=128, bandwidth=384e6, chirp_duration=12.8e-6, n_chirps=4, n_tx=2, n_rx=4,

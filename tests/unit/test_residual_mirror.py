@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from plugins.training.checkpoint import load_checkpoint, save_checkpoint
-from plugins.residual_mirror.data import NoiseConfig, scene_inputs
-from plugins.residual_mirror.net import HParams, geo_loss
-from plugins.residual_mirror.reconstructor import DEFAULT_MODEL, ResidualMirrorReconstructor, load_model
-from plugins.residual_mirror.train import RMOptim, fit, new_network, tensors
+from plugins.mirror.residual.data import NoiseConfig, scene_inputs
+from plugins.mirror.residual.net import HParams, geo_loss
+from plugins.mirror.residual.reconstructor import DEFAULT_MODEL, ResidualMirrorReconstructor, load_model
+from plugins.mirror.residual.train import RMOptim, fit, new_network, tensors
 from xnlos_core import LOS, MNLOS, Detections, InputError, WallPosterior
 from xnlos_core.geometry import mirror_reflect
 from xnlos_core.testing import check_reconstructor
@@ -57,7 +57,7 @@ def test_overfits_a_tiny_set():
     assert before > 1.0
     with torch.random.fork_rng(devices=[]):
         fit(net, data, None, RMOptim(epochs=300, batch_size=len(data["target"]), lr=1e-2, nll_weight=0.0), seed=0)
-    from plugins.residual_mirror.train import evaluate
+    from plugins.mirror.residual.train import evaluate
 
     after = evaluate(net, data)["l_geo"]
     assert after <= before / 10, (before, after)

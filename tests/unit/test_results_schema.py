@@ -12,9 +12,9 @@ from xnlos_core.errors import InputError, SchemaKeywordError, SchemaViolation
 from xnlos_core.frame_record import (SCHEMA_VERSION, detections_from_record, detections_record, hidden_from_record,
                                      hidden_record, wall_from_record, wall_record)
 from xnlos_core.io import json_default
-from xnlos_core.json_schema import check, check_schema
+from xnlos_core.app.json_schema import check, check_schema
 from xnlos_core.pipeline import Pipeline
-from xnlos_core.results_schema import RESULTS_SCHEMA, validate_record
+from xnlos_core.app.results_schema import RESULTS_SCHEMA, validate_record
 from xnlos_core.testing import small_pipeline_table
 from xnlos_core.types import Detections, HiddenPoints, WallPosterior
 

@@ -1,10 +1,10 @@
-"""Per-frame motion truth (xnlos_core.scene_truth) against closed forms."""
+"""Per-frame motion truth (sims.scene_truth) against closed forms."""
 import numpy as np
 import pytest
 
 from xnlos_core.errors import InputError
 from xnlos_core.scene import ObjectSpec, Scene, WallSpec
-from xnlos_core.scene_truth import scene_truth
+from sims.scene_truth import scene_truth
 
 
 def _scene():
@@ -66,7 +66,7 @@ def test_image_model_ground_truth_carries_the_hidden_and_mirrored_velocities():
 
 def test_motion_kind_follows_the_trajectory_model():
     from xnlos_core.motion import Bicycle, ConstantAcceleration, ConstantTurn
-    from xnlos_core.scene_truth import is_moving, motion_kind
+    from sims.scene_truth import is_moving, motion_kind
 
     parked = ObjectSpec(name="p", center=(5.0, 5.0))
     assert not is_moving(parked) and motion_kind(parked, 6.0) == "static"

@@ -22,7 +22,7 @@ from xnlos_core.geometry import segments_intersect
 from xnlos_core.motion import Bicycle, ConstantAcceleration, ConstantTurn
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import Scene
-from xnlos_core.scene_truth import motion_kind
+from sims.scene_truth import motion_kind
 from xnlos_core.testing import check_component
 
 SEQUENCE_FAMILIES = ("hidden_car_approach", "hidden_cyclist", "hidden_pedestrian")

@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 
 from xnlos_core.errors import InputError
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
-from xnlos_core.signal_chain import (add_noise, adc_to_ra_map, beat_frequency, chirp, dechirp, noise_floor,
+from xnlos_core.signal.chain import (add_noise, adc_to_ra_map, beat_frequency, chirp, dechirp, noise_floor,
                                      processing_gain, ra_map_from_cube, range_fft)
 
 RADAR = RadarConfig()

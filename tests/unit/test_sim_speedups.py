@@ -3,10 +3,10 @@ fresh computation and hand out copies; cell_power's row grouping equals np.uniqu
 import numpy as np
 from scipy.signal import get_window
 
-from xnlos_core.antenna import azimuth_weights, steering_vector
+from xnlos_core.signal.antenna import azimuth_weights, steering_vector
 from xnlos_core.radar import RadarConfig
 from xnlos_core.scene import WallSpec
-from xnlos_core.signal_chain import beam_weights, processing_gain
+from xnlos_core.signal.chain import beam_weights, processing_gain
 
 
 def _radar(**kw):

@@ -15,7 +15,7 @@ HEAVY = ("pysindy", "sklearn", "pandas", "trimesh", "torch", "casadi", "emcee", 
 
 SCRIPT = """
 import json, sys
-import xnlos_core.cli as cli
+import xnlos_core.app.cli as cli
 from xnlos_core.registry import get_manager, get_registry
 cli.build_parser(get_manager())
 assert get_registry().names("tracker"), "no tracker registered: the plugins did not load"

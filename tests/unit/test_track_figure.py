@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from xnlos_core.track_figure import MIN_RADIUS, cone_path, draw_tracks, plot_tracks
+from xnlos_core.app.plot.track_figure import MIN_RADIUS, cone_path, draw_tracks, plot_tracks
 from xnlos_core.types import Tracks
 
 matplotlib = pytest.importorskip("matplotlib")
@@ -84,7 +84,7 @@ def test_tracks_without_forecast_draw_no_cones():
 
 
 def test_plot_tracks_draws_walls_radar_tracks_and_a_legend_and_writes_a_png(tmp_path, monkeypatch):
-    import xnlos_core.track_figure as tf
+    import xnlos_core.app.plot.track_figure as tf
     from xnlos_core.bev import save_png
 
     figs = []
@@ -109,9 +109,9 @@ def test_plot_tracks_draws_walls_radar_tracks_and_a_legend_and_writes_a_png(tmp_
 
 
 def test_the_frame_figures_draw_the_tracks_of_a_result(tmp_path, monkeypatch):
-    import xnlos_core.track_figure as tf
-    from xnlos_core.figures import plot_frame
-    from xnlos_core.frame_figure import plot_frame_panels
+    import xnlos_core.app.plot.track_figure as tf
+    from xnlos_core.app.plot.figures import plot_frame
+    from xnlos_core.app.plot.frame_figure import plot_frame_panels
     from xnlos_core.pipeline import FrameResult
     from xnlos_core.testing import synthetic_frame
     from xnlos_core.types import Detections, HiddenPoints

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from xnlos_core import InputError
-from xnlos_core.tracking_metrics import interval_coverage, mot_metrics, prediction_errors
+from xnlos_core.app.tracking_metrics import interval_coverage, mot_metrics, prediction_errors
 
 
 def frames(ids_per_frame, x_per_frame):

@@ -15,7 +15,7 @@ from xnlos_core.wall import mirror
 from plugins.mirror.mirror import MirrorReconstructor
 from xnlos_core import MNLOS, Detections, WallPosterior
 from xnlos_core.config import parse_pipeline
-from xnlos_core.figures import credible_radius, plot_frame, plot_wall_corner
+from xnlos_core.app.plot.figures import credible_radius, plot_frame, plot_wall_corner
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.testing import small_pipeline_table
 

@@ -1,0 +1,101 @@
+"""The cross-modality study's config file (:mod:`xnlos_core.app.crossmodal.study`): modalities, distances,
+scoring gates, the scene whose hidden object is moved. Strict: unknown keys are a ConfigError
+naming the file and key."""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from xnlos_core.files import load_toml
+from xnlos_core.validation import validate_model
+
+class StageTable(BaseModel):
+    """A component by registered name with its parameters."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(description="registered component name")
+    params: dict[str, Any] = Field(default_factory=dict, description="the component's parameters")
+
+
+class RadarModality(BaseModel):
+    """A radar row: the project's pipeline (detector → wall estimator → mirror reconstructor)."""
+
+    model_config = ConfigDict(extra="forbid")
+    type: Literal["radar"]
+    label: str = Field(description="row name in the table and figures")
+    radar: dict[str, Any] = Field(description="[radar] table of a pipeline (preset and/or fields)")
+    forward_model: StageTable = Field(default_factory=lambda: StageTable(name="image"))
+    detector: StageTable
+    wall_estimator: StageTable = Field(default_factory=lambda: StageTable(name="lsq"))
+    reconstructor: StageTable = Field(default_factory=lambda: StageTable(name="mirror"))
+
+
+class SpadModality(BaseModel):
+    """A SPAD row per solver: a transient model scans the relay wall; NLOS solvers reconstruct."""
+
+    model_config = ConfigDict(extra="forbid")
+    type: Literal["spad"]
+    label: str = Field(description="row name prefix (rows '<label>/<solver>')")
+    transient_model: StageTable = Field(description="registered transient_model (e.g. spad) and params")
+    solvers: list[str] = Field(default_factory=lambda: ["lct"], min_length=1,
+                               description="registered nlos_solver names (lct, fk)")
+    window: int = Field(5, ge=1, le=1000, description="detection window [time bins]")
+    n_sigma: float = Field(5.0, gt=0, le=100, description="detection threshold [Poisson σ of the background]")
+    background_subtract: bool = Field(True, description="before the solver: subtract each scan point's median "
+                                      "count over time (the flat dark + ambient floor), clip at 0")
+    first_bounce_gate: float = Field(0.5, ge=0, le=100, description="reconstruction peak search starts at this "
+                                     "depth z [m] from the relay wall: gates the first bounce (the wall's own "
+                                     "return) and the solvers' artefacts at t = 0 (crossmodal_score)")
+
+
+Modality = Annotated[Union[RadarModality, SpadModality], Field(discriminator="type")]
+
+
+class StudyConfig(BaseModel):
+    """A cross-modality study file (see the module docstring)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = "crossmodal"
+    seed: int = Field(0, ge=0, lt=2**63, description="root seed of every trial")
+    distances: list[Annotated[float, Field(gt=0, le=1000)]] = Field(min_length=1,
+                                                                     description="distances behind the corner [m]")
+    seeds: int = Field(3, ge=1, le=1000, description="trials (seeds) per modality and distance")
+    hidden_object: str = Field(description="name of the scene object that is moved")
+    relay_wall: str = Field(description="name of the relay wall (radar truth image; SPAD scan)")
+    corner: tuple[float, float] = Field(description="a point on the occluder's front line [m]")
+    direction: tuple[float, float] = Field(description="along the hidden street, away from the corner")
+    gate: float = Field(2.0, gt=0, le=100, description="detection gate [m]")
+    tolerance: float = Field(1.5, gt=0, le=100, description="reconstruction tolerance [m]")
+    threshold: float = Field(0.5, gt=0, le=1, description="F1 at which a distance counts as in range")
+    panel_distance: float = Field(3.0, gt=0, le=1000, description="distance of the Fig. 5-style panel [m]")
+    reference: str = Field("", description="row label of the X-band radar for the range ratio")
+    baseline: str = Field("", description="row label of the SPAD for the range ratio")
+    scene: dict[str, Any] = Field(description="inline scene (walls, objects): the hidden object's "
+                                              "centre is replaced per distance")
+    modality: list[Modality] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _check(self):
+        if np.hypot(*self.direction) < 1e-9:
+            raise ValueError("direction: expected a non-zero vector")
+        labels = [m.label for m in self.modality]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"modality: labels must be unique, got {labels}")
+        return self
+
+    def digest(self) -> str:
+        """sha256 of the canonical JSON (decides whether saved cells are current); ``panel_distance``
+        is left out: it changes only the panel."""
+        dump = self.model_dump(exclude={"panel_distance"})
+        return hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def load_study(path: str | Path) -> tuple[StudyConfig, Path]:
+    """Validate a study TOML; unknown or bad keys are a ConfigError naming the file and key."""
+    path = Path(path)
+    return validate_model(StudyConfig, load_toml(path), source=str(path)), path.resolve().parent

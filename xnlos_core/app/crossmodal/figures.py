@@ -1,0 +1,179 @@
+"""Figures of the cross-modality study (:mod:`xnlos_core.app.crossmodal.study`): the range curve (F1 vs
+distance behind the corner per modality) and a Fig. 5-style panel (paper Sec. 5.1.2): one row per
+modality, columns scene (top view), raw measurement (radar: |RA map| [dB] over range × azimuth;
+SPAD: counts summed over the scan rows, scan x × round-trip range c·t/2), intensity or dense
+prediction (radar: RA map with the detections, LOS and mNLOS; SPAD: the solver's albedo, max over
+the scan rows, x × depth z) and reconstruction (radar: hidden points and the true outline, top
+view, the scene panel's axes; SPAD: the albedo's peak, the visible hidden surface, the scan
+aperture and the peak search region, x × z in wall coordinates). Colours and drawing order from
+:mod:`xnlos_core.app.plot.palette`; RA maps with positive azimuth on the left (:func:`bev.orient_azimuth`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from xnlos_core.app.plot import palette as pal
+from xnlos_core.bev import bev, legend_outside, orient_azimuth, save_png, set_bev_limits
+from xnlos_core.transient import SPEED_OF_LIGHT
+from xnlos_core.types import LOS, MNLOS
+
+
+def row_colours(rows: dict[str, str | None]) -> dict[str, str]:
+    """One colour per study row (row → its radar detector's registry name, None for a SPAD row):
+    the detector's palette colour (:func:`palette.detector_colour`) for the first row that uses the
+    detector, otherwise the palette's stable pick for the row label, skipping colours taken."""
+    out: dict[str, str] = {}
+    for row, detector in rows.items():
+        c = pal.detector_colour(detector) if detector else None
+        if c is None or c in out.values():
+            choices = [pal.detector_colour(row)] + list(pal.EXTRA_COLOURS)
+            c = next((k for k in choices if k not in out.values()), choices[0])
+        out[row] = c
+    return out
+
+
+def range_curve(res: dict, path: str | Path, colours: dict[str, str] | None = None) -> Path:
+    """F1 vs distance [m] (log axis): reconstruction solid, detection dashed, one colour per row
+    (``colours``: row → colour, :func:`row_colours`; default: by row label); legend outside."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colours = colours or row_colours({r: None for r in res["rows"]})
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for row, t in res["rows"].items():
+        c = colours[row]
+        ds = t["distances"]
+        nan = lambda v: [np.nan if x is None else x for x in v]  # noqa: E731
+        ax.plot(ds, nan(t["reconstruction_f1"]), "-o", color=c, ms=4, label=f"{row} reconstruction")
+        ax.plot(ds, nan(t["detection_f1"]), "--", color=c, alpha=0.7, label=f"{row} detection")
+    ax.axhline(res["threshold"], color="0.5", lw=0.8, ls=":")
+    ax.set_xscale("log")
+    ax.set_xlabel("distance behind the corner [m]")
+    ax.set_ylabel("F1 over seeds")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_title(f"{res['name']}: NLOS range at equal transmit power")
+    legend_outside(ax, where="right")
+    return save_png(fig, path)
+
+
+def _scene_points(scene) -> np.ndarray:
+    return np.vstack([o.footprint(0.0) for o in scene.objects] + [[w.start, w.end] for w in scene.walls if w.relay]
+                     + [[[0.0, 0.0]]])
+
+
+def _draw_scene(ax, scene, hidden: str) -> None:
+    """Walls (relay darker), objects (the hidden one in the truth colour, above), radar at the origin."""
+    for w in scene.walls:
+        ax.plot(*bev([w.start, w.end]), color="k" if w.relay else pal.TRUE_WALL, lw=2 if w.relay else 1.5,
+                zorder=pal.Z_BAND)
+    for o in scene.objects:
+        fp = o.footprint(0.0)
+        fp = np.vstack([fp, fp[:1]])
+        if o.name == hidden:
+            ax.fill(*bev(fp), color=pal.TRUTH, alpha=0.8, zorder=pal.Z_TRUTH, label="hidden object (truth)")
+        else:
+            ax.fill(*bev(fp), color="0.7", alpha=0.8, zorder=pal.Z_BAND)
+    ax.plot(0, 0, "^", color="r", ms=6, zorder=pal.Z_RADAR)
+
+
+def _scene_ax(ax, scene, hidden: str, title: str) -> None:
+    _draw_scene(ax, scene, hidden)
+    set_bev_limits(ax, _scene_points(scene))
+    ax.set_title(title, fontsize=8)
+
+
+def _radar_row(axes, row: str, shown: dict, cfg) -> None:
+    res, pipe = shown["result"], shown["pipeline"]
+    ra = res.frame.ra_map
+    db = 20 * np.log10(np.abs(ra.data) + 1e-12)
+    az = np.degrees(ra.azimuth_axis)
+    ext = [az[0], az[-1], ra.range_axis[0], ra.range_axis[-1]]
+    _scene_ax(axes[0], pipe.scene, cfg.hidden_object, f"{row}: scene")
+    axes[1].imshow(db, origin="lower", aspect="auto", extent=ext, cmap="viridis", vmin=db.max() - 60)
+    axes[1].set_title("raw: |RA map| [dB]", fontsize=8)
+    axes[2].imshow(db, origin="lower", aspect="auto", extent=ext, cmap="gray", vmin=db.max() - 60)
+    det = res.detections
+    for lab in (LOS, MNLOS):
+        name, c, mk = pal.CLASS_STYLE[lab]
+        m = det.label == lab
+        axes[2].plot(np.degrees(det.azimuth[m]), det.range[m], mk, mfc="none", color=c, ms=4, label=name,
+                     zorder=pal.Z_ESTIMATE)
+    legend_outside(axes[2], where="right")
+    detector = pipe.config.detector.name
+    axes[2].set_title(f"detections ({detector})", fontsize=8, color=pal.detector_colour(detector))
+    for ax in axes[1:3]:
+        orient_azimuth(ax, az)  # positive azimuth (left) on the left, as in the bird's-eye view
+        ax.xaxis.label.set_fontsize(7)
+        ax.set_ylabel("range [m]", fontsize=7)
+    # reconstruction: the scene panel's axes and orientation, truth above the estimates
+    ax = axes[3]
+    _draw_scene(ax, pipe.scene, cfg.hidden_object)
+    ax.plot(*bev(shown["image"]), ".", color=pal.UNOBSERVABLE, ms=1, label="virtual image (Eq. 7)",
+            zorder=pal.Z_ESTIMATE - 1)
+    h = res.hidden.mean.reshape(-1, 2)
+    ax.plot(*bev(h), "x", color=shown.get("colour", pal.detector_colour(detector)), ms=6, mew=1.5, label=f"reconstructed ({detector})",
+            zorder=pal.Z_ESTIMATE)
+    set_bev_limits(ax, _scene_points(pipe.scene))
+    lim = _scene_points(pipe.scene)
+    lo, hi = lim.min(0) - 5, lim.max(0) + 5
+    out = int(np.sum(np.any((h < lo) | (h > hi), axis=1)))
+    legend_outside(ax, where="right")
+    ax.set_title("reconstruction (top view)" + (f"; {out} point(s) outside the view" if out else ""), fontsize=8)
+
+
+def _spad_row(axes, row: str, shown: dict, cfg) -> None:
+    vol, nv, truth, pk = shown["volume"], shown["nlos"], shown["truth"], shown["peak"]
+    lo_z, hi_z = shown["search"]
+    x, _ = vol.grid()
+    rho = SPEED_OF_LIGHT * vol.times() / 2
+    _scene_ax(axes[0], shown["scene"], cfg.hidden_object, f"{row}: scene (scan on the black relay wall)")
+    top = min(rho[-1], max(float(np.linalg.norm(truth, axis=1).max()) if len(truth) else 0.0, hi_z) + 3.0)
+    raw = vol.data.sum(axis=1)[rho <= top]  # (T', W)
+    axes[1].imshow(raw, origin="lower", aspect="auto", extent=[x[0], x[-1], rho[0], top], cmap="magma")
+    axes[1].set_title("raw: counts (Σ rows)", fontsize=8)
+    axes[1].set_xlabel("scan x along the wall [m]", fontsize=7)
+    axes[1].set_ylabel("c·t/2 [m]", fontsize=7)
+    inten = nv.albedo.max(axis=1)[nv.z <= top]  # (Z', W)
+    axes[2].imshow(inten, origin="lower", aspect="auto", extent=[x[0], x[-1], nv.z[0], top], cmap="magma")
+    for zz in (lo_z, hi_z):
+        axes[2].axhline(zz, color="w", lw=0.8, ls="--")
+    axes[2].set_title(f"intensity: {shown['solver']} albedo (max over rows); -- peak search", fontsize=8)
+    axes[2].set_xlabel("x along the wall [m]", fontsize=7)
+    axes[2].set_ylabel("depth z [m]", fontsize=7)
+    # reconstruction: truth (visible surface) and the peak in the same wall frame, top view
+    ax = axes[3]
+    dx = (x[1] - x[0]) / 2 if len(x) > 1 else 0.05
+    ax.axhspan(lo_z, hi_z, color="0.93", zorder=0, label="peak search region")
+    ax.plot([x[0] - dx, x[-1] + dx], [0, 0], "-", color="k", lw=4, solid_capstyle="butt", zorder=pal.Z_BAND,
+            label="scan aperture (relay wall)")
+    if len(truth):
+        ax.plot(truth[:, 0], truth[:, 2], ".", color=pal.TRUTH, ms=2, zorder=pal.Z_TRUTH, label="visible surface (truth)")
+    c = shown.get("colour", pal.ESTIMATE)
+    if shown["detected"]:
+        verdict = "hit" if shown["hit"] else ("edge of the search region: no hit" if not pk.interior else "miss")
+        ax.plot([pk.x], [pk.z], "x", color=c, ms=9, mew=2, zorder=pal.Z_ESTIMATE, label=f"albedo peak ({verdict})")
+    else:
+        ax.text(0.5, 0.5, "no detection: nothing reported", transform=ax.transAxes, ha="center", fontsize=7)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x along the wall [m]", fontsize=7)
+    ax.set_ylabel("depth z from the wall [m]", fontsize=7)
+    legend_outside(ax, where="right")
+    ax.set_title("reconstruction (wall frame, top view)", fontsize=8)
+
+
+def panel_figure(cfg, panel: dict[str, dict], path: str | Path) -> Path:
+    """Fig. 5-style panel: one row per modality of ``panel`` (row label → what its cell kept)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(panel), 4, figsize=(18, 3.6 * len(panel)), squeeze=False,
+                             gridspec_kw={"width_ratios": [1, 1.2, 1.2, 1.3]})
+    for axrow, (row, shown) in zip(axes, panel.items()):
+        (_radar_row if "result" in shown else _spad_row)(axrow, row, shown, cfg)
+    fig.suptitle(f"{cfg.name}: hidden object {cfg.panel_distance:g} m behind the corner", fontsize=10)
+    return save_png(fig, path, dpi=90)
