@@ -182,6 +182,22 @@ def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
     return F, Q
 
 
+def solve_psd(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """S⁻¹B for symmetric positive semi-definite S (…, n, n) and B (…, n, k).
+
+    A finite S can be exactly singular: an exact point (zero covariance) with a ``sigma_floor`` whose
+    square underflows, or a rank-one point covariance on a zero-variance track axis. Then every S of
+    the batch gets a ridge of 10⁻¹² times its mean variance (at least the smallest normal float),
+    S + εI: a residual along a zero-variance direction counts as (nearly) infinitely unlikely instead
+    of stopping the tracker with numpy's LinAlgError. Non-singular batches are solved exactly as before."""
+    try:
+        return np.linalg.solve(S, B)
+    except np.linalg.LinAlgError:
+        n = S.shape[-1]
+        eps = np.maximum(1e-12 * np.trace(S, axis1=-2, axis2=-1) / n, np.finfo(np.float64).tiny)
+        return np.linalg.solve(S + eps[..., None, None] * np.eye(n), B)
+
+
 def cluster_measurements(points: HiddenPoints, distance: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
     """Cluster centroids z (C, 2) [m] and their covariances R (C, 2, 2) [m²] (see module docstring)."""
     m = cluster(points, distance, floor, use_doppler=False)
@@ -322,7 +338,7 @@ class KalmanTracker(Tracker):
         P = np.array([self._tracks[i].P for i in which])
         r = z[None, :, :] - x[:, None, :2]                       # (T, C, 2)
         S = P[:, None, :2, :2] + R[None, :, :, :]                # (T, C, 2, 2)
-        d2 = np.einsum("tci,tci->tc", r, np.linalg.solve(S, r[..., None])[..., 0])
+        d2 = np.einsum("tci,tci->tc", r, solve_psd(S, r[..., None])[..., 0])
         gate = chi2_2_ppf(self.params.gate_probability)
         big = gate * (min(d2.shape) + 1)  # any gated match beats all out-of-gate ones
         rows, cols = linear_sum_assignment(np.where(d2 <= gate, d2, big))
@@ -357,7 +373,7 @@ class KalmanTracker(Tracker):
         if position:
             Rx[:2, :2] = meas.R[k]
         S = Hx @ tr.P @ Hx.T + Rx
-        K = np.linalg.solve(S, Hx @ tr.P).T
+        K = solve_psd(S, Hx @ tr.P).T
         IKH = np.eye(4) - K @ Hx
         tr.x = tr.x + K @ (zx - Hx @ tr.x)
         tr.P = IKH @ tr.P @ IKH.T + K @ Rx @ K.T
