@@ -74,10 +74,13 @@ class Prepared:
             raise InputError(f"{self.who}: volume.data holds counts up to {self.peak:.6g}, and the albedo they give "
                              "overflows float64; scale the counts down (only relative albedo values mean anything)")
         if not out.any():
-            raise InsufficientDataError(
-                f"{self.who}: the albedo is zero everywhere although volume.data holds counts (largest "
-                f"{self.peak:.6g}): the signal is below what float64 resolves or below the regularisation "
-                "(LCT's 1/snr), or all counts lie at round trip t = 0, which the fall-off compensation weights by 0")
+            low = float(np.min(albedo))
+            why = (f"every reconstructed value is ≤ 0 (least {low:.3g}) and clipped: the deconvolution amplified "
+                   "rounding or noise over the signal (lower LCT's snr, or use dtype float64)" if low < 0 else
+                   "the signal is below what float64 resolves or below the regularisation (LCT's 1/snr), or all "
+                   "counts lie at round trip t = 0, which the fall-off compensation weights by 0")
+            raise InsufficientDataError(f"{self.who}: the albedo is zero everywhere although volume.data holds "
+                                        f"counts (largest {self.peak:.6g}): {why}")
         return NLOSVolume(out, z, self.wall_width, self.wall_height)
 
 
