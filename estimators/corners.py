@@ -162,7 +162,7 @@ def spanning_tree(x: np.ndarray):
     the same tree at O(n log n) instead of sorting n² pairs (1000 pooled LOS points: 91 → 5 ms). Points
     that Qhull cannot triangulate (all on one line, exact duplicates: the tree would not span them)
     fall back to all pairs up to DENSE_MAX points, and beyond to :func:`mst_edges` (O(n) memory: the
-    (n, n) matrices of 20,000 points alone took 6.4 GB). Edge lengths get 1e-12 m added: csgraph
+    two (n, n) float64 matrices of 20,000 points need 6.4 GB). Edge lengths get 1e-12 m added: csgraph
     reads a 0 as "no edge".
     """
     n = len(x)

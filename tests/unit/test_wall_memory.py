@@ -1,6 +1,7 @@
 """Wall fits on large LOS clouds run in bounded memory: single linkage and the corner splitter's
-spanning tree beyond DENSE_MAX points need O(N) memory (the all-pairs matrices of 20,000 points took
-1.9–6.4 GB), and the probabilistic estimators fit a seeded subsample of max_fit_points per wall."""
+spanning tree beyond DENSE_MAX points need O(N) memory (for 20,000 points the condensed distances and
+linkage took 1.9 GB, the tree's all-pairs fallback needs 6.4 GB), and the probabilistic estimators fit
+a seeded subsample of max_fit_points per wall that keeps the wall's two ends."""
 import tracemalloc
 import warnings
 
@@ -124,5 +125,6 @@ def test_probabilistic_estimators_fit_a_seeded_subsample_of_a_large_wall(name):
     assert len(w.info["detection_index"]) == 300
     assert np.array_equal(w.mean, again.mean) and np.array_equal(w.cov, again.cov)
     assert w.offset == pytest.approx(8.0, abs=0.05)
+    assert float(np.ptp(w.extent[:, 1])) == pytest.approx(60.0, abs=0.5)  # the subsample keeps the wall's ends
     whole = fit(300)
     assert whole.n_points == 300 and "fitted_points" not in whole.info
