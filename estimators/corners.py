@@ -163,6 +163,7 @@ def _straight(x: np.ndarray, tolerance: float) -> bool:
 
 
 DELAUNAY_FROM = 200  # points from which spanning_tree searches the Delaunay edges instead of all pairs
+DENSE_MAX = 2048  # points up to which the all-pairs fallback runs (its (n, n) matrices: 32 MiB each)
 
 
 def spanning_tree(x: np.ndarray):
@@ -172,21 +173,87 @@ def spanning_tree(x: np.ndarray):
     triangulation's ≤ 3n edges, which holds every Euclidean MST edge (scipy.spatial.Delaunay, Qhull):
     the same tree at O(n log n) instead of sorting n² pairs (1000 pooled LOS points: 91 → 5 ms). Points
     that Qhull cannot triangulate (all on one line, exact duplicates: the tree would not span them)
-    fall back to all pairs. Edge lengths get 1e-12 m added: csgraph reads a 0 as "no edge".
+    fall back to all pairs up to DENSE_MAX points, and beyond to :func:`mst_edges` (O(n) memory: the
+    two (n, n) float64 matrices of 20,000 points need 6.4 GB). Edge lengths get 1e-12 m added: csgraph
+    reads a 0 as "no edge".
     """
     n = len(x)
     if n >= DELAUNAY_FROM:
-        try:
-            s = Delaunay(x).simplices
-        except QhullError:
-            s = None
-        if s is not None:
-            e = np.unique(np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1), axis=0)
-            w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + 1e-12
-            tree = minimum_spanning_tree(coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr())
-            if tree.nnz == n - 1:
-                return tree
-    return minimum_spanning_tree(squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(n)))
+        tree = _delaunay_tree(x)
+        if tree is not None:
+            return tree
+    if n <= DENSE_MAX:
+        return minimum_spanning_tree(squareform(pdist(x)) + 1e-12 * (1.0 - np.eye(n)))
+    i, j = mst_edges(x)
+    w = np.hypot(*(x[i] - x[j]).T) + 1e-12
+    return coo_matrix((w, (i, j)), shape=(n, n)).tocsr()
+
+
+def _delaunay_tree(x: np.ndarray):
+    """The MST of the Delaunay edges of x (n, 2) as a sparse (n, n) matrix (lengths + 1e-12 m), or
+    None when Qhull fails or leaves points out (duplicates, collinear or nearly coincident points)."""
+    n = len(x)
+    try:
+        s = Delaunay(x).simplices
+    except (QhullError, ValueError):
+        return None
+    e = np.unique(np.sort(np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]]]), axis=1), axis=0)
+    w = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) + 1e-12
+    tree = minimum_spanning_tree(coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr())
+    return tree if tree.nnz == n - 1 else None
+
+
+def mst_edges(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Endpoints (i, j), each (n − 1,), of a Euclidean minimum spanning tree of x (n ≥ 1, 2) [m], in
+    O(n) memory whatever the points' layout.
+
+    Exact duplicates are tied to their first occurrence (edges of length 0); the distinct points take
+    the tree of their Delaunay edges (:func:`_delaunay_tree`), or, where Qhull cannot triangulate them,
+    the chain of their order along the line when they are collinear (then every MST edge joins two
+    neighbours on it), else Prim's algorithm over all pairs (O(n²) time, one distance row at a time).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    n = len(x)
+    uniq, first, inverse = np.unique(x, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    dup = np.flatnonzero(first[inverse] != np.arange(n))
+    i, j = [first[inverse[dup]]], [dup]  # each duplicate to its first occurrence
+    m = len(uniq)
+    if m >= 2:
+        tree = _delaunay_tree(uniq) if m >= 3 else None
+        if tree is not None:
+            a, b = tree.nonzero()
+        else:
+            a, b = _chain_or_prim(uniq)
+        i.append(first[a])
+        j.append(first[b])
+    return np.concatenate(i).astype(np.int64), np.concatenate(j).astype(np.int64)
+
+
+def _chain_or_prim(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MST edges of distinct points u (m ≥ 2, 2) [m] that Qhull could not triangulate (see :func:`mst_edges`)."""
+    c = u - u.mean(axis=0)
+    scale = float(np.abs(c).max())
+    if scale > 0:
+        lam, vec = np.linalg.eigh((c / scale).T @ (c / scale))
+        if lam[0] <= 1e-24 * max(lam[1], 1e-300):  # collinear to rounding: sort along the line
+            order = np.argsort(c @ vec[:, 1], kind="stable")
+            return order[:-1], order[1:]
+    m = len(u)
+    inside = np.zeros(m, dtype=bool)
+    inside[0] = True
+    best = np.hypot(u[:, 0] - u[0, 0], u[:, 1] - u[0, 1])
+    parent = np.zeros(m, dtype=np.int64)
+    a, b = np.empty(m - 1, np.int64), np.empty(m - 1, np.int64)
+    for k in range(m - 1):
+        q = int(np.argmin(np.where(inside, np.inf, best)))
+        a[k], b[k] = parent[q], q
+        inside[q] = True
+        d = np.hypot(u[:, 0] - u[q, 0], u[:, 1] - u[q, 1])
+        closer = d < best
+        best = np.where(closer, d, best)
+        parent = np.where(closer, q, parent)
+    return a, b
 
 
 def _chains(x: np.ndarray, sd: np.ndarray, tolerance: float, corner_angle: float) -> list[np.ndarray]:

@@ -22,9 +22,11 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial.distance import pdist
 
-from estimators.corners import snap_corners, split_corners
+from estimators.corners import DENSE_MAX, mst_edges, snap_corners, split_corners
 from estimators.history import LOSHistory
 from xnlos_core.errors import InputError, InsufficientDataError
 from xnlos_core.geometry import canonical_line
@@ -76,12 +78,29 @@ class LSQParams(ClusterParams):
 
 
 def single_linkage(points: np.ndarray, distance: float) -> np.ndarray:
-    """Cluster labels (N,) 0…C−1 of single-linkage clustering cut at ``distance`` [m]."""
+    """Cluster labels (N,) 0…C−1 of single-linkage clustering cut at ``distance`` [m].
+
+    Up to DENSE_MAX (2048) points: scipy's linkage of all N(N − 1)/2 distances, as always. Beyond,
+    in O(N) memory (the condensed distances and linkage's copies of 20,000 points took 1.9 GB): the
+    same clusters as the connected components of a Euclidean minimum spanning tree's edges no longer
+    than ``distance`` (:func:`estimators.corners.mst_edges`; two points share a single-linkage cluster
+    exactly when the tree path between them has no longer edge), numbered in order of first
+    appearance instead of linkage's order."""
     pts = np.asarray(points, dtype=np.float64)
-    if len(pts) < 2:
-        return np.zeros(len(pts), dtype=np.int64)
-    # condensed distances, not the points: a 2 × 2 point array can look like a distance matrix to linkage
-    return fcluster(linkage(pdist(pts), method="single"), t=distance, criterion="distance").astype(np.int64) - 1
+    n = len(pts)
+    if n < 2:
+        return np.zeros(n, dtype=np.int64)
+    if n <= DENSE_MAX:
+        # condensed distances, not the points: a 2 × 2 point array can look like a distance matrix to linkage
+        return fcluster(linkage(pdist(pts), method="single"), t=distance, criterion="distance").astype(np.int64) - 1
+    i, j = mst_edges(pts)
+    keep = np.hypot(*(pts[i] - pts[j]).T) <= distance
+    graph = coo_matrix((np.ones(int(keep.sum())), (i[keep], j[keep])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    _, first = np.unique(labels, return_index=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[labels]
 
 
 def fit_line(points: np.ndarray, point_cov: np.ndarray | None = None) -> WallPosterior:

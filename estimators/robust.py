@@ -34,6 +34,10 @@ from .map_solver import MapFit, solve_map
 from .selection import select_model
 
 MAX_PAIRS = 1000
+# LOS points of one wall fitted at most (RobustWallParams.max_fit_points): casadi builds its problem per
+# padded size (symbolic rows) and the samplers evaluate every point for every draw — a 20,000-point wall
+# took 4.7 GB (casadi_map, emcee) and over 8 GB (laplace_is) and minutes; 1024 points take ≈ 0.3–0.5 GB.
+MAX_FIT_POINTS = 1024
 
 
 class RobustWallParams(ClusterParams):
@@ -62,7 +66,10 @@ class RobustWallParams(ClusterParams):
     max_iter: int = Field(100, ge=5, le=10_000, description="IPOPT iteration limit per MAP")
     tol: float = Field(1e-8, gt=0, le=1e-2, description="IPOPT convergence tolerance")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="seed of every random draw (pair subsets, "
-                      "sampler)")
+                      "sampler, subsamples of large walls)")
+    max_fit_points: int = Field(MAX_FIT_POINTS, ge=16, le=65_536, description="a wall with more LOS points is "
+                                "fitted to this many of them, drawn without replacement from seed and the wall's "
+                                "rank (estimate_walls: bounded memory); its posterior is then that of the subsample")
 
     @field_validator("models")
     @classmethod
@@ -258,22 +265,48 @@ def warm_up(params: RobustWallParams, max_points: int = 64) -> int:
                  params.max_iter, params.tol)
 
 
+def _subsample(pts: np.ndarray, members: np.ndarray, m: int, seq: np.random.SeedSequence) -> np.ndarray:
+    """m of the cluster ``members`` (indices into pts (K, 2) [m]), sorted: the two extreme points along
+    the cluster's principal axis (so the wall's extent keeps its ends) and m − 2 others drawn without
+    replacement by a child of the wall's seed ``seq`` (the wall's own stream is left unchanged)."""
+    x = pts[members]
+    c = x - x.mean(axis=0)
+    along = c @ np.linalg.eigh(c.T @ c)[1][:, 1]
+    ends = np.unique([int(np.argmin(along)), int(np.argmax(along))])
+    rest = np.setdiff1d(np.arange(len(members)), ends)
+    pick = np.random.default_rng(seq.spawn(1)[0]).choice(rest, m - len(ends), replace=False)
+    return members[np.sort(np.concatenate([ends, pick]))]
+
+
 def estimate_walls(detections: Detections, params: RobustWallParams, who: str, per_wall) -> list[WallPosterior]:
     """Cluster the LOS detections and call ``per_wall(points, cov, rng) -> WallPosterior`` on each
     cluster (largest first); clusters whose points coincide are skipped and reported. Each
     wall's rng is spawned from ``params.seed`` by cluster rank, so results do not depend on
-    what else is in the frame beyond the clustering."""
+    what else is in the frame beyond the clustering.
+
+    A cluster of N > ``max_fit_points`` (m) LOS points is fitted to m of them (:func:`_subsample`: its
+    two ends along the wall and m − 2 drawn without replacement from the wall's seed, the same points
+    on every run), so that memory and time stay bounded whatever the cloud (MAX_FIT_POINTS). The
+    posterior is then the subsample's: honest for what was fitted, at most √(N/m) wider than all
+    points would give (m = 1024 already pins a wall to σ/32); the extent still reaches the cluster's
+    ends. info then says ``fitted_points`` m and ``cluster_size`` N; ``detection_index`` lists the
+    whole cluster. Clusters of ≤ m points are fitted as before."""
     idx, pts, cov, chosen = los_clusters(detections, params, who)
     seeds = np.random.SeedSequence(params.seed).spawn(len(chosen))
     walls, skipped = [], []
     for members, seq in zip(chosen, seeds):
         t0 = time.perf_counter()
+        fitted = members
+        if len(members) > params.max_fit_points:
+            fitted = _subsample(pts, members, params.max_fit_points, seq)
         try:
-            w = per_wall(pts[members], cov[members], np.random.default_rng(seq))
+            w = per_wall(pts[fitted], cov[fitted], np.random.default_rng(seq))
         except InsufficientDataError as exc:
             skipped.append(str(exc))
             continue
         w.info["detection_index"] = idx[members].tolist()
+        if len(fitted) < len(members):
+            w.info.update(fitted_points=len(fitted), cluster_size=len(members))
         w.info["time_s"] = time.perf_counter() - t0
         walls.append(w)
     if not walls:

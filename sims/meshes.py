@@ -31,7 +31,7 @@ import trimesh
 
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.files import read_file_bytes
-from xnlos_core.scene import MeshSpec, Scene
+from xnlos_core.scene import MAX_COORD, MeshSpec, Scene
 
 from .generators import geometry as g
 
@@ -112,7 +112,9 @@ def _read(path: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, trimesh.
     ext = Path(path).suffix.lower()
     data = read_file_bytes(path, what=f"mesh file {path}")
     # file_type as the whole path: trimesh then names single-mesh geometry after the file (the part tag)
-    scene = trimesh.load_scene(io.BytesIO(data), file_type=str(path), resolver=ConfinedResolver(Path(path).parent))
+    # absurd coordinates (1e308) overflow trimesh's processing: quietly, load_user_mesh refuses them by name
+    with np.errstate(over="ignore", invalid="ignore"):
+        scene = trimesh.load_scene(io.BytesIO(data), file_type=str(path), resolver=ConfinedResolver(Path(path).parent))
     parts = []
     for node in scene.graph.nodes_geometry:
         transform, geom_name = scene.graph[node]
@@ -120,7 +122,8 @@ def _read(path: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, trimesh.
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
             continue
         mesh = geom.copy()
-        mesh.apply_transform(transform)
+        with np.errstate(over="ignore", invalid="ignore"):
+            mesh.apply_transform(transform)
         material = getattr(getattr(geom.visual, "material", None), "name", None) if ext == ".obj" else None
         parts.append((str(material or geom_name), str(node), mesh))
     return tuple(sorted(parts, key=lambda p: (p[0], p[1])))
@@ -201,7 +204,8 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
     Returns [(mesh, material, tag)]: a trimesh in the scene frame (after scale, yaw, translation),
     the sims.materials name of the part (None for constant reflectivity/backscatter), and the
     part's tag (module doc), sorted by tag. Raises InputError for a missing or unreadable file,
-    an unsupported extension, a mesh without faces, a non-watertight mesh when
+    an unsupported extension, a mesh without faces, vertices that are not finite or lie beyond
+    ±MAX_COORD (10 km) once placed (:func:`check_coordinates`), a non-watertight mesh when
     ``require_watertight`` (naming the parts and their open edges), a ``materials`` key that is
     no part of the file, a part without a mapping and no default ``material``, and an unknown
     material name (with a did-you-mean).
@@ -229,6 +233,14 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
                  for k in unknown]
         raise InputError(f"mesh {spec.name!r} ({path}): materials names part(s) {', '.join(hints)} that the file "
                          f"does not have; its parts: {', '.join(tags)}{_obj_hint(path, tags)}")
+    placement = _placement(spec)
+    placed = []
+    for tag, _, mesh in parts:
+        m = mesh.copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            m.apply_transform(placement)
+        check_coordinates(spec, path, tag, mesh, m)
+        placed.append(m)
     if require_watertight:
         open_, nonmanifold = edge_defects([m for _, _, m in parts])
         if open_.sum() or nonmanifold.sum():
@@ -238,13 +250,23 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
                              f"{int(nonmanifold.sum())} non-manifold edge(s) (part {where}); the ray tracer needs "
                              "closed surfaces to tell inside from outside. Close the holes (e.g. "
                              "trimesh.repair.fill_holes) or load with require_watertight=False")
-    placement = _placement(spec)
-    out = []
-    for tag, _, mesh in parts:
-        placed = mesh.copy()
-        placed.apply_transform(placement)
-        out.append((placed, _material(spec, tag, path, tags), tag))
-    return out
+    return [(m, _material(spec, tag, path, tags), tag) for (tag, _, _), m in zip(parts, placed)]
+
+
+def check_coordinates(spec: MeshSpec, path: Path, tag: str, raw: trimesh.Trimesh, placed: trimesh.Trimesh) -> None:
+    """InputError unless every vertex of part ``tag``, ``placed`` in the scene frame (scale, yaw,
+    translation of ``spec``), is finite and within ±MAX_COORD [m] on each axis — the scene bound that
+    walls, objects and the mesh's translation already obey (:mod:`xnlos_core.scene`; beyond it the
+    ray tracer's squares overflow). ``raw``: the part in file coordinates, quoted in the message."""
+    v = np.asarray(placed.vertices, dtype=np.float64)
+    bad = ~np.all(np.isfinite(v) & (np.abs(v) <= MAX_COORD), axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"mesh {spec.name!r} ({path}): part {tag!r} has {int(bad.sum())} of {len(v)} vertices beyond "
+                         f"±{MAX_COORD:g} m in the scene frame, e.g. vertex {i} at {np.asarray(raw.vertices)[i].tolist()} "
+                         f"in the file, {v[i].tolist()} m placed (scale {spec.scale:g}, translation "
+                         f"{list(spec.translation)}); scene coordinates must be finite and within ±{MAX_COORD:g} m "
+                         "(xnlos_core.scene.MAX_COORD)")
 
 
 def check_scene_geometry(scene: Scene, radar_position=(0.0, 0.0, RADAR_HEIGHT)) -> None:

@@ -26,8 +26,9 @@ from .torch_backend import device_field, lct_torch, torch_device
 
 class LCTParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    snr: float = Field(0.8, gt=0, description="Wiener filter signal-to-noise ratio (O'Toole's default 0.8); "
-                                              "larger sharpens and amplifies noise")
+    snr: float = Field(0.8, ge=1e-12, le=1e12, description="Wiener filter signal-to-noise ratio (O'Toole's default "
+                       "0.8); larger sharpens and amplifies noise. Within 1e-12 … 1e12: 1/snr is added to the "
+                       "kernel's |K̂|² ≤ 1 in float32, where 1/snr beyond 3.4e38 is inf (an all-zero albedo)")
     diffuse: bool = Field(True, description="compensate a 1/r⁴ (diffuse) fall-off; False: 1/r² (retroreflective)")
     dtype: str = Field("float32", pattern="^(float32|float64)$",
                        description="working precision of the FFTs: float32 (complex64) or float64")
@@ -96,7 +97,7 @@ def lct_kernel_fft(m: int, n: int, dx: float, dy: float, bin_length: float, snr:
     off = np.arange(n + 1, dtype=np.float64)  # quadrant offsets 0 … n (n ↔ −n on the circle)
     depth = m * bin_length / 2  # [m] the last bin's depth
     dv = m * ((off[:, None] * dy) ** 2 + (off[None, :] * dx) ** 2) / depth ** 2
-    r = np.rint(dv).astype(np.int64)
+    r = np.rint(np.minimum(dv, 2 * m)).astype(np.int64)  # beyond 2m: outside the kernel (and int64-safe)
     keep = r < 2 * m
     flat = np.flatnonzero(keep.ravel())
     # points of the full circular grid each quadrant cell stands for (1, 2 or 4): the unit norm

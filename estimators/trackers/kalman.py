@@ -163,7 +163,7 @@ class KalmanParams(BaseModel):
 
 
 @dataclass
-class _Track:
+class KalmanTrack:
     id: int
     x: np.ndarray            # (4,) state [m, m, m/s, m/s]
     P: np.ndarray            # (4, 4) covariance
@@ -182,6 +182,22 @@ def cv_transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
     return F, Q
 
 
+def solve_psd(S: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """S⁻¹B for symmetric positive semi-definite S (…, n, n) and B (…, n, k).
+
+    A finite S can be exactly singular: an exact point (zero covariance) with a ``sigma_floor`` whose
+    square underflows, or a rank-one point covariance on a zero-variance track axis. Then every S of
+    the batch gets a ridge of 10⁻¹² times its mean variance (at least the smallest normal float),
+    S + εI: a residual along a zero-variance direction counts as (nearly) infinitely unlikely instead
+    of stopping the tracker with numpy's LinAlgError. Non-singular batches are solved exactly as before."""
+    try:
+        return np.linalg.solve(S, B)
+    except np.linalg.LinAlgError:
+        n = S.shape[-1]
+        eps = np.maximum(1e-12 * np.trace(S, axis1=-2, axis2=-1) / n, np.finfo(np.float64).tiny)
+        return np.linalg.solve(S + eps[..., None, None] * np.eye(n), B)
+
+
 def cluster_measurements(points: HiddenPoints, distance: float, floor: float) -> tuple[np.ndarray, np.ndarray]:
     """Cluster centroids z (C, 2) [m] and their covariances R (C, 2, 2) [m²] (see module docstring)."""
     m = cluster(points, distance, floor, use_doppler=False)
@@ -195,7 +211,7 @@ class KalmanTracker(Tracker):
 
     def reset(self) -> None:
         """Forget all tracks; ids restart at 0."""
-        self._tracks: list[_Track] = []
+        self._tracks: list[KalmanTrack] = []
         self._next_id = 0
         self._t_last: float | None = None
         self._dt_frame = 0.0
@@ -270,46 +286,46 @@ class KalmanTracker(Tracker):
             raise
         self._tracks = tracks
 
-    def _track_state(self, tr: _Track) -> dict:
+    def _track_state(self, tr: KalmanTrack) -> dict:
         return {"id": tr.id, "x": tr.x.tolist(), "P": tr.P.tolist(), "t": float(tr.t), "frames": tr.frames,
                 "hits": tr.hits, "misses": tr.misses, "confirmed": bool(tr.confirmed)}
 
-    def _track_from(self, r: StateReader) -> _Track:
-        return _Track(r.integer("id", 0), r.array("x", (4,)), r.array("P", (4, 4)), r.number("t"),
+    def _track_from(self, r: StateReader) -> KalmanTrack:
+        return KalmanTrack(r.integer("id", 0), r.array("x", (4,)), r.array("P", (4, 4)), r.number("t"),
                       r.integer("frames", 0), r.integer("hits", 0), r.integer("misses", 0), r.flag("confirmed"))
 
     # hooks for subclasses (the sindy tracker): time checks, track records, per-track motion model
     def _frame_time(self, points, timestamp) -> float:
         return frame_time(type(self).__name__, points, timestamp, self._t_last)
 
-    def _new_track(self, track_id: int, x: np.ndarray, P: np.ndarray, t: float) -> _Track:
-        return _Track(track_id, x, P, t)
+    def _new_track(self, track_id: int, x: np.ndarray, P: np.ndarray, t: float) -> KalmanTrack:
+        return KalmanTrack(track_id, x, P, t)
 
-    def _motion(self, tr: _Track) -> fc.LinearMotion:
+    def _motion(self, tr: KalmanTrack) -> fc.LinearMotion:
         """The motion model that track ``tr`` predicts and forecasts with (CV here)."""
         return CV
 
-    def _forecast_psd(self, tr: _Track) -> float:
+    def _forecast_psd(self, tr: KalmanTrack) -> float:
         """Process-noise PSD q [m²/s³] of track ``tr``'s forecast and arrival draws (``accel_psd`` here)."""
         return self.params.accel_psd
 
-    def _interval_scale(self, tr: _Track) -> tuple[float, float]:
+    def _interval_scale(self, tr: KalmanTrack) -> tuple[float, float]:
         """Factors on track ``tr``'s 50 % and 90 % disc radii (``interval_scale`` here)."""
         return self.params.interval_scale
 
-    def _spread(self, tr: _Track) -> float:
+    def _spread(self, tr: KalmanTrack) -> float:
         """Scale of the members' spread in the forecast, Eq. (1) of :mod:`estimators.trackers.forecast`."""
         return 1.0
 
     def _after_update(self, t: float) -> None:
         """Called once per frame after association, updates, births and deaths."""
 
-    def _alive(self, tr: _Track) -> bool:
+    def _alive(self, tr: KalmanTrack) -> bool:
         if tr.confirmed:
             return tr.misses < self.params.max_misses + self.params.lost_frames
         return tr.hits + self.params.confirm_window - tr.frames >= self.params.confirm_hits  # M still reachable
 
-    def _lost(self, tr: _Track) -> bool:
+    def _lost(self, tr: KalmanTrack) -> bool:
         """Whether ``tr`` is lost: confirmed, with ``max_misses`` misses or more (module docstring, 5)."""
         return tr.confirmed and tr.misses >= self.params.max_misses
 
@@ -322,11 +338,11 @@ class KalmanTracker(Tracker):
         P = np.array([self._tracks[i].P for i in which])
         r = z[None, :, :] - x[:, None, :2]                       # (T, C, 2)
         S = P[:, None, :2, :2] + R[None, :, :, :]                # (T, C, 2, 2)
-        d2 = np.einsum("tci,tci->tc", r, np.linalg.solve(S, r[..., None])[..., 0])
+        d2 = np.einsum("tci,tci->tc", r, solve_psd(S, r[..., None])[..., 0])
         rows, cols = gated_assignment(d2, chi2_2_ppf(self.params.gate_probability))  # ties: the lower index
         return which[rows], cols
 
-    def _correct(self, tr: _Track, meas: Measurements, k: int) -> None:
+    def _correct(self, tr: KalmanTrack, meas: Measurements, k: int) -> None:
         gate = self.params.doppler_gate
         if self._lost(tr):  # revived: tentative again, confirmed anew by M of N (module docstring, 5)
             tr.confirmed, tr.hits, tr.frames = False, 0, 1
@@ -334,7 +350,7 @@ class KalmanTracker(Tracker):
         tr.hits, tr.misses = tr.hits + 1, 0
 
     @staticmethod
-    def _filter(tr: _Track, meas: Measurements, k: int, position: bool, gate: float | None = None) -> None:
+    def _filter(tr: KalmanTrack, meas: Measurements, k: int, position: bool, gate: float | None = None) -> None:
         """Joseph-form Kalman update of ``tr`` with measurement ``k``: its position row(s) when
         ``position``, its Doppler row y = ĝᵀv when it has one (H = [[I, 0], [0, ĝᵀ]]); a Doppler row whose
         squared normalised innovation exceeds ``gate`` (a χ²₁ quantile, None: no gate) is left out."""
@@ -354,7 +370,7 @@ class KalmanTracker(Tracker):
         if position:
             Rx[:2, :2] = meas.R[k]
         S = Hx @ tr.P @ Hx.T + Rx
-        K = np.linalg.solve(S, Hx @ tr.P).T
+        K = solve_psd(S, Hx @ tr.P).T
         IKH = np.eye(4) - K @ Hx
         tr.x = tr.x + K @ (zx - Hx @ tr.x)
         tr.P = IKH @ tr.P @ IKH.T + K @ Rx @ K.T
@@ -379,7 +395,7 @@ class KalmanTracker(Tracker):
         extra = self._arrivals(trs, t) if self._region else {}
         return Tracks(np.array([tr.id for tr in trs]), pos, vel, pred, t, h, mean, r50, r90, labels, **extra)
 
-    def _arrivals(self, trs: list[_Track], t: float) -> dict:
+    def _arrivals(self, trs: list[KalmanTrack], t: float) -> dict:
         """Time-to-appearance of each track in the region (module docstring; seeded by seed and frame)."""
         p = self.params
         n = int(round(ARRIVAL_HORIZON / p.arrival_step)) + 1

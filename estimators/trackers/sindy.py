@@ -65,7 +65,7 @@ from pydantic import Field
 from xnlos_core.errors import InputError, InsufficientDataError
 
 from . import forecast as fc
-from .kalman import CV, KalmanParams, KalmanTracker, Scale, _Track
+from .kalman import CV, KalmanParams, KalmanTracker, Scale, KalmanTrack
 from .measurements import Measurements
 from estimators.state import StateReader
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
@@ -128,7 +128,7 @@ class SindyParams(KalmanParams):
 
 
 @dataclass
-class _SindyTrack(_Track):
+class _SindyTrack(KalmanTrack):
     history: list = field(default_factory=list)   # [(t [s], z (2,) [m], R (2, 2) [m²], ĝ (2,), y [m/s] or NaN)]
     motion: fc.LinearMotion = field(default_factory=lambda: CV)
     fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
