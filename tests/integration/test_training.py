@@ -195,7 +195,7 @@ def test_the_shipped_residual_mirror_config_exports_into_the_package_only_when_n
     dest, why = export_target(export, named=False, base_dir=folder)
     assert dest is None and "inside the installed xnlos package" in why and f"--export {folder / export}" in why
     assert export_target(export, named=True, base_dir=folder) == (folder / export, None)
-    assert (folder / export).resolve() == ROOT / "plugins" / "residual_mirror" / "models" / "residual_mirror.pt"
+    assert (folder / export).resolve() == ROOT / "plugins" / "mirror" / "residual" / "models" / "residual_mirror.pt"
 
 
 def test_training_config_errors_name_the_key(tmp_path):

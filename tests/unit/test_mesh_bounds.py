@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sims.meshes import check_scene_geometry, load_user_mesh
-from xnlos_core.cli import check_file
+from xnlos_core.app.cli import check_file
 from xnlos_core.errors import InputError
 from xnlos_core.scene import MAX_COORD, MeshSpec, Scene
 

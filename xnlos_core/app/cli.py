@@ -14,7 +14,7 @@ from pathlib import Path
 from xnlos_core import __version__
 from xnlos_core.errors import PluginError, XnlosError, XnlosWarning
 
-DEMO_CONFIG = Path(__file__).with_name("defaults") / "demo.toml"
+DEMO_CONFIG = Path(__file__).resolve().parents[1] / "defaults" / "demo.toml"  # xnlos_core/defaults
 OWN_MODULES = r"(xnlos_core|sims|plugins|estimators|hardware)(\.|$)"  # warnings that -q keeps
 QUIET_HELP = ("quiet: no progress bars, no report and no other library's warnings on stdout/stderr; only errors "
               "and xnlos's own warnings (e.g. a pipeline that can never reconstruct); the files are written as usual")

@@ -1,0 +1,39 @@
+"""The project's text speaks of the software only: no tracked .py, .md or .toml file numbers the
+project's own work items or working periods ("issue 28", "session 12", "issue #26" and the like),
+which mean nothing to a reader. CHANGELOG.md records user-visible changes by date instead."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+NUMBERED = re.compile(r"\b(?:issues?|sessions?|stops?)\b\s*(?:#\s*)?\d+|out/eval/s\d+-", re.IGNORECASE)
+
+
+def tracked_text_files() -> list[Path]:
+    out = subprocess.run(["git", "ls-files", "*.py", "*.md", "*.toml"], cwd=ROOT, capture_output=True, text=True)
+    if out.returncode != 0:  # not a git checkout (an sdist): every such file under the root
+        return [p for ext in ("py", "md", "toml") for p in ROOT.rglob(f"*.{ext}") if ".venv" not in p.parts]
+    return [ROOT / f for f in out.stdout.split()]
+
+
+def numbered_references(text: str) -> list[str]:
+    return [m.group(0) for m in NUMBERED.finditer(text)]
+
+
+def test_no_file_numbers_the_projects_own_work():
+    hits = []
+    for path in tracked_text_files():
+        if path.exists():
+            for lineno, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+                hits += [f"{path.relative_to(ROOT)}:{lineno}: {ref!r}" for ref in numbered_references(line)]
+    assert not hits, f"{len(hits)} numbered reference(s) to the project's work items:\n" + "\n".join(hits[:40])
+
+
+def test_the_check_sees_the_usual_forms():
+    for text in ("see issue 28", "(Issue #26, item 3)", "after session 12's change", "sessions 8 and 9",
+                 "out/eval/s18-test"):
+        assert numbered_references(text), text
+    for text in ("Sec. 5.1.2", "Eq. 7", "GitHub issue tracker", "a session of the CAN bus"):
+        assert not numbered_references(text), text
