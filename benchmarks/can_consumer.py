@@ -1,5 +1,5 @@
 """A consumer slower than the radar, and bursts: frames delivered, overrun and lost per overflow policy
-of the ``can`` backend (issue #26), over the python-can virtual bus against the device emulator.
+of the ``can`` backend, over the python-can virtual bus against the device emulator.
 
     .venv/bin/python benchmarks/can_consumer.py [--frames 10] [--burst 1000] [--out benchmarks/can_consumer.md]
 
@@ -72,7 +72,7 @@ def main(argv=None) -> int:
              "81 × 31 complex64 RA maps (20 kB); burst: one START of all frames, as fast as the link goes, "
              "9 × 7 maps (1.2 kB). Every frame sent ends as delivered, overrun (dropped by the queue's policy "
              "because the consumer was behind) or lost (never arrived intact); `ok`: sent = delivered + overrun "
-             "+ lost, no frame counted twice. Before the receive thread (issue #26) a consumer taking 0.25 s per "
+             "+ lost, no frame counted twice. Before the receive thread a consumer taking 0.25 s per "
              "frame lost 11 of 51 frames as 'still incomplete 2 s after it was sent'.", "",
              "| case | consumer | overflow | queue | requested | sent | delivered | overrun | lost | ok | wall s |",
              "|---|---|---|---:|---:|---:|---:|---:|---:|---|---:|"]

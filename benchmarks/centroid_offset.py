@@ -1,5 +1,5 @@
 """Where on a hidden car its reconstructed points sit, frame by frame: the extended-target offset a
-tracker follows instead of the car's centre (issue 28; not a test).
+tracker follows instead of the car's centre (not a test).
 
 Runs one case of ``configs/ablations/tracking.toml`` (default: "oracle → sindy + Doppler") on the
 ``hidden_car_approach`` sequences of a split (through ``benchmarks/forecast_bound.py``'s runner) and,

@@ -1,4 +1,4 @@
-"""Dechirp and Doppler-chain speed (issue 31 item 3, issue 28 Performance): old vs new, same inputs (not a test).
+"""Dechirp and Doppler-chain speed: old vs new, same inputs (not a test).
 
     python benchmarks/dechirp_speed.py [--repeats 15] [--paths 2000] [--out benchmarks/dechirp_speed.md]
 
@@ -45,7 +45,7 @@ from xnlos_core.validation import as_array  # noqa: E402
 
 
 def old_dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=None) -> np.ndarray:
-    """signal_chain.dechirp before issue 31: np.exp per sample and path."""
+    """signal_chain.dechirp before the fast path: np.exp per sample and path."""
     L = np.atleast_1d(np.asarray(path_length, dtype=np.float64))
     th = np.atleast_1d(np.asarray(azimuth, dtype=np.float64))
     a = np.atleast_1d(np.asarray(amplitude, dtype=np.complex128))
@@ -66,7 +66,7 @@ def old_dechirp(radar: RadarConfig, path_length, azimuth, amplitude, elevation=N
 
 
 def old_chirp_sequence_cube(radar: RadarConfig, r, th, a, v) -> np.ndarray:
-    """doppler.chirp_sequence_cube before issue 31: a full-channel old_dechirp per TX slot."""
+    """doppler.chirp_sequence_cube before the fast path: a full-channel old_dechirp per TX slot."""
     n_rx = radar.n_channels // radar.n_tdm
     cube = np.zeros((radar.n_samples, radar.n_chirps, radar.n_channels), dtype=np.complex128)
     for m, starts in enumerate(chirp_start_times(radar)):
@@ -77,7 +77,7 @@ def old_chirp_sequence_cube(radar: RadarConfig, r, th, a, v) -> np.ndarray:
 
 
 def old_range_profiles(cube, radar: RadarConfig) -> np.ndarray:
-    """doppler._range_profiles before issue 31 (no coupling compensation, no static removal): np.fft,
+    """doppler._range_profiles before the fast path (no coupling compensation, no static removal): np.fft,
     window evaluated per call."""
     arr = as_array("chirp-sequence cube", cube, dtype=np.complex128)
     n, d, k = arr.shape
@@ -87,7 +87,7 @@ def old_range_profiles(cube, radar: RadarConfig) -> np.ndarray:
 
 
 def old_doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann") -> DopplerRAMaps:
-    """doppler.doppler_ra_maps before issue 28's speed target (radars without coupling compensation)."""
+    """doppler.doppler_ra_maps before the Doppler chain's speed target (radars without coupling compensation)."""
     prof = old_range_profiles(cube, radar)
     r, d, k = prof.shape
     comp = tdm_compensation(radar)
@@ -199,7 +199,7 @@ def main(argv=None) -> list[str]:
         rows.append((f"doppler_ra_maps {cube.shape} → {old.power.shape}, {threads} thread(s)", *t4, rel))
 
     load = os.getloadavg()
-    lines = ["# Dechirp and Doppler-chain speed (issue 31 item 3, issue 28)", "",
+    lines = ["# Dechirp and Doppler-chain speed", "",
              "`python benchmarks/dechirp_speed.py" + (f" --repeats {args.repeats}" if args.repeats != 15 else "")
              + (f" --paths {p}" if p != 2000 else "") + "`", "",
              f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, load average "

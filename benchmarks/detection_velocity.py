@@ -1,4 +1,4 @@
-"""Which cell a detection's radial velocity should be read at (issue 28): the nearest cell to the detector's
+"""Which cell a detection's radial velocity should be read at: the nearest cell to the detector's
 peak, or the strongest cell (|κ|²) within ±1 or ±2 cells of it, or the cell of smallest stated σ within ±1
 (:mod:`plugins.detectors.detection_doppler`).
 

@@ -1,4 +1,4 @@
-"""Prices of the learned detector's inference options (issue 31, item 1; not a test).
+"""Prices of the learned detector's inference options (not a test).
 
     PYTHONPATH=. .venv/bin/python benchmarks/detector_speed.py [--dataset out/data/default] [--split test]
         [--max-maps 48] [--threads 2] [--repeats 15] [--detector swin_unet]
@@ -6,7 +6,7 @@
 
 Variants of one detector and checkpoint, all on the same maps:
 
-- ``plain``: the inference before issue 31 (contiguous NCHW float32, ``run_network``);
+- ``plain``: the inference before the fast path (contiguous NCHW float32, ``run_network``);
 - ``fp32``: the shipped default (``inference_mode``, channels-last);
 - ``bf16``: ``precision = "bf16"``; ``compile``: ``compile = true``; ``compile_bf16``: both.
 

@@ -1,4 +1,4 @@
-"""Doppler figures of issue 28 (not a test): processing time per frame, and un-mirrored velocity error.
+"""Doppler figures of motion support (not a test): processing time per frame, and un-mirrored velocity error.
 
     .venv/bin/python benchmarks/doppler.py [--repeats 20] [--cars 12] [--out benchmarks/doppler.md]
 
@@ -119,7 +119,7 @@ def main() -> None:
     ap.add_argument("--cars", type=int, default=12)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "doppler.md"))
     args = ap.parse_args()
-    lines = ["# Doppler benchmarks (issue 28)", "", "`.venv/bin/python benchmarks/doppler.py`", ""]
+    lines = ["# Doppler benchmarks", "", "`.venv/bin/python benchmarks/doppler.py`", ""]
     lines += timing(args.repeats)
     lines += velocity_errors(args.cars)[0]
     text = "\n".join(lines) + "\n"

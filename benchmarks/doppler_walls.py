@@ -1,4 +1,4 @@
-"""How much of a hidden car's velocity one frame's Doppler holds (issue 28): the velocity solved from the
+"""How much of a hidden car's velocity one frame's Doppler holds: the velocity solved from the
 radial velocities of its own points, per cluster, against the car's true velocity, by the spread of the
 points' mirrored lines of sight.
 

@@ -1,5 +1,5 @@
 """How far a better motion model could take the 2 s forecast of hidden cars: the tracker's forecast
-and constant velocity (CV) against the *true* manoeuvre applied to the same track states (issue 28).
+and constant velocity (CV) against the *true* manoeuvre applied to the same track states.
 
 Runs one case of ``configs/ablations/tracking.toml`` (default: "oracle → sindy + Doppler") on the
 ``hidden_car_approach`` sequences of a dataset split, and matches each confirmed track to the nearest

@@ -1,4 +1,4 @@
-"""Calibrate the trackers' forecast intervals (issue 28): the process noise of the constant-velocity
+"""Calibrate the trackers' forecast intervals: the process noise of the constant-velocity
 filter (``accel_psd``, kalman and sindy), and for sindy's identified models the forecast process noise
 (``model_accel_psd``), the members' spread scale (``member_spread``) and the ensemble size (``n_models``).
 

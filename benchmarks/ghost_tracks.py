@@ -1,5 +1,5 @@
 """Where a tracker's hidden-car tracks lie: confirmed track frames by distance to the nearest car and
-by track speed (issue 28; not a test).
+by track speed (not a test).
 
 Runs one case of ``configs/ablations/tracking.toml`` on the ``hidden_car_approach`` sequences of a
 dataset split (``Pipeline.reset()`` at each sequence) and counts every reported track in every frame by

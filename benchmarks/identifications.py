@@ -1,6 +1,6 @@
 """What the sindy tracker's identifications of hidden cars see: their evidence by motion, counted with
 the radial residuals' AR(1) share and in full, and the radial errors of the straight cars that pass
-(issue 28; not a test).
+(not a test).
 
 Runs one case of ``configs/ablations/tracking.toml`` (a ``sindy`` tracker with Doppler) on the
 ``hidden_car_approach`` sequences of a dataset split (``Pipeline.reset()`` at each sequence). Every time

@@ -1,4 +1,4 @@
-"""LCT cold time, old vs new (issue 30 performance: ≤ 2 s cold on 64 × 64 × 2048, 2 cores).
+"""LCT cold time, old vs new (≤ 2 s cold on 64 × 64 × 2048, 2 cores).
 
 Alternates fresh processes running the LCT solver of ``--old`` (a git revision; its
 estimators/nlos/lct.py is loaded from ``git show``) and of the working tree on the volume of

@@ -1,4 +1,4 @@
-"""Time and peak memory of the NLOS solvers (issue 30 item 2): LCT and f-k on confocal volumes of
+"""Time and peak memory of the NLOS solvers: LCT and f-k on confocal volumes of
 64 × 64 × 2048 and 32 × 32 × 512 bins (a hidden point plus Poisson background).
 
 Each (solver, size) runs in a fresh process: the first call ("cold": FFT plans, LCT's resampling

@@ -7,7 +7,7 @@ Prints mean / median / p95 milliseconds per stage over the frames (after one war
 plus the hidden-object error, so speed and accuracy are read side by side. The pipeline runs as
 ``xnlos run`` runs it: with the config's thread policy (``[run] blas_threads``, default 1:
 :mod:`xnlos_core.threads`); ``--blas-threads`` overrides it (0: BLAS left as it is, the behaviour
-before issue 31). The header names the BLAS and OpenMP thread counts in force outside the stages.
+before the fast path). The header names the BLAS and OpenMP thread counts in force outside the stages.
 ``--detector-param`` overrides a detector parameter (value read as JSON, else a string), e.g.
 ``--detector-param precision=bf16`` or ``--detector-param compile=true``. The detector is warmed up
 before the first frame (:meth:`xnlos_core.pipeline.Pipeline.warm_up`); its seconds are printed.

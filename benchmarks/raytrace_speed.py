@@ -7,7 +7,7 @@ how cost grows with scene size and bounce depth.
 2. Rays/s of the tracer's own casting (rays cast during a trace / trace time) against raw embreex
    first-hit casting of a big random batch on the same mesh, and the speed-up of embree over
    the pure-numpy trimesh backend on the same trace.
-3. Batching (issue 31 item 5): on the dataset families' meshes, the image-path stage as it was
+3. Batching: on the dataset families' meshes, the image-path stage as it was
    (one ``image_paths`` per object and chain: one cast per leg, ~16 rays a call) against the
    batched ``image_paths_chains`` (one cast per leg and chain length), back to back in this
    process, median of ``--repeats``: rays per call, casting Mrays/s (rays / time inside

@@ -1,4 +1,4 @@
-"""Wall time of re-running a finished ``xnlos run`` (issue 31 item 4: ≤ 1 s) and of ``xnlos --help``,
+"""Wall time of re-running a finished ``xnlos run`` (≤ 1 s) and of ``xnlos --help``,
 old code against new, alternated back to back, and ``python -X importtime`` totals of ``--help``.
 
 Usage (from the checkout's root): python benchmarks/rerun_finished.py OLD_ROOT [REPEATS]

@@ -1,5 +1,5 @@
 """Tracker update time per frame with 10 tracks (nearest, kalman, sindy) and identify_motion time per
-track; writes benchmarks/tracking_speed.md. Issue 28 targets: ≤ 5 ms per frame, ≤ 50 ms per
+track; writes benchmarks/tracking_speed.md. Targets: ≤ 5 ms per frame, ≤ 50 ms per
 identification (2 CPU cores).
 
 Ten cars (straight and turning, 10 m/s, 0.3 m noise, 10 Hz) are tracked for 60 frames; the time of

@@ -1,5 +1,5 @@
 """How steady the relay walls are frame by frame, fitted to one frame's LOS detections or to those of
-the last K (``lsq``'s ``history_frames``; issue 28; not a test).
+the last K (``lsq``'s ``history_frames``; not a test).
 
 Runs the detector and ``lsq`` of one case of ``configs/ablations/tracking.toml`` over the
 ``hidden_car_approach`` sequences of a dataset split (the estimator reset at each sequence), for each

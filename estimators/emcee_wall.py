@@ -24,7 +24,7 @@ the noise scale log s is sampled and marginalised):
   √(0.9·0.1/400) ≈ 1.5 points). This replaces the earlier "chain ≥ 50·τ" rule, which the short
   chains of many walkers below fail although their ESS is in the thousands.
 
-Defaults (issue 31 item 2): 128 walkers × 200 steps, 60 burn-in — many walkers and few steps,
+Defaults: 128 walkers × 200 steps, 60 burn-in — many walkers and few steps,
 because emcee's per-step overhead (not the vectorised log-probability) dominated 16 × 2000: on
 the 200 frontier frames τ ≈ 7–12 steps, ESS ≥ 1342 (median 2586) per wall at 144 ms, against
 16 × 2000's ESS ≥ 296 (median 2128) at 601 ms, with the same coverage (90 % total 0.859 vs

@@ -16,7 +16,7 @@ log-probability emcee samples (:meth:`estimators.likelihood.WallLikelihood.log_p
 4. if k̂ > ``max_pareto_k`` (0.7) or ESS < ``min_ess``: fallback — emcee (``fallback_n_walkers``
    × ``fallback_n_steps`` = 128 × 200, 60 burn-in: ESS 2031–2659 per wall at ≈ 100 ms on the
    calibration frames against 16 × 2000's 1045–2095 at ≈ 740 ms (2 shared cores); τ ≈ 8–11
-   steps; it warns below ``fallback_min_ess``; emcee's own defaults since issue 31;
+   steps; it warns below ``fallback_min_ess``; emcee's own defaults since the fast path;
    :class:`estimators.emcee_wall.EmceeWallEstimator`; a chain whose ESS is below ``target_ess``
    is continued from where its walkers are, 140 steps at a time, up to ``fallback_max_steps``,
    so the fallback's walls reach the same ESS as the importance-sampled ones)

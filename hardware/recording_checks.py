@@ -1,4 +1,4 @@
-"""Warnings for the mistakes made with raw recordings (issue 29, item 1), each a :class:`RecordingWarning`.
+"""Warnings for the mistakes made with raw recordings, each a :class:`RecordingWarning`.
 
 * :func:`check_unsigned` — int16 samples stored unsigned / offset-binary (all ≥ 0): the map peaks at DC.
 * :func:`check_bandwidth` — the sweep's bandwidth is S·N/f_s (the sampling window), not S·T_ramp.

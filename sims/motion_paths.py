@@ -1,4 +1,4 @@
-"""Motion of propagation paths (issue 28): object velocity, its mirror image, and a path's range rate.
+"""Motion of propagation paths: object velocity, its mirror image, and a path's range rate.
 
 The one place the forward models read how fast a scene object moves (:func:`object_velocity`),
 so a time-varying trajectory changes only this function. A mirrored path's echo belongs to the

@@ -1,4 +1,4 @@
-"""Per-frame motion truth of a scene's objects (issue 28): where each object is and how fast it
+"""Per-frame motion truth of a scene's objects: where each object is and how fast it
 moves at time t, and the same for its mirror images across the relay walls.
 
 A relay wall nᵀx + b = 0 maps a hidden point o to its virtual image o' = o − 2(nᵀo + b)n (Eq. 7, an

@@ -1,4 +1,4 @@
-"""The stage checkpoint of ``xnlos run`` (``stage_state.json``): resume without replay (issue 31).
+"""The stage checkpoint of ``xnlos run`` (``stage_state.json``): resume without replay.
 
 A tracker carries state from frame to frame, and so does a wall estimator that pools earlier frames'
 LOS detections (:meth:`xnlos_core.pipeline.Pipeline.stateful`), so a resumed run would have to replay

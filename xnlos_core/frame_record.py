@@ -1,4 +1,4 @@
-"""Detections, walls and hidden points ↔ their objects in a results.jsonl record (schema 2, issue 29).
+"""Detections, walls and hidden points ↔ their objects in a results.jsonl record (schema 2).
 
 Written by :meth:`xnlos_core.pipeline.FrameResult.record`, read back by :mod:`xnlos_core.app.results`;
 the layout of a whole line is :data:`xnlos_core.app.results_schema.RESULTS_SCHEMA`.

@@ -291,7 +291,7 @@ class SceneGenerator(Plugin, abc.ABC):
 
 class NLOSSolver(Plugin, abc.ABC):
     """TransientVolume → NLOSVolume: a reconstruction solver of the optical (SPAD) modality for the
-    cross-modality comparison (Sec. 5.1.2, Fig. 5; issue 30) — f-k migration, LCT, or a third
+    cross-modality comparison (Sec. 5.1.2, Fig. 5) — f-k migration, LCT, or a third
     party's (phasor fields). Not a pipeline stage: the comparison calls it on transient volumes.
     """
 
@@ -307,7 +307,7 @@ class NLOSSolver(Plugin, abc.ABC):
 
 class TransientModel(Plugin, abc.ABC):
     """Scene → TransientVolume: a forward model of the optical (SPAD) modality for the
-    cross-modality comparison (Sec. 5.1.2; issue 30) — a confocal scan of a patch of the scene's
+    cross-modality comparison (Sec. 5.1.2) — a confocal scan of a patch of the scene's
     relay wall. Not a pipeline stage: the study (:mod:`xnlos_core.app.crossmodal.study`) calls it, so that
     the core composes the SPAD simulator of ``sims`` through the registry.
     """

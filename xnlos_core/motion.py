@@ -1,4 +1,4 @@
-"""Object trajectories in the bird's-eye plane (issue 28): where a scene object is at time t.
+"""Object trajectories in the bird's-eye plane: where a scene object is at time t.
 
 Every model is a pydantic table (``trajectory = { model = "...", ... }`` on a scene object) and
 gives, for an array of times t (T,) [s], the :class:`MotionState` relative to the object's start

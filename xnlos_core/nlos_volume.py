@@ -1,4 +1,4 @@
-"""NLOSVolume: the result of an NLOS solver (issue 30, item 2) — a reconstructed hidden albedo on a
+"""NLOSVolume: the result of an NLOS solver — a reconstructed hidden albedo on a
 depth × wall-grid volume, the counterpart of :class:`xnlos_core.transient.TransientVolume`.
 
 Same confocal wall grid as the measurement (H × W scan points, centred, spacing wall_width/W and

@@ -43,14 +43,14 @@ class FrameResult:
     def record(self) -> dict[str, Any]:
         """JSON-ready summary of this frame (one line of results.jsonl); NaN becomes None.
 
-        With Doppler (issue 28) two keys are added, only then (records without it stay as they were):
+        With Doppler two keys are added, only then (records without it stay as they were):
         ``detection_doppler`` (per detection: range [m], azimuth [rad], label, radial velocity [m/s]
         and its variance [m²/s²]) and ``hidden_velocity`` (per hidden point, in the order of
         ``hidden_points``: velocity (2,) [m/s], velocity_cov (2, 2) [m²/s²] and source_index, the
         row of ``detection_doppler`` it was mirrored from). ``tracks`` gains the forecast and
         time-to-appearance fields when the tracker gives them (:mod:`xnlos_core.track_record`).
 
-        Schema 2 (issue 29) adds ``schema_version``, ``detection_table`` (every detection: range,
+        Schema 2 adds ``schema_version``, ``detection_table`` (every detection: range,
         azimuth, label, class, confidence, range_std, azimuth_std, velocity/velocity_var with Doppler),
         each wall's param_names, params, extent and anchor, and ``hidden`` (mean, cov, source_index,
         wall_index, velocity/velocity_cov with Doppler): :mod:`xnlos_core.frame_record`. The keys of

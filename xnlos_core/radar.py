@@ -56,7 +56,7 @@ class RadarConfig(BaseModel):
     )
     tx_elevation_offset: float = Field(
         0.0, ge=-100, le=100, description="height of the TX row above the RX row [wavelengths] (planar layout)")
-    # any antenna layout (issue 29). Unset (None) keeps the uniform rows above and is left out of
+    # any antenna layout. Unset (None) keeps the uniform rows above and is left out of
     # the serialised config, so existing configs keep their JSON and digest.
     tx_positions: ElementPositions | None = Field(
         None, min_length=1, max_length=64,
@@ -102,7 +102,7 @@ class RadarConfig(BaseModel):
     max_range: float = Field(100.0, gt=0, description="RA maps are cropped to [0, max_range] [m]")
     range_window: str = Field("hann", description="scipy.signal window for the range FFT")
     azimuth_window: str = Field("taylor", description="scipy.signal window for beamforming")
-    # TDM-MIMO slow-time timing (issue 28). None keeps the implied back-to-back timing, and unset
+    # TDM-MIMO slow-time timing. None keeps the implied back-to-back timing, and unset
     # fields are left out of the serialised config, so existing configs keep their JSON and digest.
     chirp_period: float | None = Field(
         None, gt=0, le=1, description="T_c [s]: start-to-start interval of consecutive chirps (any TX), "
@@ -300,7 +300,7 @@ class RadarConfig(BaseModel):
         v = (tx[:, None] + rx[None, :]).ravel()
         return v - v.mean()
 
-    # --- slow time (TDM-MIMO chirp sequence, issue 28) -------------------------------------
+    # --- slow time (TDM-MIMO chirp sequence) -------------------------------------
     @property
     def chirp_interval(self) -> float:
         """T_c [s]: start-to-start time of consecutive chirps, ``chirp_period`` or chirp_duration."""

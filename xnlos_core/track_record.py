@@ -1,4 +1,4 @@
-"""Tracks ↔ the ``tracks`` object of a results.jsonl record (issue 28).
+"""Tracks ↔ the ``tracks`` object of a results.jsonl record.
 
 Always: id (T,), position (T, 2) [m], velocity (T, 2) [m/s]. With a forecast (Tracks.horizons …
 model given) also horizons (K,) [s], forecast (T, K, 2) [m], radius50 / radius90 (T, K) [m] and

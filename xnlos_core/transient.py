@@ -1,4 +1,4 @@
-"""Transient (time-resolved) NLOS measurements of the optical modality (issue 30): the data type shared
+"""Transient (time-resolved) NLOS measurements of the optical modality: the data type shared
 by the SPAD forward model (sims), the file readers and writers, and the reconstruction solvers.
 
 Confocal geometry: the laser and the SPAD look at the same point of a planar relay wall. The scan

@@ -1,4 +1,4 @@
-"""Optional torch backend of the NLOS solvers (issue 30 item 2: "optionally torch on a GPU").
+"""Optional torch backend of the NLOS solvers ("optionally torch on a GPU").
 
 The solvers' ``device`` parameter: "numpy" (default: scipy.fft, this package's reference path),
 "cpu" or "cuda" (torch.fft on that torch device). The torch path runs the same algorithm step for

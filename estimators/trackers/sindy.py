@@ -27,7 +27,7 @@ Per frame, on top of :mod:`estimators.trackers.kalman`:
    identification's BETA_MAX, ≈ 1 g. Beyond the envelope a model
    is taken for an artefact of the track, not the road user's motion: a track still catching up with
    its car (its speed rising towards the car's) reads as a speed-up, a wrong relay's Doppler step as
-   a sharp turn (``benchmarks/tracking_ablation.md``, session 9). Otherwise, and until the first fit,
+   a sharp turn (``benchmarks/tracking_ablation.md``). Otherwise, and until the first fit,
    the track stays CV: it then behaves exactly as ``kalman``.
 4. Invariant form. SINDy's library is the rotation-invariant (v̂, Jv) (sindy_model): a tangential
    acceleration β [m/s²] (braking < 0) and a turn rate ω [rad/s], whatever the road's direction. The

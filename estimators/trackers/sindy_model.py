@@ -64,11 +64,11 @@ many independent samples the m radial residuals hold:
   deceleration left a smooth residual of a few 0.1 m/s, ρ ≈ 0.8, and "ar1" cut the radial evidence
   about tenfold). It suits rows whose direction is their relay wall's own. With one row per cluster,
   which mixes the directions of two relay walls, "full" took the oracle's straight cyclists on the large
-  val split from 1.04 to 1.20 of CV's 2 s error (session 8, with α = β/s; with the exponential library,
+  val split from 1.04 to 1.20 of CV's 2 s error (the constant-acceleration library revision, with α = β/s; with the exponential library,
   on the test split, straight cars 1.05 → 1.11). With one row per relay wall (the tracker's
   ``doppler_rows = "wall"``) it took braking hidden cars from 0.53 to 0.37 of CV's error behind nlos_cfar
   and from 0.81 to 0.73 behind the oracle on val (train: 0.91 → 0.91, 0.85 → 0.78), straight road users
-  within 0.02 of before (``benchmarks/tracking_ablation.md``, session 11); the tracking ablation uses
+  within 0.02 of before (``benchmarks/tracking_ablation.md``); the tracking ablation uses
   "full" with wall rows.
 
 A single row through a wrong relay among precise ones (64 chirps: σ_r ≈ 0.02–0.07 m/s), counted in full,
@@ -404,7 +404,7 @@ def _stlsq(threshold: float) -> ps.STLSQ:
     # coefficients by ~1e-6 (relative) and cost a third of each fit; the supports are what is used here
     # (the coefficients are refitted on the positions, _refit).
     import pysindy as ps  # here, not at module level: pysindy pulls in sklearn and pandas (~1.5 s), and
-    # registering the tracker (every `xnlos` start) must not pay for that (issue 31, cheap start-up)
+    # registering the tracker (every `xnlos` start) must not pay for that (cheap start-up)
 
     return ps.STLSQ(threshold=threshold, alpha=1e-6, normalize_columns=True, unbias=False)
 
@@ -505,7 +505,7 @@ def _screen_radial(coef: np.ndarray, t: np.ndarray, z: np.ndarray, rad: _Radial)
     at most RADIAL_OUTLIER_SHARE of them. A point mirrored through a wrong relay wall carries a direction ĝ and a
     radial velocity of another line of sight (off by 0.5–1.7 m/s): one such row among precise ones, its
     residual counted in full, bent a straight cyclist's refit into a braking turn with evidence ≈ 100 for
-    the 3 s it stayed in the window (benchmarks/tracking_ablation.md, session 12). With the row in the fit
+    the 3 s it stayed in the window (benchmarks/tracking_ablation.md). With the row in the fit
     its residual shrinks to a few of the others' SDs, so the row is picked by its leverage-corrected
     residual e/(1 − h) (h the hat-matrix diagonal of the linearised refit) and tested by its deleted one."""
     n2, dts = 2 * len(t), t - t[-1]

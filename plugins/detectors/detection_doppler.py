@@ -1,4 +1,4 @@
-"""Radial velocity of each detection from the RA map's Doppler maps (issue 28), shared by every detector.
+"""Radial velocity of each detection from the RA map's Doppler maps, shared by every detector.
 
 When a frame came from Doppler processing its RA map carries, per cell, the radial velocity
 v̂_r = dR/dt [m/s] (positive receding) and its σ [m/s] (:class:`xnlos_core.types.RAMap`). A

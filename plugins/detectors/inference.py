@@ -1,4 +1,4 @@
-"""Running a detector network for inference, fast (issue 31, item 1).
+"""Running a detector network for inference, fast.
 
 :class:`InferenceRunner` wraps an ``nn.Module`` (B, 4, H, W) → (B, C, H', W') once it is built:
 

@@ -19,7 +19,7 @@ block, pieces left and right of it), each a separable box, so the sums only ever
 non-negative numbers. A running-sum or cumulative-sum difference (``scipy.ndimage.uniform_filter``,
 summed-area tables) would cancel catastrophically next to strong peaks with 200 dB of dynamic
 range, and a direct correlation with the ring kernel (``scipy.ndimage.correlate``) costs
-O(H·W·kernel area) (issue #26: 63 s per frame at train_cells (128, 128), a MemoryError at (160, 160)).
+O(H·W·kernel area) (formerly 63 s per frame at train_cells (128, 128), a MemoryError at (160, 160)).
 :func:`box_sum` is the van Herk / Gil-Werman block trick (usually used for running maxima) applied
 to sums: cumulative sums within blocks of the window length, so each window sum is one suffix sum
 plus one prefix sum — O(H·W) whatever the window, with the rounding of a direct sum (relative error

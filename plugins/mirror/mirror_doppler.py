@@ -1,4 +1,4 @@
-"""Mirror Doppler (issue 28): a hidden object's velocity from its virtual (mNLOS) image's velocity.
+"""Mirror Doppler: a hidden object's velocity from its virtual (mNLOS) image's velocity.
 
 A hidden point o moves with velocity v; its virtual image o' = R_θ(o) (Eq. 7 across the wall θ)
 moves with v' = J v, J = ∂o'/∂o. Eq. 7 is an involution (R_θ ∘ R_θ = id), so un-mirroring uses

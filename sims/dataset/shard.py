@@ -231,7 +231,7 @@ def _arrays(frames: list[Frame], rows: dict[str, list], radar: RadarConfig) -> d
         "frame_meta_json": np.array(json.dumps([{k: v for k, v in fr.meta.items() if k not in TIMING_KEYS}
                                                 for fr in frames], sort_keys=True, default=json_default)),
     }
-    if frames and all(fr.ra_map.velocity is not None for fr in frames):  # Doppler maps (issue 28)
+    if frames and all(fr.ra_map.velocity is not None for fr in frames):  # Doppler maps
         out["ra_velocity"] = np.stack([fr.ra_map.velocity for fr in frames]).astype(np.float32)
         out["ra_velocity_std"] = np.stack([fr.ra_map.velocity_std for fr in frames]).astype(np.float32)
     return out

@@ -1,4 +1,4 @@
-"""Per-frame object truth of sequence datasets (issue 28): where each moving road user is.
+"""Per-frame object truth of sequence datasets: where each moving road user is.
 
 Written only when ``frames_per_scene > 1`` (still datasets keep their bytes). Shard members, T rows in
 all, rows ``truth_offsets[i]:[i+1]`` for map i:

@@ -1,4 +1,4 @@
-"""Hidden car approaching the junction (issue 28): a crossroads whose hidden car drives towards
+"""Hidden car approaching the junction: a crossroads whose hidden car drives towards
 the junction for a sequence of frames, straight, braking or turning, seen through the relay wall
 for most of them (``visible_share``, :mod:`~sims.generators.sequences`).
 

@@ -1,4 +1,4 @@
-"""Hidden cyclist (issue 28): a crossroads whose hidden bicycle rides towards the junction on the
+"""Hidden cyclist: a crossroads whose hidden bicycle rides towards the junction on the
 kinematic bicycle model (:class:`xnlos_core.motion.Bicycle`) for a sequence of frames, seen through
 the relay wall for most of them (``visible_share``, :mod:`~sims.generators.sequences`).
 

@@ -1,4 +1,4 @@
-"""Hidden pedestrian (issue 28): a crossroads whose hidden pedestrian walks at constant velocity
+"""Hidden pedestrian: a crossroads whose hidden pedestrian walks at constant velocity
 towards the road for a sequence of frames.
 
 Speed is drawn from ``speed`` (default 0.8–1.8 m/s, slow to brisk walking), the heading uniformly

@@ -1,4 +1,4 @@
-"""Shared parts of the sequence families (issue 28): a crossroads whose hidden road user moves.
+"""Shared parts of the sequence families: a crossroads whose hidden road user moves.
 
 The street layout is :mod:`~sims.generators.crossroads`'s; the draw loop
 (:func:`~sims.generators.common.generate`) places the hidden road user as for any family (out of

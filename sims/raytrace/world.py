@@ -65,7 +65,7 @@ def wall_box(w) -> trimesh.Trimesh:
     """Watertight box of a planar wall facet (module doc); the front face is on the BEV segment,
     the box extends ``thickness`` (or DEFAULT_DEPTH) away from the radar side."""
     import trimesh  # here, not at module level: trimesh (and networkx) cost ~0.2–0.6 s, and registering
-    # the ray-tracing forward model (every `xnlos` start) imports this module (issue 31)
+    # the ray-tracing forward model (every `xnlos` start) imports this module
 
     seg = w.segment()
     a, b = np.asarray(w.start, float), np.asarray(w.end, float)

@@ -1,1 +1,1 @@
-"""SPAD (optical, 850 nm) confocal NLOS forward model and transient file formats (issue 30, Sec. 5.1.2)."""
+"""SPAD (optical, 850 nm) confocal NLOS forward model and transient file formats (Sec. 5.1.2)."""

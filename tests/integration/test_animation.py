@@ -1,4 +1,4 @@
-"""``xnlos run`` writes sequence.gif (issue 28): one GIF frame per recorded frame, from the
+"""``xnlos run`` writes sequence.gif: one GIF frame per recorded frame, from the
 per-frame snapshots and results.jsonl, again after a resume, and for a finished run whose
 animation is turned on afterwards (the option is not part of the config hash)."""
 import json

@@ -1,4 +1,4 @@
-"""A consumer slower than the radar (issue #26): reception runs in its own thread, a frame is complete
+"""A consumer slower than the radar: reception runs in its own thread, a frame is complete
 when its last byte arrived, and the bounded queue drops by policy (overrun), never as loss.
 
 Assertions are on accounting identities — every frame the radar sent is delivered once, overrun

@@ -90,7 +90,7 @@ def test_fault_matrix(fault_case, fault_matrix, emulated_reference):
 def test_bus_error_reconnects_and_reports_the_frame():
     # One frame per START (chunk = 1): the radar sends frame 3 only when the reconnected host asks for
     # it. With a streaming radar, frame 3 went out while the host's bus was closed whenever the
-    # reconnection took longer than one frame period (a loaded machine): [0, 1, 4, 5, 6] (issue #27).
+    # reconnection took longer than one frame period (a loaded machine): [0, 1, 4, 5, 6].
     faults = [Fault("bus_error", 2, "cf", 3)]
     with emulated_link(RADAR, rx_faults=faults, seed=4, chunk=1) as (backend, _):
         frames = list(backend.frames(5))

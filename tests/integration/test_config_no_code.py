@@ -1,4 +1,4 @@
-"""Issue #26 "No code from a config": a config names registered components and installed entry
+""""No code from a config": a config names registered components and installed entry
 points only; it never imports a module or calls a function it spells (`xnlos check` included)."""
 from __future__ import annotations
 

@@ -61,7 +61,7 @@ def test_default_plan_splits_by_scene_seed_80_10_10():
 
 
 def test_max_maps_keeps_the_full_datasets_scenes_and_splits(dataset_table):
-    """--max-maps (issue 29): a reduced dataset takes the first scenes of each split of the full
+    """--max-maps: a reduced dataset takes the first scenes of each split of the full
     plan, as many per split as the fractions apportion, with their indices, seeds, families and
     splits, so no training or validation scene of the full dataset (that of the shipped models)
     lands in its test split; the canonical form of a full config (its digest) is unchanged."""

@@ -1,4 +1,4 @@
-"""Dataset manifest integrity and completed.jsonl (issue #26 items 3 and 4): every bit flip in
+"""Dataset manifest integrity and completed.jsonl: every bit flip in
 manifest.json is seen, `--verify` fails on any inconsistency with the shards on disk, a wrong
 `len()` is impossible, and a damaged log is refused naming the line."""
 from __future__ import annotations
@@ -48,7 +48,7 @@ def test_manifest_carries_a_checksum_of_its_own_content(reference_dataset):
 
 @pytest.mark.fuzz
 def test_every_single_bit_flip_of_the_manifest_is_detected(reference_dataset, tmp_path, fuzz_cases):
-    """Issue #26: 10 of 30 single-bit flips went unnoticed. Each flip: opening fails with a typed
+    """10 of 30 single-bit flips went unnoticed. Each flip: opening fails with a typed
     error naming manifest.json, and --verify reports it unhealthy."""
     data = (reference_dataset / "manifest.json").read_bytes()
     rng = np.random.default_rng(26)
@@ -79,7 +79,7 @@ def test_every_single_bit_flip_of_the_manifest_is_detected(reference_dataset, tm
 
 
 def test_empty_shard_list_fails_verify(copy, capsys):
-    """Issue #26: `"shards": []` verified as healthy with exit 0."""
+    """`"shards": []` verified as healthy with exit 0."""
     _edit(copy, lambda m: m.update(shards=[]))
     rep = verify_dataset(copy)
     assert not rep.healthy and any("no shards listed but n_maps = 12" in p for p in rep.problems)
@@ -90,7 +90,7 @@ def test_empty_shard_list_fails_verify(copy, capsys):
 
 
 def test_edited_shard_n_maps_cannot_give_a_wrong_len(copy, reference_dataset):
-    """Issue #26: a shard's n_maps edited 2 → 3 gave len(ds) one more than iteration yields."""
+    """a shard's n_maps edited 2 → 3 gave len(ds) one more than iteration yields."""
     text = (copy / "manifest.json").read_text()
     i = text.index('"n_maps": 2', text.index('"train-00000.npz"'))
     (copy / "manifest.json").write_text(text[:i] + '"n_maps": 3' + text[i + len('"n_maps": 2'):])

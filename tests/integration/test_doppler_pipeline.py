@@ -1,4 +1,4 @@
-"""The shipped Doppler pipeline (configs/pipelines/corner_doppler.toml, issue 28) end to end: the hidden
+"""The shipped Doppler pipeline (configs/pipelines/corner_doppler.toml) end to end: the hidden
 car's un-mirrored velocity in results.jsonl matches its trajectory along the observed direction, and
 static walls measure ≈ 0 m/s."""
 import json

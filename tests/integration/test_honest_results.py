@@ -1,4 +1,4 @@
-"""Honest results (issue 29 item 4): a pipeline that can never reconstruct is flagged by `check`;
+"""Honest results: a pipeline that can never reconstruct is flagged by `check`;
 detection-only pipelines run; an object without a mirror path is "not observable" (not a vacuous
 F1 of 1) in the summary and drawn in the figure, unless it is in plain view ("in line of sight");
 one object-error figure; `-q` is quiet; output files are readable by others."""

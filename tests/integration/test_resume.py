@@ -1,4 +1,4 @@
-"""Resume keyed on frame numbers (issue #26 item 3): results.jsonl, provenance.json, sweep.jsonl and
+"""Resume keyed on frame numbers: results.jsonl, provenance.json, sweep.jsonl and
 eval's frames.jsonl are read line by line, repaired where the damage is a crash's, refused naming
 file and line otherwise; a resumed run computes exactly the missing frames."""
 from __future__ import annotations
@@ -48,7 +48,7 @@ def _lines(reference: Path) -> list[bytes]:
 
 
 def test_duplicated_line_resumes_into_every_frame_once(reference, tmp_path):
-    """Issue #26: a duplicated line made the resume skip the last frame (frame 10 twice, no frame 60)."""
+    """a duplicated line made the resume skip the last frame (frame 10 twice, no frame 60)."""
     ref = _lines(reference)
     out = _damaged(reference, tmp_path, [ref[0], ref[1], ref[1], ref[2], ref[3]])  # killed after frame 3
     run_to_dir(_cfg(), out, progress=False)
@@ -59,7 +59,7 @@ def test_duplicated_line_resumes_into_every_frame_once(reference, tmp_path):
 
 
 def test_removed_line_recomputes_exactly_that_frame(reference, tmp_path):
-    """Issue #26: a removed line made the resume recompute the last frame (frame 59 twice)."""
+    """a removed line made the resume recompute the last frame (frame 59 twice)."""
     ref = _lines(reference)
     out = _damaged(reference, tmp_path, [r for k, r in enumerate(ref) if k != 2])
     run_to_dir(_cfg(), out, progress=False)

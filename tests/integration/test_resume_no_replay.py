@@ -1,4 +1,4 @@
-"""Resume without replay (issue 31 item 4): ``xnlos run`` checkpoints the tracker (and a wall
+"""Resume without replay: ``xnlos run`` checkpoints the tracker (and a wall
 estimator with a history) with each frame (stage_state.json), so a killed run resumes without recomputing the frames it holds, a finished run
 reruns no stage, and an unusable checkpoint falls back to the replay with a CheckpointWarning."""
 from __future__ import annotations

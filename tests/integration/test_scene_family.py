@@ -1,4 +1,4 @@
-"""[scene] family = NAME: a registered scene generator builds the pipeline's scene (issue 29 item 6)."""
+"""[scene] family = NAME: a registered scene generator builds the pipeline's scene."""
 import pytest
 
 from xnlos_core.app.cli import main

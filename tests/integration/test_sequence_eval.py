@@ -1,4 +1,4 @@
-"""`xnlos eval` on sequence datasets (issue 28): per-frame object truth in shards, tracking metrics in
+"""`xnlos eval` on sequence datasets: per-frame object truth in shards, tracking metrics in
 closed form, a tracked eval end to end on a tiny sequence dataset, and resume per whole sequence."""
 from __future__ import annotations
 

@@ -87,7 +87,7 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
     assert meta["training"]["dataset"]["source"] == "generate" and meta["decode"]["calibration"]
     assert meta["training"]["config"]["model"]["name"] == "swin_unet"
     assert json.loads((tmp_path / "a" / "model.json").read_text())["weights_sha256"] == meta["weights_sha256"]
-    # self-describing (issue 29): the radar and RA grid of the training maps (tiny.toml's radar)
+    # self-describing: the radar and RA grid of the training maps (tiny.toml's radar)
     rec = meta["trained_on"]
     assert rec["radar"]["n_samples"] == 256 and rec["radar"]["carrier_frequency"] == 10e9
     assert rec["azimuth_axis"]["n"] == 31 and rec["range_axis"]["first"] == 0.0 and rec["source"].startswith("generated")
@@ -115,7 +115,7 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
 
 
 def test_a_larger_epochs_extends_a_finished_run_and_a_smaller_one_is_refused(tmp_path, one_thread, capsys):
-    """Issue 27 #5: `xnlos train CONFIG --epochs N` extends a finished run (the README's promise;
+    """`xnlos train CONFIG --epochs N` extends a finished run (the README's promise;
     it was refused because the epochs were part of the config digest). The extension resumes from
     last.pt: the first epochs are the finished run's, unchanged, and the extra ones follow."""
     run = tmp_path / "run"
@@ -145,7 +145,7 @@ def _sha(path: Path) -> str:
 
 def test_train_writes_into_the_installed_package_only_when_the_command_names_the_export(tmp_path, one_thread,
                                                                                       monkeypatch, capsys):
-    """Issue 27 #5: `xnlos train configs/training/residual_mirror.toml --out elsewhere` overwrote the
+    """`xnlos train configs/training/residual_mirror.toml --out elsewhere` overwrote the
     shipped model its `export` key names. The same with the tiny config whose `export` names a model
     of the package — a copy of plugins/detectors/models standing in for the installed package, so
     that the real shipped files are never at risk (their hashes are checked too)."""
@@ -315,7 +315,7 @@ def test_shipped_models_keep_the_digest_of_their_training_config():
         assert plain.digest() == hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
 
 
-# --- resume integrity (issue 26, item 5) -------------------------------------------------------
+# --- resume integrity -------------------------------------------------------
 
 def _tiny_run(out: Path, epochs: int = 3) -> list[str]:
     return ["train", str(TINY_TOML), "--out", str(out), "--epochs", str(epochs), "-q"]
@@ -349,7 +349,7 @@ def _flip(data: bytes, bit: int) -> bytes:
 
 
 def test_a_flipped_bit_anywhere_in_last_pt_is_refused(straight_run, tmp_path):
-    """Issue 26 #5: 5 of 12 bit flips in a mid-run last.pt (optimizer state) were accepted. Here
+    """5 of 12 bit flips in a mid-run last.pt (optimizer state) were accepted. Here
     24 flips spread over the file and 8 inside the optimizer's tensors and the pickled progress /
     history are each refused, naming the file; the optimizer flips pass the weights hash alone."""
     from plugins.training.checkpoint import SEAL, weights_digest
@@ -403,7 +403,7 @@ def test_resuming_from_a_corrupted_last_pt_stops_with_an_error_naming_it(straigh
 @pytest.mark.parametrize("point", ["after_best", "after_last", "torn_line"])
 def test_a_crash_at_any_point_of_an_epoch_commit_resumes_to_the_uninterrupted_run(straight_run, tmp_path, one_thread,
                                                                                monkeypatch, point):
-    """Issue 26 #5: a crash between writing last.pt and appending metrics.jsonl lost the epoch's
+    """a crash between writing last.pt and appending metrics.jsonl lost the epoch's
     line for good (epochs_run 39, stopped_early true instead of 40, false). Crashing in epoch 2
     after best.pt, after last.pt, or halfway through the line, then resuming, gives the same
     summary, metrics lines and weights as the uninterrupted run."""
@@ -472,7 +472,7 @@ def test_a_run_directory_of_an_earlier_xnlos_is_recognised_by_its_config_digest(
 
 
 def test_a_copied_training_config_takes_its_paths_from_its_own_folder(tmp_path, one_thread, monkeypatch, capsys):
-    """Issue 29 #6: every path of a training config (out, init, export, data.generate's scene file)
+    """every path of a training config (out, init, export, data.generate's scene file)
     is taken from the config file's folder, so a copied config runs the same from any working
     directory; paths on the command line stay relative to the working directory."""
     proj = tmp_path / "proj"

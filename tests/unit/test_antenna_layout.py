@@ -1,4 +1,4 @@
-"""Any antenna layout (issue 29): element positions, the virtual array, its array factor, refusals."""
+"""Any antenna layout: element positions, the virtual array, its array factor, refusals."""
 import math
 
 import numpy as np

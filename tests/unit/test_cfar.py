@@ -114,7 +114,7 @@ def test_params_validated():
 
 
 def test_ring_sums_equal_the_direct_correlation_over_60_decades():
-    # Issue #26: the O(H·W) ring sums must match ndimage.correlate with the ring kernel to rounding,
+    # the O(H·W) ring sums must match ndimage.correlate with the ring kernel to rounding,
     # also next to 1e30 peaks on a 1e-30 floor (where a running-sum difference would cancel).
     rng = np.random.default_rng(26)
     for _ in range(40):
@@ -139,7 +139,7 @@ def test_box_sum_matches_explicit_windows():
 
 @pytest.mark.parametrize("train", [(128, 128), (160, 160)])
 def test_large_training_windows_that_fit_the_map(train):
-    # Issue #26: (128, 128) took 63 s per frame and (160, 160) raised MemoryError (a direct
+    # (128, 128) took 63 s per frame and (160, 160) raised MemoryError (a direct
     # correlation with a (2·163+1)² kernel). On a map they fit, the threshold is the closed form:
     # a constant map of power 1 has mean 1, so thr = a(N) with N the ring's cells inside the map.
     guard = (3, 4)
@@ -178,7 +178,7 @@ def test_check_refuses_a_window_the_radar_map_cannot_hold(name):
 
 
 def test_xnlos_check_and_run_refuse_the_window_alike(tmp_path, capsys):
-    # Issue #26: train_cells (160, 160) passed `xnlos check` and then ran out of memory in `run`.
+    # train_cells (160, 160) passed `xnlos check` and then ran out of memory in `run`.
     from xnlos_core.app.cli import main
 
     p = tmp_path / "big_window.toml"

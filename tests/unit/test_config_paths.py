@@ -1,4 +1,4 @@
-"""Paths in a pipeline resolve against the config file (issue 29 item 6): plugin path parameters
+"""Paths in a pipeline resolve against the config file: plugin path parameters
 (ConfigPath), radar presets and built-in scenes by name, a shipped config copied elsewhere."""
 import shutil
 import tomllib

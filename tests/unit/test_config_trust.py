@@ -1,4 +1,4 @@
-"""Regression tests of issue #26 item 6: every bad config input ends in a typed error, `check`
+"""Regression tests of the trust fixes item 6: every bad config input ends in a typed error, `check`
 refuses what `run` would crash on, files are regular files inside the config roots."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Cross-modality study (issue 30 item 4): F1 scoring on hand-made inputs, the tiny study end to
+"""Cross-modality study: F1 scoring on hand-made inputs, the tiny study end to
 end, typed errors for bad config keys."""
 from __future__ import annotations
 

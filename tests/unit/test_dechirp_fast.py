@@ -1,4 +1,4 @@
-"""Fast dechirp and Doppler chain (issue 31 item 3, issue 28 Performance): equal to straightforward
+"""Fast dechirp and Doppler chain: equal to straightforward
 reference implementations kept here (one complex exponential per sample; np.fft with fftshift copies,
 beamforming per Doppler bin in (range, Doppler, azimuth) layout, per-cell compensated weights)."""
 import numpy as np
@@ -78,7 +78,7 @@ def test_range_fft_equals_numpy_fft():
 
 
 def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
-    """doppler_ra_maps as first written (issue 28), in double precision throughout (the first version
+    """doppler_ra_maps as first written, in double precision throughout (the first version
     beamformed in single precision): returns power, peak_power, peak bin, velocity, velocity_std."""
     n, d, k = cube.shape
     prof = decouple(range_fft(cube.reshape(n, d * k), radar).reshape(-1, k), radar).reshape(-1, d, k)

@@ -1,4 +1,4 @@
-"""Fast inference of the learned detectors (issue 31, item 1; plugins/detectors/inference.py):
+"""Fast inference of the learned detectors (plugins/detectors/inference.py):
 channels-last float32 equal to the plain network within 1e-5, bf16 detections close to float32's,
 the compile fallback, the thread count, parameter validation, and the pipeline's warm-up before
 the first frame (counted in network forwards, not timed)."""
@@ -28,7 +28,7 @@ def _det(name="swin_unet", **params):
 
 
 def _plain(det) -> torch.nn.Module:
-    """The detector's network as the code before issue 31 ran it: contiguous (NCHW) weights."""
+    """The detector's network as the code before the fast path ran it: contiguous (NCHW) weights."""
     det._load()
     return copy.deepcopy(det._net).to(memory_format=torch.contiguous_format)
 

@@ -1,4 +1,4 @@
-"""Doppler path (issue 28): slow-time timing, chirp-sequence cube, range–Doppler maps, against closed forms."""
+"""Doppler path: slow-time timing, chirp-sequence cube, range–Doppler maps, against closed forms."""
 import numpy as np
 import pytest
 

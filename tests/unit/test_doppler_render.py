@@ -1,4 +1,4 @@
-"""Doppler through the forward models (issue 28): per-path range rate, chirp-sequence rendering, velocity maps."""
+"""Doppler through the forward models: per-path range rate, chirp-sequence rendering, velocity maps."""
 import math
 
 import numpy as np

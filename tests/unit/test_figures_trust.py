@@ -1,4 +1,4 @@
-"""Figures a reader trusts (issue 29 item 7), checked on the matplotlib artists, not on pixels: RA
+"""Figures a reader trusts, checked on the matplotlib artists, not on pixels: RA
 maps put positive azimuth on the left like the bird's-eye view, the hidden object has its outline
 and a zoom inset, ground truth is drawn above the reconstructions, legends sit outside the data
 area, titles count what the legends count, and a detector has one colour everywhere."""

@@ -1,4 +1,4 @@
-"""Seeded fuzzing of the config loaders and ``xnlos check`` (issue #26, item 6).
+"""Seeded fuzzing of the config loaders and ``xnlos check``.
 
 Each case mutates one shipped config (pipelines, datasets, training, and the corner scene inline
 in a pipeline): values replaced by other types, huge / NaN / ±inf / negative numbers, long

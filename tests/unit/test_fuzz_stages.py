@@ -1,4 +1,4 @@
-"""Seeded fuzz of the stages (issue #26): every registered detector's ``detect`` on generated RA maps
+"""Seeded fuzz of the stages: every registered detector's ``detect`` on generated RA maps
 and every registered wall estimator's ``estimate`` on generated LOS point sets.
 
 The inputs are what a careless or hostile caller can build: map shapes from 2 × 2 up, zeros,

@@ -38,7 +38,7 @@ def test_posterior_agrees_with_emcee_on_a_clean_wall():
 
 @pytest.mark.parametrize("seed", [3, 4])
 def test_posterior_matches_the_exact_gaussian_line_posterior(seed):
-    """Issue 31 acceptance: on the exact Gaussian line model (the points of emcee's exact test) the
+    """on the exact Gaussian line model (the points of emcee's exact test) the
     importance-weighted moments equal the quadrature posterior within Monte-Carlo error (ESS)."""
     sigma = 0.15
     pts = wall_points(np.random.default_rng(11), sigma=sigma)

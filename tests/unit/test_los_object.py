@@ -1,4 +1,4 @@
-"""Owner of each LOS ground-truth point (``GroundTruth.los_object``, issue 29 item 4 follow-up):
+"""Owner of each LOS ground-truth point (``GroundTruth.los_object``,  follow-up):
 both forward models fill it through the render path; the run summary tells an object in plain
 view ("in line of sight") from one nothing shows to the radar ("not observable"), and records
 written without ``los_points`` still summarise as before."""

@@ -1,4 +1,4 @@
-"""NLOS solvers of the optical modality (issue 30 item 2): LCT and f-k on volumes rendered here in
+"""NLOS solvers of the optical modality: LCT and f-k on volumes rendered here in
 closed form (independent of xnlos_core.testing's kit renderer), the NLOSVolume type, bad input,
 the conformance kit and a third party's solver through the registry."""
 import numpy as np
@@ -202,7 +202,7 @@ def test_a_third_party_solver_works_through_the_registry_and_the_kit_judges_it()
         check_component("nlos_solver", "backprojection", registry=mgr.registry)
 
 
-# --- LCT speed-ups (issue 30 performance): O(m) resampling matrix, DCT-I kernel quadrant ---------
+# --- LCT speed-ups: O(m) resampling matrix, DCT-I kernel quadrant ---------
 def _direct_resampling(m):
     """O'Toole's resampling matrix summed over all m² fine bins (the construction before the speed-up)."""
     x = np.arange(1, m * m + 1)
@@ -262,7 +262,7 @@ def test_lct_output_equals_the_direct_construction():
     assert np.abs(out - ref).max() <= 1e-5 * ref.max()
 
 
-# --- depth off the bin centres (issue 30 item 2: "a point at a known depth comes back at that depth") ---
+# --- depth off the bin centres ("a point at a known depth comes back at that depth") ---
 def _off_centre_scene():
     """Nine points at depths 0.8 … 2.5 m that are not on bin centres (fractions of a bin spread
     over 0.2 … 0.8), each under a different scan point away from the aperture's centre: 2 m wall,

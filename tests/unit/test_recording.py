@@ -1,4 +1,4 @@
-"""Raw recordings in (issue 29 #1): DCA1000 .bin and cube files → RA maps; warnings for known mistakes."""
+"""Raw recordings in (#1): DCA1000 .bin and cube files → RA maps; warnings for known mistakes."""
 from __future__ import annotations
 
 import warnings

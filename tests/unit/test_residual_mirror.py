@@ -173,7 +173,7 @@ def test_resumed_training_matches_an_uninterrupted_run(tmp_path):
 
 
 def test_resume_state_is_sealed_and_rebuilds_metrics_after_a_crash(tmp_path, monkeypatch):
-    """Issue 26 #5 for the residual mirror's training (the shared plugins.training.resume): a crash
+    """for the residual mirror's training (the shared plugins.training.resume): a crash
     after last.pt but before its metrics line loses no line, best.pt is rebuilt from last.pt, the
     resumed fit ends on the uninterrupted weights, and a flipped bit in the optimizer state is refused."""
     import json

@@ -1,4 +1,4 @@
-"""The results.jsonl schema (issue 29): records of real (tiny) pipeline runs validate, with and
+"""The results.jsonl schema: records of real (tiny) pipeline runs validate, with and
 without Doppler and tracker; a broken record fails naming the key; the schema stays in the keyword
 subset the hand-written checker implements; wall / detection / hidden records round-trip."""
 import copy

@@ -1,4 +1,4 @@
-"""Sequence scene families (issue 28): a hidden road user that moves, checked over the horizon.
+"""Sequence scene families: a hidden road user that moves, checked over the horizon.
 
 For SEEDS per family: the road user is hidden with a mirror path at t = 0, and over [0, horizon]
 at 0.1 s steps its box never crosses a wall (core wall geometry: no box edge crosses a wall

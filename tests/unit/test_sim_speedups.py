@@ -1,4 +1,4 @@
-"""Dataset-speed changes (issue 31 item 5) that must not change a number: per-radar caches equal a
+"""Dataset-speed changes that must not change a number: per-radar caches equal a
 fresh computation and hand out copies; cell_power's row grouping equals np.unique(axis=0)."""
 import numpy as np
 from scipy.signal import get_window

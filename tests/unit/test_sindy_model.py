@@ -72,7 +72,7 @@ def test_errors():
 
 
 def test_noiseless_constant_turn_coefficients_within_1e3():
-    # Acceptance (issue 28): the closed-form constant turn of xnlos_core.motion, no noise.
+    # Acceptance: the closed-form constant turn of xnlos_core.motion, no noise.
     from xnlos_core.motion import ConstantTurn
 
     xy = ConstantTurn(speed=10.0, yaw_rate=0.3).state(T, (5.0, 2.0), 0.7).position
@@ -361,7 +361,7 @@ def _one_wrong_relay(t, seed):
 
 def test_screening_leaves_out_a_wrong_relays_radial_velocity():
     # One such row among 29 precise ones, its residual counted in full, reads as a braking turn (the
-    # straight cyclist of the large 64-chirp test split, tracking_ablation.md session 12); the refit bends
+    # straight cyclist of the large 64-chirp test split, tracking_ablation.md the 64-chirp revision); the refit bends
     # to it, leaving it a residual like the others', so the screen finds it by its deleted residual.
     from estimators.trackers.sindy_model import _screen_radial
 

@@ -122,7 +122,7 @@ def test_sindy_90_percent_discs_cover_a_handful_of_synthetic_cars(benchmark_modu
 
 @pytest.mark.slow
 def test_forecast_beats_cv_on_turns_and_braking_not_worse_on_straight(benchmark_module):
-    # Issue 28 targets at 0.5 m noise, 2 s ahead: ≥ 30 % below CV (kalman) on turning and braking
+    # targets at 0.5 m noise, 2 s ahead: ≥ 30 % below CV (kalman) on turning and braking
     # cars, ≤ 5 % above it on straight ones (8 seeded cars per kind, xnlos_core.motion truth).
     res = benchmark_module("forecast_quality").compare({"kalman": KalmanTracker(), "sindy": SindyTracker()}, tracks=8, noise=0.5)
     ratio = {k: np.nanmean(r["sindy"][0]) / np.nanmean(r["kalman"][0]) for k, r in res.items()}

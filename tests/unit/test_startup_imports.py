@@ -1,4 +1,4 @@
-"""Cheap start-up (issue 31, item 4): building the ``xnlos`` parser with every installed plugin
+"""Cheap start-up: building the ``xnlos`` parser with every installed plugin
 registered, and ``xnlos check`` of the shipped pipelines, import no heavy optional package; those are
 imported by the functions that use them. Checked in a fresh interpreter through ``sys.modules`` (which
 packages got imported), not with a timer."""

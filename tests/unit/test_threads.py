@@ -1,4 +1,4 @@
-"""Thread policy (issue 31): BLAS limited to ``[run] blas_threads`` while the pipeline's stages run,
+"""Thread policy: BLAS limited to ``[run] blas_threads`` while the pipeline's stages run,
 the caller's limits restored afterwards."""
 import sys
 

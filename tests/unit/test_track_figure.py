@@ -1,4 +1,4 @@
-"""The bird's-eye view of tracks (issue 28): prediction cones against closed-form areas, one cone
+"""The bird's-eye view of tracks: prediction cones against closed-form areas, one cone
 patch per track with radii, and the standalone PNG."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Tracks in results.jsonl (issue 28): forecast and arrival fields round-trip through the record,
+"""Tracks in results.jsonl: forecast and arrival fields round-trip through the record,
 records of trackers without them keep their old form, and the history the figures draw."""
 import json
 

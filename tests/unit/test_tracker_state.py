@@ -1,4 +1,4 @@
-"""Tracker checkpoints (issue 31 item 4): ``state()`` → JSON → ``load_state()`` on a fresh tracker gives
+"""Tracker checkpoints: ``state()`` → JSON → ``load_state()`` on a fresh tracker gives
 bit-identical outputs afterwards (nearest, kalman, sindy with an identified turn model); a state that is
 not the tracker's own is a typed error naming the key; a tracker without them says so."""
 import json

@@ -1,4 +1,4 @@
-"""Self-describing models (issue 29, item 3): a checkpoint records the radar and RA grid it was
+"""Self-describing models: a checkpoint records the radar and RA grid it was
 trained on, and a learned detector warns (or, strict, refuses) on maps of another carrier or grid."""
 from __future__ import annotations
 

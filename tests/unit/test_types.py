@@ -77,7 +77,7 @@ def test_radar_derived_quantities():
 
 
 def test_arrays_are_read_only_after_validation():
-    # Issue #26: RAMap.data stayed writable after its finiteness check; one cell set to inf
+    # RAMap.data stayed writable after its finiteness check; one cell set to inf
     # afterwards made cfar return 33 detections. Validated arrays are now read-only, and the
     # caller's own array is copied rather than locked, so editing it changes nothing validated.
     from plugins.detectors.cfar import CFARDetector

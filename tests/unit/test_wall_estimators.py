@@ -53,7 +53,7 @@ def exact_line_posterior(points, sigma, phi_grid):
 @pytest.mark.parametrize("chain", [{"n_walkers": 16, "n_steps": 2200, "burn": 200}, {}],
                          ids=["16x2200", "defaults"])
 def test_emcee_matches_the_exact_gaussian_line_posterior(chain):
-    """Issue 31 #2: the many-walkers, few-steps defaults (128 × 200) as well as a long 16-walker chain."""
+    """the many-walkers, few-steps defaults (128 × 200) as well as a long 16-walker chain."""
     rng = np.random.default_rng(11)
     sigma = 0.15
     pts = wall_points(rng, sigma=sigma)
@@ -213,7 +213,7 @@ def test_sampler_params_are_validated():
 
 
 def test_casadi_map_reports_the_student_t_of_an_estimated_noise_scale():
-    """Issue 26 #7: with the noise scale estimated, the wall block is the Student-t's covariance
+    """with the noise scale estimated, the wall block is the Student-t's covariance
     Σ·ν/(ν − 2); for the Gaussian line fit ν = n − p + 1/(2σ_s²) (σ_s = 0.5: + 2 points), read off
     the Laplace variance of log s. With the scale known, the Gaussian is left as it is."""
     from estimators.robust import fit_cluster, posterior_from_fit

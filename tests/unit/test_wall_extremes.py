@@ -159,7 +159,7 @@ def _estimator(name):
 
 @pytest.mark.parametrize("name", ALL_ESTIMATORS)
 def test_points_beyond_a_million_metres_are_a_clear_error(name):
-    # Issue #26: 1e300-m point sets crashed all three estimators inside scipy (linkage: "the
+    # 1e300-m point sets crashed all three estimators inside scipy (linkage: "the
     # condensed distance matrix must contain only finite values").
     from xnlos_core import InputError
 

@@ -1,4 +1,4 @@
-"""wall_max_speed (ClusterParams, issue 28): a road user in line of sight moves, a wall does not; LOS
+"""wall_max_speed (ClusterParams): a road user in line of sight moves, a wall does not; LOS
 detections faster than wall_max_speed stay out of every wall fit, this frame's and the held ones."""
 import numpy as np
 import pytest

@@ -120,7 +120,7 @@ def test_emcee_calibration_within_5_points():
 
 
 def test_casadi_map_credible_regions_calibrated_fast():
-    """Issue 26 #7: casadi_map's 90 % regions covered the true wall 0.82 of the time (emcee 0.89):
+    """casadi_map's 90 % regions covered the true wall 0.82 of the time (emcee 0.89):
     its Gaussian ignored the uncertainty of the noise scale estimated from 8–24 points (before the
     Student-t covariance these 60 frames gave wall-only 0.839 at 90 %, now 0.875)."""
     total, wall = _calibration(CasadiMapWallEstimator(), 60, seed=21)
@@ -129,7 +129,7 @@ def test_casadi_map_credible_regions_calibrated_fast():
 
 
 def test_laplace_is_credible_regions_calibrated_fast():
-    """Issue 31 #2: the importance-corrected Laplace on casadi_map's 60 fast frames, to casadi_map's
+    """the importance-corrected Laplace on casadi_map's 60 fast frames, to casadi_map's
     tolerance; the few walls whose weights fail the Pareto-k̂ check fall back to a short emcee."""
     est = LaplaceISWallEstimator({"fallback_n_steps": 300, "fallback_burn": 50})
     total, wall = _calibration(est, 60, seed=21)

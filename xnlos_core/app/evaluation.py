@@ -21,7 +21,7 @@ rather than mixed with the old records),
 ``run-NNN/run.json`` (config and provenance), ``run-NNN/map_MMMMM.png`` (Fig. 6-style panels of
 the first ``figures`` maps), ``eval.json`` (atomic) and ``eval.md``.
 
-Sequences (issue 28): a pipeline with a tracker is scored sequence by sequence, the pipeline reset at
+Sequences: a pipeline with a tracker is scored sequence by sequence, the pipeline reset at
 each sequence start, with tracking and prediction metrics per run, family and motion kind beside the
 map metrics (:mod:`xnlos_core.app.sequence_eval`; ``run-NNN/sequences.jsonl``, resumed per whole sequence).
 """

@@ -2,7 +2,7 @@
 per frame, with Detections, WallPosterior, HiddenPoints and Tracks as the pipeline had them.
 
 The line layout is :data:`xnlos_core.app.results_schema.RESULTS_SCHEMA`. Records of schema 1 (written
-before issue 29, no ``schema_version``) are read too: their detections and hidden points have no
+before own-radar support, no ``schema_version``) are read too: their detections and hidden points have no
 per-row record, so ``detections`` and ``hidden`` are None there (the counts are in
 ``detection_counts``, the points in ``raw["hidden_points"]``), and a :class:`~xnlos_core.errors.LegacyRecordWarning`
 says so once per file.

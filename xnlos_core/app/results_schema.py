@@ -6,7 +6,7 @@ It fixes each key's type, bounds and inner shape; :func:`validate_record` adds w
 cannot say: lengths that must agree across keys (K detections, P wall parameters, M hidden points).
 Units: metres, radians, seconds; NaN is written as null, ±inf as ±Infinity (Python's json).
 Keys of schema 1 (records without ``schema_version``) are all still written; ``detection_doppler`` and
-``hidden_velocity`` (issue 28) repeat columns of ``detection_table`` and ``hidden`` and are kept for
+``hidden_velocity`` repeat columns of ``detection_table`` and ``hidden`` and are kept for
 readers of that layout.
 """
 from __future__ import annotations

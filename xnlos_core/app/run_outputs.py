@@ -11,7 +11,7 @@ from the config and results.jsonl. After writing them it records
 - ``files``: output name (relative to the run directory) → sha256 of its bytes.
 
 A rerun whose key is the recorded one, with every recorded file on disk holding the recorded bytes,
-writes none of them (issue 31, item 4: a finished run re-run ≤ 1 s). Anything else (a new frame, a
+writes none of them (a finished run re-run ≤ 1 s). Anything else (a new frame, a
 changed figure or animation setting, a deleted or edited output, another xnlos version) rewrites them
 as before. The check reads each output once (a few MiB: milliseconds); no timestamp is trusted.
 """

@@ -1,4 +1,4 @@
-"""``xnlos eval`` on sequence datasets (issue 28): tracking and prediction metrics per sequence.
+"""``xnlos eval`` on sequence datasets: tracking and prediction metrics per sequence.
 
 When the pipeline has a tracker, :func:`evaluate_sequences` reads the split's maps in order, groups
 consecutive maps of one scene (``frame.meta["scene_index"]``) into a *sequence*, resets the pipeline at

@@ -1,4 +1,4 @@
-"""Tracking and prediction metrics (issue 28): CLEAR-MOT (MOTA, MOTP) and IDF1 with motmetrics,
+"""Tracking and prediction metrics: CLEAR-MOT (MOTA, MOTP) and IDF1 with motmetrics,
 prediction ADE/FDE at horizons, and prediction-interval coverage.
 
 A sequence is a list of frames; a frame is ``(ids, positions)`` with ids (n,) integers and

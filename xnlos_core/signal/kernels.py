@@ -1,4 +1,4 @@
-"""Compiled (numba) kernels of :func:`xnlos_core.signal.doppler.doppler_ra_maps` (issue 28: ≤ 10 ms per frame).
+"""Compiled (numba) kernels of :func:`xnlos_core.signal.doppler.doppler_ra_maps` (≤ 10 ms per frame).
 
 Why compiled: the Doppler-resolved RA maps need, for each of the 401 × 121 cells, the beam of each of
 the 64 Doppler bins (≈ 1e8 complex multiply-adds), then a sum, a maximum, its index and a three-bin

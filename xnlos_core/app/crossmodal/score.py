@@ -1,4 +1,4 @@
-"""Scoring of the cross-modality study (issue 30 item 4; paper Sec. 5.1.2, Fig. 5): did a modality
+"""Scoring of the cross-modality study (paper Sec. 5.1.2, Fig. 5): did a modality
 detect and reconstruct THE hidden object of one trial, and the F1 rate over trials.
 
 One trial = one modality, one distance, one seed (one radar frame, one SPAD scan). Each trial

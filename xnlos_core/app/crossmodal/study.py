@@ -1,4 +1,4 @@
-"""The cross-modality study, one command (issue 30 item 4; paper Sec. 5.1.2 and Fig. 5):
+"""The cross-modality study, one command (paper Sec. 5.1.2 and Fig. 5):
 ``xnlos crossmodal configs/ablations/crossmodal.toml --out DIR``.
 
 It moves ONE hidden object down the hidden street of ONE corner scene (same relay wall, same

@@ -1,4 +1,4 @@
-"""The animated sequence of a run (issue 28): ``sequence.gif``, written by ``xnlos run``.
+"""The animated sequence of a run: ``sequence.gif``, written by ``xnlos run``.
 
 Each GIF frame shows, left, the RA map (power above its median [dB], grey) with the detections
 coloured by radial velocity (diverging colormap, limits ±v symmetric about 0 and fixed over the

@@ -1,4 +1,4 @@
-"""What the animation of a run needs from one frame beyond its results.jsonl record (issue 28).
+"""What the animation of a run needs from one frame beyond its results.jsonl record.
 
 ``xnlos run`` keeps one small ``.npz`` per frame (``animation/frame_NNNN.npz``) so that the
 animation is drawn at the end from files, frame by frame, in bounded memory, and a resumed run

@@ -1,4 +1,4 @@
-"""Bird's-eye view of tracks (issue 28): each track's recent history, current position and
+"""Bird's-eye view of tracks: each track's recent history, current position and
 velocity arrow, and its prediction cone — the forecast mean path with the 50 % and 90 % discs
 (Tracks.radius50 / radius90 around Tracks.forecast) swept along the horizons — labelled by track id
 and motion model, with the tracker's arrival region when it has one.
