@@ -29,6 +29,11 @@ from xnlos_core.io import atomic_write_text  # noqa: E402
 POLICIES = ("block", "drop_oldest", "drop_newest")
 
 
+
+def made_by() -> str:
+    """The line that says which command wrote the page (this script with its arguments)."""
+    return "Made by `python " + " ".join([f"benchmarks/{Path(sys.argv[0]).name}", *sys.argv[1:]]) + "`."
+
 def run_case(radar, n: int, delay: float, policy: str, queue: int, *, pace: bool, interval: float,
              chunk: int) -> dict:
     t0 = time.perf_counter()
@@ -67,7 +72,7 @@ def main(argv=None) -> int:
         r = run_case(tiny, args.burst, args.burst_delay, policy, 64, pace=False, interval=0.0, chunk=min(4096, args.burst))
         rows.append(("burst", f"{args.burst_delay * 1e3:g} ms/frame", policy, 64, args.burst, r))
         print(rows[-1][:5], r, flush=True)
-    lines = ["# `can` backend: slow consumers and bursts (benchmarks/can_consumer.py)", "",
+    lines = ["# `can` backend: slow consumers and bursts (benchmarks/can_consumer.py)", "", made_by(), "",
              "Device emulator on the python-can virtual bus, NoiseModel frames. slow: radar every 0.05 s, "
              "81 × 31 complex64 RA maps (20 kB); burst: one START of all frames, as fast as the link goes, "
              "9 × 7 maps (1.2 kB). Every frame sent ends as delivered, overrun (dropped by the queue's policy "

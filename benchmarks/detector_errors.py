@@ -35,6 +35,7 @@ that scores little above its better member leaves little to errors of one networ
 """
 from __future__ import annotations
 
+import sys
 import argparse
 from pathlib import Path
 
@@ -43,6 +44,11 @@ import numpy as np
 CAUSES_MISS = ("wrong class", "displaced", "missed")
 CAUSES_FA = ("wrong class", "displaced or duplicate", "multipath", "other")
 
+
+
+def made_by() -> str:
+    """The line that says which command wrote the page (this script with its arguments)."""
+    return "Made by `python " + " ".join([f"benchmarks/{Path(sys.argv[0]).name}", *sys.argv[1:]]) + "`."
 
 def _near(points: np.ndarray, p: np.ndarray, radius: float) -> bool:
     return len(points) > 0 and float(np.min(np.linalg.norm(points - p, axis=1))) < radius
@@ -244,7 +250,7 @@ def main() -> None:
     ceiling = grid_ceiling(frames)
 
     lines = [f"# Detector errors by cause ({args.dataset}, {args.split}: first {len(frames)} maps, "
-             f"match radius {args.radius} m)", "", "Counts pooled over the maps (the module doc of "
+             f"match radius {args.radius} m)", "", made_by(), "", "Counts pooled over the maps (the module doc of "
              "`benchmarks/detector_errors.py` defines each cause).", "",
              "| detector | class | ground truth | detections | matched | misses: " + " / ".join(CAUSES_MISS) +
              " | false alarms: " + " / ".join(CAUSES_FA) + " |", "|---|---|---|---|---|---|---|"]

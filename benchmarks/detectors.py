@@ -28,6 +28,7 @@ latency with it, and its paired gain over the same model without.
 """
 from __future__ import annotations
 
+import sys
 import argparse
 import os
 import platform
@@ -49,6 +50,11 @@ PAPER = {  # Table 2, simulation rows: Macro / LOS / mNLOS F1, Macro / LOS / mNL
 
 ORDER = ["swin_unet", "unet", "rtn", "further_than_cfar"]  # Table 2's ranking of the learned rows, best first
 
+
+
+def made_by() -> str:
+    """The line that says which command wrote the page (this script with its arguments)."""
+    return "Made by `python " + " ".join([f"benchmarks/{Path(sys.argv[0]).name}", *sys.argv[1:]]) + "`."
 
 def paired_bootstrap(a, b, n: int = 10_000, seed: int = 0) -> tuple[float, float, float]:
     """Mean over maps of a − b (per-map scores of two detectors on the same maps) and its 95 %
@@ -406,7 +412,7 @@ def main() -> None:
     lines = [f"# Detectors on {args.dataset} ({args.split}: {len(frames)} maps of {frames[0].ra_map.shape[0]} × "
              f"{frames[0].ra_map.shape[1]}), {platform.processor() or platform.machine()}, "
              f"{os.cpu_count()} CPUs, torch threads {args.threads}, load average "
-             f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}", ""]
+             f"{' / '.join(f'{x:.1f}' for x in os.getloadavg())}", "", made_by(), ""]
     train = ([f for _, f in zip(range(args.fit_maps), open_dataset(args.dataset, "train"))]
              if args.fit_maps > 0 and learned else [])
     lat, res, meta, dets, fit = {}, {}, {}, {}, {}

@@ -38,3 +38,18 @@ def test_the_check_sees_the_usual_forms():
         assert numbered_references(text), text
     for text in ("Sec. 5.1.2", "Eq. 7", "GitHub issue tracker", "a session of the CAN bus", "2 stops"):
         assert not numbered_references(text), text
+
+
+COMMAND = re.compile(r"python[0-9.]* (?:-m )?benchmarks/([a-z_0-9]+)\.py|\bxnlos (?:eval|run|simulate|crossmodal|train)\b|\bmake [a-z]")
+
+
+def test_every_benchmark_page_names_the_command_that_made_it():
+    missing, stale = [], []
+    for page in sorted((ROOT / "benchmarks").glob("*.md")):
+        found = list(COMMAND.finditer(page.read_text()))
+        if not found:
+            missing.append(page.name)
+        stale += [f"{page.name}: {m.group(1)}.py" for m in found
+                  if m.group(1) and not (ROOT / "benchmarks" / f"{m.group(1)}.py").exists()]
+    assert not missing, f"benchmark pages that do not say which command made them: {missing}"
+    assert not stale, f"benchmark pages naming a script that does not exist: {stale}"
