@@ -33,7 +33,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import stat
 import struct
 import tokenize
 import zipfile
@@ -45,7 +44,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from .errors import InputError, XnlosError
-from .files import file_kind, os_reason
+from .files import open_regular_fd, os_reason
 
 MAX_ARRAY_BYTES = 4 * 2**30  # one array read into memory from a data file (a recording cube, a volume)
 MAX_CHUNK_BYTES = 2**28  # one HDF5 chunk, decompressed whole to read any element of it
@@ -80,17 +79,8 @@ def open_regular(path: str | Path, *, what: str) -> BinaryIO:
     ``what`` names the file in errors (e.g. "recording /data/c.h5"). Opened with ``O_NONBLOCK``, so a
     FIFO or a device is refused without blocking even when it replaced a checked path. Raises
     InputError when the file is missing, unreadable or not a regular file. The caller closes it."""
+    fd = open_regular_fd(path, what=what, error=InputError)
     try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
-    except FileNotFoundError:
-        raise InputError(f"{what}: no such file (expected an existing regular file)") from None
-    except (OSError, TypeError, ValueError) as exc:
-        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise InputError(f"{what}: cannot open: {reason}") from None
-    try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise InputError(f"{what} is {file_kind(mode)}; expected a regular file")
         return os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)

@@ -92,23 +92,40 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
     return real
 
 
+def open_regular_fd(path: str | Path, *, what: str, error: type[Exception] = ConfigError,
+                    missing: str = "no such file (expected an existing regular file)") -> int:
+    """A read-only descriptor of ``path`` after ``fstat`` of the open descriptor showed a regular file.
+
+    Opened with O_NONBLOCK, so a FIFO or a device is refused without blocking even when it replaced a
+    checked path. Raises ``error`` (naming ``what``) when the file is missing, unreadable or not a
+    regular file. The caller closes the descriptor."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise error(f"{what}: {missing}") from None
+    except (OSError, TypeError, ValueError) as exc:
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise error(f"{what}: cannot open: {reason}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+    except OSError as exc:
+        os.close(fd)
+        raise error(f"{what}: cannot read: {os_reason(exc)}") from None
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise error(f"{what} is {file_kind(mode)}; expected a regular file")
+    return fd
+
+
 def read_file_bytes(path: str | Path, *, what: str, max_bytes: int = MAX_DATA_BYTES) -> bytes:
     """The bytes of the regular file ``path``; ``what`` names it in errors (e.g. "config file x.toml").
 
     Opened with O_NONBLOCK and checked with fstat, so a FIFO or device is refused without blocking
     even when it replaced a checked file. Raises ConfigError for anything but a readable regular
     file of at most ``max_bytes``."""
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
-    except FileNotFoundError:
-        raise ConfigError(f"{what}: no such file") from None
-    except (OSError, TypeError, ValueError) as exc:
-        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise ConfigError(f"{what}: cannot open: {reason}") from None
+    fd = open_regular_fd(path, what=what, error=ConfigError, missing="no such file")
     try:
         st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise ConfigError(f"{what} is {file_kind(st.st_mode)}; expected a regular file")
         if st.st_size > max_bytes:
             raise ConfigError(f"{what} is {st.st_size} bytes; at most {max_bytes} are read")
         chunks, total = [], 0
