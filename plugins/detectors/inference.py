@@ -17,9 +17,9 @@
   from then on: same outputs, no crash. Warm the runner up (:meth:`InferenceRunner.warm_up`) so that
   compilation is not paid on the first frame;
 - ``threads``: torch intra-op threads during the call, restored afterwards (None leaves torch's
-  setting: one thread per physical core unless the process set another). With the project's
-  thread policy (:mod:`xnlos_core.threads`: BLAS at 1 thread while the stages run) torch owns the
-  cores during the detector, so its default needs no change.
+  setting: with the process thread policy of :mod:`xnlos_core.threads`, one thread per available
+  core, waiting passively so that other processes on the same cores do not stall them). BLAS runs
+  one thread while the stages run, so torch owns the cores during the detector.
 
 Hand-written rather than a library: the pieces are three torch calls; what this module adds is
 the fallback and the counters the pipeline's warm-up test reads (:attr:`InferenceRunner.forwards`).

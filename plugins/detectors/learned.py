@@ -76,9 +76,10 @@ class LearnedParams(BaseModel):
                                  "peak cell; plugins.detectors.detection_doppler.strongest_cells)")
     seed: int = Field(0, ge=0, lt=2**63, description="weights of an untrained network (checkpoint='none')")
     threads: int | None = Field(None, ge=1, le=1024, description="torch intra-op CPU threads during inference, "
-                                "restored afterwards; None: torch's setting (one per physical core), which the "
-                                "thread policy leaves to torch (BLAS runs 1 thread during the stages, "
-                                "xnlos_core.threads)")
+                                "restored afterwards; None: torch's setting, which the process thread policy "
+                                "makes one per available core (OMP_NUM_THREADS, with passive OpenMP waiting, so "
+                                "that several threads stay fast when other processes share the cores; BLAS runs "
+                                "1 thread during the stages; xnlos_core.threads)")
     precision: Literal["fp32", "bf16"] = Field(
         "fp32", description="'fp32': float32 inference (default); 'bf16': autocast to bfloat16 on cpu / cuda, "
                             "~2× faster on CPUs with bf16 units, detections within the F1 stated in "
@@ -128,8 +129,8 @@ def run_network(net, features: np.ndarray, device, threads: int | None = None) -
     :class:`~plugins.detectors.inference.InferenceRunner` (channels-last, optional bf16 / compile);
     this is its float32 reference (equal within 1e-5).
 
-    threads: torch CPU threads for this call (restored afterwards); on a busy machine with few
-    cores one thread avoids OpenMP threads waiting for each other."""
+    threads: torch CPU threads for this call (restored afterwards; None: torch's setting, the process
+    thread policy's count, :mod:`xnlos_core.threads`)."""
     import torch
 
     from .features import pad_to_multiple

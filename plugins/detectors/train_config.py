@@ -151,7 +151,9 @@ class TrainConfig(BaseModel):
     export: str | None = Field(None, description="also write the final model to this path (into the installed "
                                "package only when the command names it: --export)")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$")
-    threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads (None: torch's default)")
+    threads: int | None = Field(None, ge=1, le=1024, description="torch CPU threads (None: torch's setting, "
+                                "which the process thread policy makes one per available core; "
+                                "xnlos_core.threads)")
     init: str | None = Field(None, description="start from the weights of this checkpoint (same architecture "
                              "and hyper-parameters): fine-tuning, e.g. on whole maps after training on crops")
     data: DataConfig

@@ -1,6 +1,11 @@
-"""Thread policy: BLAS limited to ``[run] blas_threads`` while the pipeline's stages run,
-the caller's limits restored afterwards."""
+"""Thread policy: the process policy (passive OpenMP waiting, thread counts from the available cores)
+in force in a fresh interpreter that starts the CLI, a user's own settings kept; BLAS limited to
+``[run] blas_threads`` while the pipeline's stages run, the caller's limits restored afterwards."""
+import json
+import os
+import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
@@ -11,7 +16,8 @@ from xnlos_core.errors import ConfigError
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.registry import PluginManager
 from xnlos_core.testing import small_pipeline_table
-from xnlos_core.threads import _blas_controller, blas_limit
+from xnlos_core import threads
+from xnlos_core.threads import _blas_controller, available_cores, blas_limit, policy_environment
 
 OUTSIDE = 3  # a BLAS limit set around the pipeline, unlike both the default policy (1) and 2 below
 
@@ -118,3 +124,84 @@ def test_thread_count_leaves_the_config_digest_alone():
     digest = lambda **run: parse_pipeline(small_pipeline_table(run={"frames": 1, **run}), "t").digest()  # noqa: E731
     assert digest(blas_threads=4) == digest() == digest(blas_threads=0)
     assert digest(frames=2) != digest()
+
+
+ROOT = Path(__file__).resolve().parents[2]
+# What the child reports: the policy's variables as the environment holds them once the CLI module is
+# imported, then the thread counts of torch and numba imported after it (as `xnlos run` imports them).
+PROBE = """
+import json, os, sys
+import xnlos_core.app.cli
+from xnlos_core import threads
+env = {k: os.environ.get(k) for k in ("OMP_WAIT_POLICY", "KMP_BLOCKTIME", "OMP_NUM_THREADS", "NUMBA_NUM_THREADS")}
+import numba, torch
+print(json.dumps({"env": env, "cores": threads.available_cores(), "torch": torch.get_num_threads(),
+                  "numba": numba.config.NUMBA_NUM_THREADS, "policy": threads.POLICY}))
+"""
+
+
+def probe(**env) -> dict:
+    """Run :data:`PROBE` in a fresh interpreter whose environment has none of the policy's variables
+    but those given."""
+    base = {k: v for k, v in os.environ.items() if k not in policy_environment(1) and k != threads.OPT_OUT}
+    base["PYTHONPATH"] = os.pathsep.join([str(ROOT), base.get("PYTHONPATH", "")])
+    out = subprocess.run([sys.executable, "-c", PROBE], env={**base, **env}, cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_process_policy_in_force_when_the_cli_starts():
+    got = probe()
+    n = got["cores"]
+    assert got["env"] == {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTIME": "0", "OMP_NUM_THREADS": str(n),
+                          "NUMBA_NUM_THREADS": str(n)}
+    assert got["torch"] == n and got["numba"] == n
+    assert got["policy"]["loaded_before"] == [], "numpy, numba or torch loaded before the policy was set"
+    assert got["policy"]["kept"] == {} and not got["policy"]["off"]
+
+
+def test_users_own_settings_win():
+    got = probe(OMP_WAIT_POLICY="ACTIVE", OMP_NUM_THREADS="1")
+    assert got["env"]["OMP_WAIT_POLICY"] == "ACTIVE" and got["env"]["OMP_NUM_THREADS"] == "1"
+    assert got["env"]["KMP_BLOCKTIME"] == "0"  # the variables the user did not set still follow the policy
+    assert got["torch"] == 1
+    assert got["policy"]["kept"] == {"OMP_WAIT_POLICY": "ACTIVE", "OMP_NUM_THREADS": "1"}
+
+
+def test_policy_can_be_switched_off():
+    got = probe(XNLOS_THREAD_POLICY="0")
+    assert got["env"] == dict.fromkeys(policy_environment(1))  # nothing set
+    assert got["policy"]["off"] and got["policy"]["set"] == {}
+
+
+def _fake_sysfs(monkeypatch, files: dict[str, str], cpus: set[int]):
+    monkeypatch.setattr(threads, "_read", lambda path: files.get(str(path)))
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: cpus, raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+
+
+def test_available_cores_counts_physical_cores_of_the_affinity_mask(monkeypatch):
+    # CPUs 0-3 are two cores with two hyper-threads each; the process may run on 0, 1 and 2.
+    topo = {}
+    for cpu, core in [(0, 0), (1, 0), (2, 1), (3, 1)]:
+        topo[f"/sys/devices/system/cpu/cpu{cpu}/topology/physical_package_id"] = "0"
+        topo[f"/sys/devices/system/cpu/cpu{cpu}/topology/core_id"] = str(core)
+    _fake_sysfs(monkeypatch, topo, {0, 1, 2})
+    assert available_cores() == 2
+    _fake_sysfs(monkeypatch, {}, {0, 1, 2})  # no topology: every CPU counts
+    assert available_cores() == 3
+
+
+def test_available_cores_capped_by_a_cgroup_quota(monkeypatch):
+    v2 = {"/proc/self/cgroup": "0::/job", "/sys/fs/cgroup/job/cpu.max": "150000 100000",
+          "/sys/fs/cgroup/cpu.max": "max 100000"}
+    _fake_sysfs(monkeypatch, v2, {0, 1, 2, 3, 4, 5, 6, 7})
+    assert threads._cgroup_cpu_quota() == 1.5
+    assert available_cores() == 2  # 1.5 CPUs' worth of time: two threads, rounded up
+    v1 = {"/proc/self/cgroup": "4:cpu,cpuacct:/\n3:memory:/x", "/sys/fs/cgroup/cpu/cpu.cfs_quota_us": "100000",
+          "/sys/fs/cgroup/cpu/cpu.cfs_period_us": "100000"}
+    _fake_sysfs(monkeypatch, v1, {0, 1, 2, 3})
+    assert available_cores() == 1
+    _fake_sysfs(monkeypatch, {**v1, "/sys/fs/cgroup/cpu/cpu.cfs_quota_us": "-1"}, {0, 1, 2, 3})
+    assert threads._cgroup_cpu_quota() is None and available_cores() == 4
