@@ -1,6 +1,6 @@
 """xnlos core: types, plugin interfaces and registry, configuration, signal chain, metrics, CLI."""
 # First, before numpy (below), numba or torch load their thread libraries: the process thread policy
-# (passive OpenMP waiting, thread counts from the cores actually available; xnlos_core.threads).
+# (thread counts from the cores actually available; xnlos_core.threads).
 from .threads import apply_process_policy as _apply_process_policy
 
 _apply_process_policy()

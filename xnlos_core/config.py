@@ -73,6 +73,9 @@ class RunConfig(BaseModel):
                               "is simulated and processed, restored afterwards (xnlos_core.threads): 1 keeps BLAS "
                               "from fighting torch for the cores; 0 leaves BLAS as it is (its default or "
                               "OPENBLAS_NUM_THREADS)")
+    share_cores: bool = Field(True, description="before each frame, run torch with the cores that other processes "
+                              "left free since the previous frame (xnlos_core.core_share): no collapse when the "
+                              "cores are shared; false: torch keeps its thread count")
 
     def figure_frames(self, indices) -> list[int]:
         """Which of the recorded frame ``indices`` get a figure (sorted): none without ``figure``;
@@ -151,9 +154,10 @@ class PipelineConfig(BaseModel):
     def digest(self) -> str:
         """sha256 of the canonical JSON of this config (provenance). ``run.animation`` and
         ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
-        them on resumes a finished run, and runs made before they existed keep their hash); so is
-        ``run.blas_threads``, which changes only speed (like OPENBLAS_NUM_THREADS, never hashed)."""
-        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures", "blas_threads"}})
+        them on resumes a finished run, and runs made before they existed keep their hash); so are
+        ``run.blas_threads`` and ``run.share_cores``, which change only speed (like OPENBLAS_NUM_THREADS,
+        never hashed)."""
+        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures", "blas_threads", "share_cores"}})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

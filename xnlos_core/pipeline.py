@@ -22,6 +22,7 @@ from .provenance import provenance
 from .radar import load_radar
 from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
+from .core_share import adapt_torch_threads
 from .threads import blas_limit
 from .track_record import tracks_record
 from .types import FRAME_IN_SCENE, MNLOS, Detections, Frame, HiddenPoints, Tracks, WallPosterior
@@ -248,7 +249,8 @@ class Pipeline:
 
     def process(self, frame: Frame) -> FrameResult:
         """Run detection, wall estimation, reconstruction and tracking on one frame (and score it),
-        with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`).
+        with BLAS limited to ``run.blas_threads`` threads meanwhile (:mod:`xnlos_core.threads`) and torch's
+        threads kept to the cores other processes leave free (``run.share_cores``, :mod:`xnlos_core.core_share`).
         The first call warms the detector up first (:meth:`warm_up`, outside the stage timings).
 
         A frame that starts a sequence (``frame.meta["frame_in_scene"] == 0``, as a sequence dataset's
@@ -258,6 +260,7 @@ class Pipeline:
         self.warm_up()
         if frame.meta.get(FRAME_IN_SCENE) == 0:
             self.reset()
+        adapt_torch_threads(self.config.run.share_cores)
         with blas_limit(self.config.run.blas_threads):
             return self._process(frame)
 

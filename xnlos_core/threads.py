@@ -8,25 +8,19 @@ before numpy, numba or torch load their thread libraries: every entry point — 
 xnlos_core``, the benchmarks — imports the package first). Each variable is set only where the
 environment does not set it already (``os.environ.setdefault``), so a user's explicit choice wins:
 
-- ``OMP_WAIT_POLICY=PASSIVE``: idle OpenMP threads (torch's intra-op pool, oneDNN and MKL inside
-  torch: GNU OpenMP here) sleep at once instead of spinning for the next parallel region;
-- ``KMP_BLOCKTIME=0``: the same for Intel / LLVM OpenMP (milliseconds of spinning before sleeping);
 - ``OMP_NUM_THREADS`` and ``NUMBA_NUM_THREADS``: the cores this process may actually use
   (:func:`available_cores`: the CPU affinity mask, one per physical core, capped by a cgroup CPU
   quota), not ``os.cpu_count()``. torch's intra-op threads, OpenBLAS's default and numba's pool
   follow them (``MKL_NUM_THREADS`` / ``OPENBLAS_NUM_THREADS`` set by the user still win for those).
 
-Why: with OpenMP's default wait policy each of torch's threads spins at every barrier waiting for
-the others; when the cores are shared (load 3–4 on a 2-core machine: a lab server, a vehicle
-computer running other processes) the thread being waited for is often descheduled, so a spinning
-thread burns its time slice while the work waits. Measured on 2 shared cores: the Swin-UNet forward
-took 1.6–1.8 s instead of 61–76 ms, ``xnlos run`` on the fast pipeline 1.8–1.9 s per frame
-(18–21× the same run with one torch thread) and a training step 2.5–7.1 s instead of
-0.56–0.59 s; with ``OMP_WAIT_POLICY=PASSIVE`` the network took 67–80 ms on two threads under the
-same load. ``benchmarks/pipeline_speed.py --loaded`` measures the pipeline with one busy process per
-core (``benchmarks/pipeline_speed.md``). Threads of the wrong count cost as much: torch and
-numba size their pools by the machine's cores, so in a container limited to fewer cores (affinity
-or a CPU quota) their extra threads only wait for each other.
+Threads of the wrong count cost: torch and numba size their pools by the machine's cores, so in a
+container limited to fewer cores (affinity or a CPU quota) their extra threads only wait for each
+other. How the threads wait is left to OpenMP (spinning briefly at each barrier, the fastest on a
+machine of one's own); when other processes share the cores, torch's count follows the cores they
+leave free, measured frame by frame (:mod:`xnlos_core.core_share`), which keeps the pipeline from
+collapsing without slowing a quiet machine. ``OMP_WAIT_POLICY=PASSIVE`` exported by the user (kept,
+like every variable set already) trades 9–48 % of quiet speed for a little more under load
+(``benchmarks/pipeline_speed.md``).
 
 The process policy takes effect for a library only if it is set before that library is loaded:
 torch or numba imported before ``xnlos_core`` keep their defaults (:data:`POLICY` records them in
@@ -144,8 +138,7 @@ def available_cores() -> int:
 
 def policy_environment(cores: int) -> dict[str, str]:
     """The variables of the process policy for ``cores`` threads (module doc)."""
-    return {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTIME": "0",
-            "OMP_NUM_THREADS": str(cores), "NUMBA_NUM_THREADS": str(cores)}
+    return {"OMP_NUM_THREADS": str(cores), "NUMBA_NUM_THREADS": str(cores)}
 
 
 def apply_process_policy() -> dict:

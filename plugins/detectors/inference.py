@@ -31,6 +31,7 @@ from typing import Literal
 
 import numpy as np
 
+from xnlos_core.core_share import limited
 from xnlos_core.errors import ConfigError, XnlosWarning
 
 Precision = Literal["fp32", "bf16"]
@@ -112,8 +113,9 @@ class InferenceRunner:
         x, _ = pad_to_multiple(x, self.multiple)
         x = to_channels_last(x)
         before = torch.get_num_threads()
-        if self.threads and self.threads != before:
-            torch.set_num_threads(self.threads)
+        threads = limited(self.threads) if self.threads else 0  # kept to the cores left free (core_share)
+        if threads and threads != before:
+            torch.set_num_threads(threads)
         try:
             with torch.inference_mode():
                 if self.precision == "bf16":
@@ -123,7 +125,7 @@ class InferenceRunner:
                     out = self._forward(x)
                 out = out[0].float().contiguous().cpu().numpy()
         finally:
-            if self.threads and self.threads != before:
+            if threads and threads != before:
                 torch.set_num_threads(before)
         self.forwards += 1
         return out

@@ -41,6 +41,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
 
 from plugins.detectors.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
+from xnlos_core.core_share import limited
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
 from xnlos_core.interfaces import Detector
 from xnlos_core.radar import RadarConfig
@@ -139,6 +140,7 @@ def run_network(net, features: np.ndarray, device, threads: int | None = None) -
     x, _ = pad_to_multiple(x, net.multiple)
     before = torch.get_num_threads()
     if threads:
+        threads = limited(threads)  # kept to the cores other processes leave free (xnlos_core.core_share)
         torch.set_num_threads(threads)
     try:
         with torch.inference_mode():

@@ -57,11 +57,16 @@ def make_optimizer(net, optim: OptimConfig, total_steps: int, warmup_steps: int 
 
 
 def step(loss, net, opt, sched, grad_clip: float) -> None:
-    """One optimizer step on ``loss``: backward, clip the gradient norm, AdamW, schedule."""
+    """One optimizer step on ``loss``: backward, clip the gradient norm, AdamW, schedule. Then torch's
+    threads follow the cores other processes leave free for the next step
+    (:func:`xnlos_core.core_share.adapt_torch_threads`)."""
     import torch
+
+    from xnlos_core.core_share import adapt_torch_threads
 
     opt.zero_grad(set_to_none=True)
     loss.backward()
     torch.nn.utils.clip_grad_norm_(net.parameters(), grad_clip)
     opt.step()
     sched.step()
+    adapt_torch_threads()
