@@ -32,7 +32,7 @@ VARIANTS = {"plain": {}, "fp32": {}, "bf16": {"precision": "bf16"}, "compile": {
 
 
 def build(name: str, variant: str, radar):
-    """(detector, warm-up seconds) of ``variant`` on ``radar``'s grid; ``plain`` runs the pre-issue-31 path."""
+    """(detector, warm-up seconds) of ``variant`` on ``radar``'s grid; ``plain`` runs the path before channels-last inference and warm-up."""
     import copy
 
     import torch

@@ -29,6 +29,7 @@ from __future__ import annotations
 import xnlos_core  # noqa: F401  isort: skip
 
 import argparse
+from collections import Counter
 import json
 import multiprocessing as mp
 import os
@@ -89,11 +90,21 @@ class BusyProcesses:
 
 
 def timed_pass(pipe: Pipeline) -> tuple[list, float]:
-    """Results of the pipeline's frames but the first (a warm-up frame) and the seconds they took."""
+    """Results of the pipeline's frames but the first (a warm-up frame) and the seconds they took;
+    prints how many frames ran with how many torch threads (the count follows the cores other
+    processes leave free: ``xnlos_core.core_share``)."""
+    import torch
+
     pipe.reset()
     t0 = time.perf_counter()
-    results = list(pipe.run())[1:]
-    return results, time.perf_counter() - t0
+    results, threads = [], []
+    for r in pipe.run():
+        results.append(r)
+        threads.append(torch.get_num_threads())  # the count this frame ran with (set as it started)
+    wall = time.perf_counter() - t0
+    counts = dict(sorted(Counter(threads[1:]).items()))
+    print(f"# torch threads per frame: {', '.join(f'{n} thread(s): {k} frame(s)' for n, k in counts.items())}")
+    return results[1:], wall
 
 
 def processing_ms(results) -> np.ndarray:

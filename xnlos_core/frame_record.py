@@ -60,6 +60,8 @@ def hidden_record(h: HiddenPoints) -> dict[str, Any]:
         out.update(velocity=h.velocity.tolist(), velocity_cov=h.velocity_cov.tolist())
     if h.view is not None:
         out["view"] = h.view.tolist()
+    if len(h.gated):
+        out["gated"] = h.gated.tolist()
     return out
 
 
@@ -122,4 +124,5 @@ def hidden_from_record(rec: dict[str, Any], where: str = "hidden") -> HiddenPoin
     parts += [_array(rec, "velocity", where, (2,)), _array(rec, "velocity_cov", where, (2, 2))] if "velocity" in rec \
         else [None, None]
     view = _array(rec, "view", where, (2,)) if "view" in rec else None
-    return _checked(where, lambda: HiddenPoints(*parts, view=view))
+    gated = _array(rec, "gated", where, dtype=np.int64) if "gated" in rec else None
+    return _checked(where, lambda: HiddenPoints(*parts, view=view, gated=gated))

@@ -82,6 +82,7 @@ class FrameResult:
             "walls": [wall_record(w) for w in self.walls],
             "hidden_points": self.hidden.mean.tolist(),
             "hidden": hidden_record(self.hidden),
+            "n_gated": len(self.hidden.gated),
             "tracks": None if self.tracks is None else tracks_record(self.tracks),
             "metrics": self.metrics,
             "timings_s": self.timings,
@@ -288,7 +289,10 @@ class Pipeline:
             pass
         elif walls and n_mnlos:
             hidden = timed("reconstructor", self.stages["reconstructor"].reconstruct, det, walls)
-            missing = n_mnlos - len(np.unique(hidden.source_index))
+            if len(hidden.gated):
+                notes.append(f"reconstructor: {len(hidden.gated)} of {n_mnlos} mNLOS detections gated as ghosts (their "
+                             "mirror image lies where the relay wall cannot show it); not reported as hidden")
+            missing = n_mnlos - len(np.unique(hidden.source_index)) - len(np.unique(hidden.gated))
             if missing:
                 notes.append(f"reconstructor: {missing} of {n_mnlos} mNLOS detections matched no wall; not reconstructed")
         elif n_mnlos:

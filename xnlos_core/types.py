@@ -495,6 +495,9 @@ class HiddenPoints(ReadOnlyArrays):
     view (M, 2) [-] or None: the unit direction of the mirrored line of sight at o, from the bounce
     point on the wall towards o (the radar mirrored across the wall sees o from there). An object's
     seen points lie on its side facing that way; trackers use it to place the object's centre.
+    gated (G,) int: the mNLOS detections the reconstructor refused as ghosts, their mirror image
+    lying where the relay wall cannot show it (:mod:`plugins.mirror.visibility`); not among the M
+    points, counted in the frame's ``n_gated``. Empty by default.
     """
 
     mean: np.ndarray
@@ -504,6 +507,7 @@ class HiddenPoints(ReadOnlyArrays):
     velocity: np.ndarray | None = None
     velocity_cov: np.ndarray | None = None
     view: np.ndarray | None = None
+    gated: np.ndarray | None = None
 
     def __post_init__(self):
         m = _points("HiddenPoints.mean", self.mean)
@@ -526,6 +530,11 @@ class HiddenPoints(ReadOnlyArrays):
             if k and not np.allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-6):
                 raise InputError("HiddenPoints.view: expected unit vectors (M, 2), one per hidden point")
             set_attribute(self, "view", v)
+        g = as_array("HiddenPoints.gated", np.empty(0, np.int64) if self.gated is None else self.gated,
+                     dtype=np.int64, shape=(None,), readonly=True)
+        if len(g) and g.min() < 0:
+            raise InputError("HiddenPoints.gated: detection indices must be ≥ 0")
+        set_attribute(self, "gated", g)
 
     @classmethod
     def empty(cls) -> "HiddenPoints":

@@ -27,6 +27,11 @@ along the tangent line lies between the extent ends' (± margin). If none is cro
 nᵀo' + b for a line) that is closest to o', "drop" leaves o' unanchored. Unanchored detections are
 recorded in ``last_unanchored_`` (indices into the detections) and logged, never silently lost.
 
+Visibility gate (``gate``, default on): a hidden point the relay wall cannot show (outside the wedge
+its observed segment subtends, behind the wall, or behind the radar; :mod:`plugins.mirror.visibility`)
+is a ghost, not a hidden point: it is left out and its detection listed in ``HiddenPoints.gated``
+(the frame's ``n_gated``).
+
 Mirror Doppler: when the detections carry a radial velocity (``Detections.velocity``), each hidden
 point also gets the observed component of its velocity along the mirrored line of sight, with
 covariance from the velocity variance, the detection's position and the wall
@@ -48,6 +53,7 @@ from xnlos_core.types import MNLOS, Detections, HiddenPoints, WallPosterior
 from xnlos_core.wall_propagation import propagate
 
 from .association import anchor_points, crossing_parameters  # noqa: F401  (re-exported)
+from .visibility import VISIBLE, describe_gated, visibility
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +65,11 @@ class MirrorParams(BaseModel):
     fallback: Literal["nearest", "drop"] = Field(
         "nearest", description="mNLOS point whose ray crosses no wall: 'nearest' wall line it lies behind, "
                                "or 'drop' (counted in last_unanchored_)")
+    gate: bool = Field(True, description="refuse hidden points the relay wall cannot show (outside its visibility "
+                                         "wedge, behind it, behind the radar: plugins.mirror.visibility), counted "
+                                         "as the frame's n_gated; false: report every mirror image")
+    behind_radar: bool = Field(False, description="with gate: accept hidden points behind the radar (x < 0), "
+                                                  "which only a wall facing the radar across its boresight shows")
 
 
 class MirrorReconstructor(Reconstructor):
@@ -117,8 +128,25 @@ class MirrorReconstructor(Reconstructor):
             jx, jw = mirror_jacobians(pts[m], float(w.mean[0]), float(w.mean[1]))
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)
             cov[m] = 0.5 * (c + np.swapaxes(c, -1, -2))
+        keep = self.visible(mean, pts, walls, choice, src)
+        mean, cov, pts, pcov, choice, gated, src = mean[keep], cov[keep], pts[keep], pcov[keep], choice[keep], \
+            src[~keep], src[keep]
         vel = self._velocities(detections, walls, pts, pcov, choice, src) or (None, None)
-        return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice)), pts
+        return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice), gated=gated), pts
+
+    def visible(self, hidden: np.ndarray, virtual: np.ndarray, walls: list[WallPosterior], choice: np.ndarray,
+                src: np.ndarray) -> np.ndarray:
+        """(M,) bool: the hidden points (M, 2) [m] that pass the visibility gate
+        (:func:`plugins.mirror.visibility.visibility` with ``extent_margin`` and ``behind_radar``); all
+        True without ``gate``. The gated ones are logged by rule with their detection indices ``src``."""
+        if not self.params.gate or len(hidden) == 0:
+            return np.ones(len(hidden), dtype=bool)
+        reason = visibility(hidden, virtual, walls, choice, self.params.extent_margin,
+                            None if self.params.behind_radar else 0.0)
+        line = describe_gated(reason, src)
+        if line:
+            log.info("%s: %s", type(self).__name__, line)
+        return reason == VISIBLE
 
     @staticmethod
     def _views(walls, pts, choice) -> np.ndarray:

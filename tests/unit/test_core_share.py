@@ -57,7 +57,7 @@ def test_others_measured_over_the_interval_without_the_process_itself():
     f.advance(MIN_INTERVAL / 2, others=2.0)  # too short: nothing measured, the interval goes on
     assert s.sample() is None
     f.advance(0.5, others=2.0)
-    assert s.sample() == pytest.approx(2.0)
+    assert s.sample() == pytest.approx(2.0, abs=0.05)  # clock ticks: 1/100 s per CPU
 
 
 def test_unreadable_statistics_measure_nothing():

@@ -24,7 +24,7 @@ def test_mirror_then_mirror_back_is_identity(phi, b, depth, along):
     n = np.array([np.cos(phi), np.sin(phi)])
     u = np.array([-n[1], n[0]])
     virtual = -(b + depth) * n + along * u  # behind the wall (nᵀo' + b = −depth < 0)
-    hp = MirrorReconstructor().reconstruct(detections(virtual), [wall(n, b)])
+    hp = MirrorReconstructor({"gate": False}).reconstruct(detections(virtual), [wall(n, b)])  # the mirror alone
     assert len(hp) == 1 and hp.source_index.tolist() == [0] and hp.wall_index.tolist() == [0]
     o = hp.mean[0]
     scale = b + depth + abs(along)
@@ -60,9 +60,12 @@ def test_first_crossing_wins_and_fallbacks():
     rec = MirrorReconstructor({"fallback": "drop"})
     hp = rec.reconstruct(det, [near])
     assert hp.source_index.tolist() == [0] and rec.last_unanchored_.tolist() == [1]
-    rec = MirrorReconstructor({"fallback": "nearest"})
+    rec = MirrorReconstructor({"fallback": "nearest", "gate": False})
     hp = rec.reconstruct(det, [near])
     assert hp.source_index.tolist() == [0, 1] and rec.last_unanchored_.size == 0
+    # ... but its mirror image lies outside the wedge the wall's seen extent subtends: a ghost
+    hp = MirrorReconstructor({"fallback": "nearest"}).reconstruct(det, [near])
+    assert hp.source_index.tolist() == [0] and hp.gated.tolist() == [1]
     # A point in front of every wall line cannot be anchored even by "nearest".
     hp = rec.reconstruct(detections([[10.0, -30.0]]), [near])
     assert len(hp) == 0 and rec.last_unanchored_.tolist() == [0]

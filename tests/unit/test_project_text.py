@@ -1,6 +1,6 @@
 """The project's text speaks of the software only: no tracked .py, .md or .toml file numbers the
-project's own work items or working periods (" ", " ", " " and the like),
-which mean nothing to a reader. CHANGELOG.md records user-visible changes by date instead."""
+project's own work items or working periods (the word for one followed by its number, with a
+space, a hyphen or a '#' between), which mean nothing to a reader. CHANGELOG.md records user-visible changes by date instead."""
 from __future__ import annotations
 
 import re
@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-NUMBERED = re.compile(r"\b(?:issues?|sessions?|stops?)\b\s*(?:#\s*)?\d+|out/eval/s\d+-", re.IGNORECASE)
+NUMBERED = re.compile(r"\b(?:issues?|sessions?|stops?)\b[\s-]*(?:#\s*)?\d+|out/eval/s\d+-", re.IGNORECASE)
 
 
 def tracked_text_files() -> list[Path]:
@@ -34,7 +34,7 @@ def test_no_file_numbers_the_projects_own_work():
 def test_the_check_sees_the_usual_forms():
     issue, session = "iss" + "ue", "sess" + "ion"  # spelled apart, so this file holds none itself
     for text in (f"see {issue} 28", f"({issue.title()} #26, item 3)", f"after {session} 12's change",
-                 f"{session}s 8 and 9", "out/eval/s" + "18-test"):
+                 f"{session}s 8 and 9", "out/eval/s" + "18-test", f"the pre-{issue}-31 path"):
         assert numbered_references(text), text
     for text in ("Sec. 5.1.2", "Eq. 7", "GitHub issue tracker", "a session of the CAN bus", "2 stops"):
         assert not numbered_references(text), text

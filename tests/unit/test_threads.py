@@ -172,7 +172,7 @@ def test_users_own_settings_win():
 
 def test_policy_can_be_switched_off():
     got = probe(XNLOS_THREAD_POLICY="0")
-    assert got["env"] == dict.fromkeys(policy_environment(1))  # nothing set
+    assert set(got["env"].values()) == {None}  # nothing set
     assert got["policy"]["off"] and got["policy"]["set"] == {}
 
 

@@ -77,6 +77,8 @@ HIDDEN = _object({
     "velocity_cov": _list(MAT2, "its covariance (M, 2, 2) [m²/s²]; only with Doppler"),
     "view": _list(_vec(2), "unit direction (M, 2) of the mirrored line of sight at each point, from its "
                            "bounce point on the wall towards it; where the reconstructor gives it"),
+    "gated": _list(INDEX, "rows of detection_table refused as ghosts by the visibility gate (their mirror image "
+                          "lies where the relay wall cannot show it); only when some were"),
 }, required=["mean", "cov", "source_index", "wall_index"], description="reconstructed hidden points (Eq. 7)")
 
 TRACKS = {**_object({
@@ -105,6 +107,8 @@ RESULTS_SCHEMA: dict[str, Any] = {
         "walls": _list(WALL, "the frame's relay walls"),
         "hidden_points": _list(POINT, "= hidden.mean (schema 1 key)"),
         "hidden": HIDDEN,
+        "n_gated": {"type": "integer", "minimum": 0, "description": "mNLOS detections gated as ghosts (= length "
+                                                                    "of hidden.gated)"},
         "tracks": TRACKS,
         "metrics": {"type": "object", "description": "scores against ground truth (empty without it)"},
         "timings_s": {"type": "object", "additionalProperties": NUMBER, "description": "stage → wall time [s]"},
@@ -112,10 +116,10 @@ RESULTS_SCHEMA: dict[str, Any] = {
         "detection_doppler": _object({
             "range": _list(NUMBER), "azimuth": _list(NUMBER), "label": _list({"type": "integer"}),
             "velocity": _list(NUMBER), "velocity_var": _list(NUMBER)},
-            description="issue-28 layout, repeats detection_table; only with Doppler"),
+            description="the first Doppler layout, repeats detection_table; only with Doppler"),
         "hidden_velocity": _object({
             "velocity": _list(_vec(2)), "velocity_cov": _list(MAT2), "source_index": _list(INDEX)},
-            description="issue-28 layout, repeats hidden; only with Doppler"),
+            description="the first Doppler layout, repeats hidden; only with Doppler"),
     }, required=["schema_version", "frame", "timestamp", "detections", "detection_table", "walls",
                  "hidden_points", "hidden", "tracks", "metrics", "timings_s", "notes"]),
 }
@@ -137,7 +141,11 @@ def validate_record(record: Any) -> None:
                                   f"with label {j}), got {record['detections'][name]}")
     for i, w in enumerate(record["walls"]):
         _check_wall(w, f"walls[{i}]")
-    m = _same_length(record["hidden"], "hidden")
+    m = _same_length({key: v for key, v in record["hidden"].items() if key != "gated"}, "hidden")
+    _below(record["hidden"].get("gated", []), k, "hidden.gated", "rows of detection_table")
+    if "n_gated" in record and record["n_gated"] != len(record["hidden"].get("gated", [])):
+        raise SchemaViolation("n_gated", f"expected {len(record['hidden'].get('gated', []))} (the length of "
+                              f"hidden.gated), got {record['n_gated']}")
     if record["hidden_points"] != record["hidden"]["mean"]:
         raise SchemaViolation("hidden_points", "expected the same points as hidden.mean")
     _below(record["hidden"]["source_index"], k, "hidden.source_index", "rows of detection_table")

@@ -130,7 +130,13 @@ class ResidualMirrorReconstructor(MirrorReconstructor):
                                  torch.from_numpy(x["mask"]))
             delta = local_to_global(d_local, normal).double().numpy()
             extra = residual_cov(log_s, normal).double().numpy()
-        self.last_residual_ = delta
         cov = geom.cov + extra if self.params.residual_cov else geom.cov
-        return HiddenPoints(geom.mean + delta, 0.5 * (cov + np.swapaxes(cov, -1, -2)), geom.source_index,
-                            geom.wall_index, view=geom.view)
+        mean = geom.mean + delta
+        # the residual moves a point: the gate applies to where it ends up, too
+        keep = self.visible(mean, detections.position[geom.source_index], list(walls), geom.wall_index,
+                            geom.source_index)
+        self.last_residual_ = delta[keep]
+        cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
+        view = None if geom.view is None else geom.view[keep]
+        return HiddenPoints(mean[keep], cov[keep], geom.source_index[keep], geom.wall_index[keep], view=view,
+                            gated=np.concatenate([geom.gated, geom.source_index[~keep]]))

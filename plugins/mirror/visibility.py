@@ -1,0 +1,78 @@
+"""Where a relay wall lets the radar see: the visibility gate for hidden points.
+
+A hidden point o, reconstructed across wall Π from the virtual point o' (Eq. 7), was seen along
+radar → q → o, where the bounce point q is the crossing of the ray radar → o' with the wall. A
+specular reflection off a finite wall can put o only in some places:
+
+1. **The wedge.** q lies on the part of the wall the estimator observed: ``WallPosterior.extent``
+   lengthened by ``margin`` [m] at both ends (an arc: the ray's hit on the arc, its coordinate along
+   the tangent line inside the extent's ± margin; a wall without extent is an unbounded line).
+   By the mirror symmetry this is the same as o lying in the wedge that the wall segment subtends
+   from the mirrored radar R_Π(0): the region the wall lets the radar see.
+2. **In front of the mirror.** o lies on the radar's side of the wall (δ(o) has the sign of δ(0)),
+   and o' beyond it (q between the radar and o'): a mirror shows what stands in front of it.
+3. **Ahead of the radar.** o lies ahead of the radar's aperture (x ≥ ``ahead`` [m] in the radar
+   frame, boresight +x), unless ``behind_radar`` is allowed. A wall can in principle show the
+   radar what is behind it, but only a wall facing the radar across its boresight does, and the
+   wall the estimator then returns is almost always a spurious fit near the radar that mirrors far
+   echoes 10–20 m behind the vehicle (the tracks "behind the radar" of a run).
+
+A point that fails any of them is a **ghost**: not reported as hidden, but counted (the frame's
+``n_gated``, :attr:`xnlos_core.types.HiddenPoints.gated` lists the detections) and named in the
+frame's notes with the rule it broke. :func:`visibility` returns the reason per point; the
+reconstructors of :mod:`plugins.mirror` apply it (``gate``, ``behind_radar`` parameters).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from xnlos_core.errors import InputError
+from xnlos_core.types import WallPosterior
+
+from .association import crossing_parameters, signed_distances
+
+VISIBLE, OUTSIDE_WEDGE, BEHIND_WALL, BEHIND_RADAR = 0, 1, 2, 3
+REASONS = {OUTSIDE_WEDGE: "outside its wall's visibility wedge", BEHIND_WALL: "not in front of its wall",
+           BEHIND_RADAR: "behind the radar"}
+
+
+def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: float = 2.0,
+               ahead: float | None = 0.0) -> np.ndarray:
+    """(M,) int reason code per hidden point (module doc): ``VISIBLE`` (0) or the first rule it breaks,
+    ``OUTSIDE_WEDGE`` (1), ``BEHIND_WALL`` (2), ``BEHIND_RADAR`` (3).
+
+    hidden: (M, 2) hidden points o [m]; virtual: (M, 2) the virtual points o' [m] they were mirrored
+    from; wall_index: (M,) the wall of each (index into ``walls``); margin [m] ≥ 0; ahead [m]: the
+    least x of a hidden point (None: no such rule)."""
+    o = np.asarray(hidden, dtype=np.float64).reshape(-1, 2)
+    v = np.asarray(virtual, dtype=np.float64).reshape(-1, 2)
+    j = np.asarray(wall_index, dtype=np.int64).reshape(-1)
+    if not (len(o) == len(v) == len(j)):
+        raise InputError(f"visibility: hidden {o.shape}, virtual {v.shape} and wall_index {j.shape} must have one "
+                         "row per hidden point")
+    if len(j) and (j.min() < 0 or j.max() >= len(walls)):
+        raise InputError(f"visibility: wall_index must index the {len(walls)} wall(s), got {j.min()} … {j.max()}")
+    if not margin >= 0:
+        raise InputError(f"visibility: margin must be ≥ 0 m, got {margin}")
+    reason = np.zeros(len(o), dtype=np.int64)
+    for w in np.unique(j):
+        m = np.flatnonzero(j == w)
+        wall = [walls[w]]
+        crossed = np.isfinite(crossing_parameters(v[m], wall, margin)[:, 0])
+        radar_side = np.sign(signed_distances(np.zeros((1, 2)), wall)[0, 0]) or 1.0
+        in_front = signed_distances(o[m], wall)[:, 0] * radar_side > 0
+        beyond = signed_distances(v[m], wall)[:, 0] * radar_side < 0
+        reason[m] = np.where(~crossed, OUTSIDE_WEDGE, np.where(~(in_front & beyond), BEHIND_WALL, VISIBLE))
+    if ahead is not None:
+        reason = np.where((reason == VISIBLE) & ~(o[:, 0] >= ahead), BEHIND_RADAR, reason)
+    return reason
+
+
+def describe_gated(reason: np.ndarray, source_index) -> str | None:
+    """One line for a frame's notes naming the gated detections by rule, or None when none was gated."""
+    reason, src = np.asarray(reason), np.asarray(source_index)
+    parts = [f"{int(np.sum(reason == r))} {text} (detections {src[reason == r].tolist()})"
+             for r, text in REASONS.items() if np.any(reason == r)]
+    if not parts:
+        return None
+    return "visibility gate: ghost(s) not reported as hidden: " + "; ".join(parts)
