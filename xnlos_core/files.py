@@ -1,11 +1,22 @@
 """Reading the files a configuration names, without trusting the configuration.
 
-The rule (README, "Configs"): a path written in a config is resolved against the folder of the
-file that names it and, after every symlink is resolved, must lie inside a *config root*: the
-folder of the top-level config file or the current working directory (the project a user runs
-``xnlos`` from, which holds the shipped ``configs/``). Absolute paths obey the same rule; there
-is no way for a file to widen it, so a downloaded config cannot read ``~/.ssh`` or
-``/etc/passwd`` (``../../../etc/passwd`` or a symlink out of the folder is refused alike).
+The rule (docs "Configs"): a path written in a config is resolved against the folder of the file
+that names it (wherever the user stands) and, after every symlink is resolved, must lie inside a
+*config root* (:func:`config_roots`):
+
+- the folder of the top-level config file;
+- its project: the nearest folder above it (or itself) holding an ``xnlos.toml`` or a
+  ``pyproject.toml``, found the way pytest finds its rootdir, so ``configs/pipelines/corner.toml``
+  may name ``../scenes/corner.toml`` from any working directory;
+- the current working directory;
+- folders the user adds on purpose (a lab's shared library of radars and scenes): ``xnlos --root
+  DIR``, the ``XNLOS_CONFIG_ROOTS`` environment variable (folders separated by ``os.pathsep``), and
+  ``roots = [...]`` under ``[paths]`` of the project's ``xnlos.toml`` (or ``[tool.xnlos]`` of its
+  ``pyproject.toml``), relative to that file.
+
+Absolute paths obey the same rule. A config file itself cannot widen it (only the user's command
+line, environment or project file can), so a downloaded config cannot read ``~/.ssh`` or
+``/etc/passwd`` (``../../../etc/passwd`` or a symlink out of the roots is refused alike).
 Only regular files are read: a FIFO, a device or a directory is refused before it is opened,
 and the file is opened with ``O_NONBLOCK`` and checked again with ``fstat`` so that a FIFO
 swapped in between cannot block the reader. Every refusal is a :class:`ConfigError` naming the
@@ -46,11 +57,60 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
+ROOTS_ENV = "XNLOS_CONFIG_ROOTS"  # extra config roots, separated by os.pathsep (``xnlos --root`` adds to it)
+PROJECT_FILES = ("xnlos.toml", "pyproject.toml")  # the files that mark a project folder
+
+
+def project_root(folder: str | Path) -> Path | None:
+    """The nearest folder at or above ``folder`` holding one of :data:`PROJECT_FILES` (as pytest finds
+    its rootdir from its ini files), symlinks resolved; None when there is none."""
+    try:
+        d = Path(folder).resolve()
+    except (OSError, RuntimeError, ValueError):
+        return None
+    for p in (d, *d.parents):
+        if any((p / name).is_file() for name in PROJECT_FILES):
+            return p
+    return None
+
+
+def _project_roots(project: Path) -> list[Path]:
+    """``roots`` of ``[paths]`` in ``project``/xnlos.toml, else of ``[tool.xnlos]`` in its pyproject.toml,
+    relative to that file; a file that cannot be read or holds no such list gives none (a broken
+    pyproject.toml is the packaging tools' to report, not a reason to refuse a config)."""
+    for name, keys in (("xnlos.toml", ("paths",)), ("pyproject.toml", ("tool", "xnlos"))):
+        f = project / name
+        if not f.is_file():
+            continue
+        try:
+            table: Any = tomllib.loads(f.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+            if name == "xnlos.toml":
+                raise ConfigError(f"{f}: cannot read the project file (expected TOML with [paths] roots = [...])") \
+                    from None
+            continue
+        for k in keys:
+            table = table.get(k, {}) if isinstance(table, dict) else {}
+        roots = table.get("roots", []) if isinstance(table, dict) else []
+        if not isinstance(roots, list) or not all(isinstance(r, str) and r for r in roots):
+            raise ConfigError(f"{f}: [{'.'.join(keys)}] roots must be a list of folder paths, got {roots!r}")
+        return [project / Path(r).expanduser() for r in roots]
+    return []
+
+
+def extra_roots() -> list[Path]:
+    """The roots the user added: ``XNLOS_CONFIG_ROOTS`` (``xnlos --root``), then none else."""
+    return [Path(r).expanduser() for r in os.environ.get(ROOTS_ENV, "").split(os.pathsep) if r.strip()]
+
+
 def config_roots(root_dir: str | Path) -> tuple[Path, ...]:
-    """The folders paths in a config may point into: ``root_dir`` (the top-level config's folder)
-    and the current working directory, both with symlinks resolved."""
-    roots = []
-    for d in (root_dir, Path.cwd()):
+    """The folders paths in a config may point into (module doc): ``root_dir`` (the top-level config's
+    folder), its project root and that project's ``roots``, the current working directory, and the
+    folders of ``XNLOS_CONFIG_ROOTS``; each with symlinks resolved, each once."""
+    project = project_root(root_dir)
+    candidates = [Path(root_dir)] + ([project, *_project_roots(project)] if project else []) + [Path.cwd()]
+    roots: list[Path] = []
+    for d in candidates + extra_roots():
         try:
             r = Path(d).resolve()
         except (OSError, RuntimeError, ValueError):
@@ -58,6 +118,10 @@ def config_roots(root_dir: str | Path) -> tuple[Path, ...]:
         if r not in roots:
             roots.append(r)
     return tuple(roots)
+
+
+OUTSIDE_HINT = (f"allow another folder with xnlos --root DIR, the {ROOTS_ENV} environment variable, or roots = "
+                "[...] under [paths] in the project's xnlos.toml")
 
 
 def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
@@ -79,8 +143,8 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
         roots = config_roots(root_dir if root_dir is not None else base_dir)
         if not any(real.is_relative_to(r) for r in roots):
             raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
-                              f"({', '.join(map(str, roots))}); a config may only name files inside the folder "
-                              "of the top-level config or the working directory")
+                              f"({', '.join(map(str, roots))}); a config may only name files inside its "
+                              f"folder, its project, the working directory or a root the user added: {OUTSIDE_HINT}")
         mode = real.stat().st_mode
     except FileNotFoundError:
         raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None

@@ -30,7 +30,7 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, ValidationInfo
 
-from .files import config_roots
+from .files import OUTSIDE_HINT, config_roots
 
 CONTEXT_KEY = "xnlos_paths"
 
@@ -64,8 +64,8 @@ def resolve_param_path(value: str, ctx: PathContext) -> str:
     if not any(real.is_relative_to(r) for r in roots):
         raise ValueError(f"path {value[:200]!r} (relative to the config file's folder {ctx.base_dir}) resolves to "
                          f"{real}, outside the config roots ({', '.join(map(str, roots))}); a relative path may only "
-                         "name a place inside the folder of the top-level config or the working directory "
-                         "(write an absolute path for a place elsewhere)")
+                         "name a place inside the config's folder, its project, the working directory or a root the "
+                         f"user added (write an absolute path for a place elsewhere, or {OUTSIDE_HINT})")
     return str(real)
 
 

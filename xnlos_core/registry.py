@@ -9,6 +9,7 @@ is reserved for the user's own command line, ``xnlos -p MODULE``.
 """
 from __future__ import annotations
 
+import difflib
 import importlib
 import inspect
 import os
@@ -22,6 +23,8 @@ import pluggy
 from . import hookspecs
 from .errors import ConfigError, PluginError
 from .interfaces import BASES, KINDS
+
+HOOK_NAMES = tuple(n for n in dir(hookspecs) if n.startswith("xnlos_") and callable(getattr(hookspecs, n)))
 
 ENTRY_POINT_GROUP = "xnlos.plugins"
 ENV_DISABLE = "XNLOS_DISABLE_PLUGIN_AUTOLOAD"
@@ -111,7 +114,9 @@ class Registry:
             return self._components[(kind, name)]
         except KeyError:
             known = ", ".join(self.names(kind)) or "(none)"
-            raise PluginError(f"unknown {kind} {name!r}; registered {kind}s: {known}") from None
+            close = difflib.get_close_matches(str(name), self.names(kind), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise PluginError(f"unknown {kind} {name!r}{hint}; registered {kind}s: {known}") from None
 
     def create(self, kind: str, name: str, params: dict[str, Any] | None = None, *, source: str = "<config>",
                base_dir: str | Path | None = None, prefix: str | None = None):
@@ -121,7 +126,13 @@ class Registry:
         from .config import validate_model
         from .param_paths import PathContext
 
-        comp = self.get(kind, name)
+        try:
+            comp = self.get(kind, name)
+        except PluginError as exc:
+            if source == "<config>":
+                raise
+            key = (prefix or f"{kind}.params").removesuffix(".params") + ".name"
+            raise PluginError(f"{source}: [{key}] {exc}") from None
         model = comp.params_model
         context = None if base_dir is None else PathContext(base_dir).validation_context()
         validated = validate_model(model, params or {}, source=source, prefix=prefix or f"{kind}.params",
@@ -202,8 +213,22 @@ class PluginManager:
     def load_module(self, dotted: str) -> None:
         """Register a plugin module by import path, for the command line's ``xnlos -p MODULE``
         (like ``pytest -p``: the user's own act, never a config's). Loading it twice is a no-op."""
-        if self.pm.get_plugin(dotted) is None:
-            self.register(importlib.import_module(dotted), name=dotted, provider=dotted)
+        if self.pm.get_plugin(dotted) is not None:
+            return
+        try:
+            module = importlib.import_module(dotted)
+        except ModuleNotFoundError as exc:
+            missing = f" (missing: {exc.name})" if exc.name and exc.name != dotted else ""
+            raise PluginError(f"-p {dotted}: no module named {dotted!r} can be imported{missing}; expected the "
+                              "dotted import path of a module on sys.path (e.g. mypkg.xnlos_plugin)") from None
+        except Exception as exc:  # the module's own code failed while importing: name it, no traceback
+            raise PluginError(f"-p {dotted}: importing the module failed: {type(exc).__name__}: {exc}") from None
+        hooks = [name for name in HOOK_NAMES if callable(getattr(module, name, None))]
+        if not hooks:
+            raise PluginError(f"-p {dotted}: the module defines none of the xnlos hooks ({', '.join(HOOK_NAMES)}); "
+                              "expected e.g. a function xnlos_register_components(registry) decorated with "
+                              "@xnlos_core.hookimpl")
+        self.register(module, name=dotted, provider=dotted)
 
 
 def _dist(ep) -> str:

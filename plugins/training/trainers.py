@@ -10,6 +10,7 @@ and ``xnlos train`` then names the models it can train.
 """
 from __future__ import annotations
 
+import difflib
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -59,7 +60,9 @@ def trainer_for(table: dict[str, Any], source: str) -> Trainer:
     name = model.get("name") if isinstance(model, dict) else None
     name = name if name is not None else (_DEFAULT[0] if _DEFAULT else None)
     if not isinstance(name, str) or name not in _TRAINERS:
-        raise ConfigError(f"{source}: [model] name {name!r}: no trainer for this model; expected one of "
+        close = difflib.get_close_matches(name, list(_TRAINERS), n=1) if isinstance(name, str) else []
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ConfigError(f"{source}: [model] name {name!r}: no trainer for this model{hint}; expected one of "
                           f"{', '.join(sorted(_TRAINERS)) or 'none (no learned component is loaded)'}")
     module, attr = _TRAINERS[name].split(":")
     return getattr(importlib.import_module(module), attr)

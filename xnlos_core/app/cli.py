@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
 
 from xnlos_core import __version__
-from xnlos_core.errors import PluginError, XnlosError, XnlosWarning
+from xnlos_core.errors import ConfigError, PluginError, XnlosError, XnlosWarning
+from xnlos_core.files import ROOTS_ENV, os_reason
 
 DEMO_CONFIG = Path(__file__).resolve().parents[1] / "defaults" / "demo.toml"  # xnlos_core/defaults
 OWN_MODULES = r"(xnlos_core|sims|plugins|estimators|hardware)(\.|$)"  # warnings that -q keeps
@@ -165,12 +167,16 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     p.add_argument("-p", "--plugin", action="append", default=[], metavar="MODULE",
                    help="import and register an extra plugin module (repeatable; your own act: a config "
                         "file can name only installed entry points, in [plugins] load)")
+    p.add_argument("--root", action="append", default=[], metavar="DIR",
+                   help="a further folder config files may name files in (repeatable; also "
+                        f"{ROOTS_ENV}, or [paths] roots in the project's xnlos.toml)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("run", help="run a pipeline config, writing results.jsonl, summary.md and a PNG")
     r.add_argument("config", type=Path)
     r.add_argument("--out", required=True, type=Path)
-    r.add_argument("--frames", type=int, help="override run.frames")
+    r.add_argument("--frames", type=positive_int, help="override run.frames (≥ 1; more than a finished run "
+                   "holds extends it)")
     r.add_argument("--overwrite", action="store_true", help="discard results of another config in --out")
     r.add_argument("-q", "--quiet", action="store_true", help=QUIET_HELP)
     r.set_defaults(func=_cmd_run)
@@ -228,11 +234,35 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     return p
 
 
-def _plugin_modules(argv: list[str] | None) -> list[str]:
-    """The ``-p MODULE`` options, read before the full parser exists (their commands join it)."""
+def positive_int(text: str) -> int:
+    """argparse type: an integer ≥ 1 (a count of frames, epochs, maps)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1, got {n}")
+    return n
+
+
+def _early_options(argv: list[str] | None) -> argparse.Namespace:
+    """The ``-p MODULE`` and ``--root DIR`` options, read before the full parser exists (the plugins'
+    commands join it; the roots hold for every config read)."""
     pre = argparse.ArgumentParser(add_help=False)
     pre.add_argument("-p", "--plugin", action="append", default=[])
-    return pre.parse_known_args(argv)[0].plugin
+    pre.add_argument("--root", action="append", default=[])
+    return pre.parse_known_args(argv)[0]
+
+
+def _add_roots(roots: list[str]) -> None:
+    """Put ``--root`` folders in front of :data:`~xnlos_core.files.ROOTS_ENV` (so worker processes see
+    them too); a folder that does not exist is an error now rather than a puzzling refusal later."""
+    for r in roots:
+        if not Path(r).expanduser().is_dir():
+            raise ConfigError(f"--root {r}: not an existing folder")
+    if roots:
+        old = os.environ.get(ROOTS_ENV, "")
+        os.environ[ROOTS_ENV] = os.pathsep.join([*map(str, roots), *([old] if old else [])])
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -250,7 +280,9 @@ def main(argv: list[str] | None = None) -> int:
         from xnlos_core.registry import get_manager
 
         manager = get_manager()
-        for mod in _plugin_modules(argv):
+        early = _early_options(argv)
+        _add_roots(early.root)
+        for mod in early.plugin:
             manager.load_module(mod)
         args = build_parser(manager).parse_args(argv)
         with warnings.catch_warnings():
@@ -262,6 +294,12 @@ def main(argv: list[str] | None = None) -> int:
             return args.func(args)
     except XnlosError as exc:
         print(f"xnlos: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an output folder or file that cannot be written (--out on a read-only place, …)
+        where = exc.filename if exc.filename is not None else "a file"
+        reason = ("a file is in the way (expected a folder to write into, or a path where one can be made)"
+                  if isinstance(exc, (FileExistsError, NotADirectoryError)) else os_reason(exc))
+        print(f"xnlos: error: cannot use {where}: {reason}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("xnlos: interrupted; completed frames are saved, rerun the same command to resume", file=sys.stderr)

@@ -3,6 +3,7 @@ scoring gates, the scene whose hidden object is moved. Strict: unknown keys are 
 naming the file and key."""
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 from pathlib import Path
@@ -86,6 +87,14 @@ class StudyConfig(BaseModel):
         labels = [m.label for m in self.modality]
         if len(set(labels)) != len(labels):
             raise ValueError(f"modality: labels must be unique, got {labels}")
+        rows = [r for m in self.modality
+                for r in ([m.label] if isinstance(m, RadarModality) else [f"{m.label}/{s}" for s in m.solvers])]
+        for key in ("reference", "baseline"):
+            value = getattr(self, key)
+            if value and value not in rows:
+                close = difflib.get_close_matches(value, rows, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise ValueError(f"{key} = {value!r} names no row of the study{hint}; rows: {', '.join(rows)}")
         return self
 
     def digest(self) -> str:
