@@ -167,11 +167,11 @@ def governor() -> TorchThreads | None:
     or no per-CPU statistics (module doc)."""
     global _governor
     if _governor is None:
-        from .threads import _cgroup_cpu_quota, apply_process_policy
+        from .threads import cgroup_cpu_quota, apply_process_policy
 
         policy = apply_process_policy()
         share = CoreShare()
-        quota = _cgroup_cpu_quota()
+        quota = cgroup_cpu_quota()
         if policy["off"] or (quota is not None and quota < len(share.cpus)) or read_proc_stat() is None:
             _governor = False  # type: ignore[assignment]
         else:

@@ -83,7 +83,7 @@ def _physical_cores(cpus: set[int]) -> int:
     return len(cores) or len(cpus)
 
 
-def _cgroup_cpu_quota() -> float | None:
+def cgroup_cpu_quota() -> float | None:
     """CPUs' worth of time the process's cgroup may use (quota / period; e.g. 1.5), the smallest over
     the cgroup and its parents, v2 (``cpu.max``) or v1 (``cpu.cfs_quota_us``); None without a quota."""
     quotas = []
@@ -130,7 +130,7 @@ def available_cores() -> int:
         n = _physical_cores(cpus) if sys.platform.startswith("linux") else len(cpus)
     except (AttributeError, OSError):
         n = os.cpu_count() or 1
-    quota = _cgroup_cpu_quota()
+    quota = cgroup_cpu_quota()
     if quota is not None:
         n = min(n, math.ceil(quota))
     return max(1, n)

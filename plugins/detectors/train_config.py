@@ -223,6 +223,6 @@ def scene_generators(gen: GenerateConfig, source: str = "data.generate") -> list
 
     reg = get_registry()
     try:
-        return [reg.create("scene_generator", f, source=f"{source}.families") for f in gen.families or ()]
+        return [reg.create("scene_generator", f) for f in gen.families or ()]  # default parameters
     except PluginError as exc:
         raise ConfigError(f"{source}: [families] {exc}") from None

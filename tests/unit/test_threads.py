@@ -198,11 +198,11 @@ def test_available_cores_capped_by_a_cgroup_quota(monkeypatch):
     v2 = {"/proc/self/cgroup": "0::/job", "/sys/fs/cgroup/job/cpu.max": "150000 100000",
           "/sys/fs/cgroup/cpu.max": "max 100000"}
     _fake_sysfs(monkeypatch, v2, {0, 1, 2, 3, 4, 5, 6, 7})
-    assert threads._cgroup_cpu_quota() == 1.5
+    assert threads.cgroup_cpu_quota() == 1.5
     assert available_cores() == 2  # 1.5 CPUs' worth of time: two threads, rounded up
     v1 = {"/proc/self/cgroup": "4:cpu,cpuacct:/\n3:memory:/x", "/sys/fs/cgroup/cpu/cpu.cfs_quota_us": "100000",
           "/sys/fs/cgroup/cpu/cpu.cfs_period_us": "100000"}
     _fake_sysfs(monkeypatch, v1, {0, 1, 2, 3})
     assert available_cores() == 1
     _fake_sysfs(monkeypatch, {**v1, "/sys/fs/cgroup/cpu/cpu.cfs_quota_us": "-1"}, {0, 1, 2, 3})
-    assert threads._cgroup_cpu_quota() is None and available_cores() == 4
+    assert threads.cgroup_cpu_quota() is None and available_cores() == 4
