@@ -3,7 +3,9 @@
 The rule (README, "Configs"): a path written in a config is resolved against the folder of the
 file that names it and, after every symlink is resolved, must lie inside a *config root*: the
 folder of the top-level config file or the current working directory (the project a user runs
-``xnlos`` from, which holds the shipped ``configs/``). Absolute paths obey the same rule; there
+``xnlos`` from, which holds the shipped ``configs/``), or a folder the user lists in the
+environment variable ``XNLOS_DATA_ROOTS`` (data kept elsewhere, e.g. captures on another disk;
+a symlink inside the config's folder to such data is then followed). Absolute paths obey the same rule; there
 is no way for a file to widen it, so a downloaded config cannot read ``~/.ssh`` or
 ``/etc/passwd`` (``../../../etc/passwd`` or a symlink out of the folder is refused alike).
 Only regular files are read: a FIFO, a device or a directory is refused before it is opened,
@@ -46,11 +48,22 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
+DATA_ROOTS_ENV = "XNLOS_DATA_ROOTS"
+"""Environment variable: further folders (separated by ``os.pathsep``) that configs may point into."""
+
+
+def data_roots() -> tuple[str, ...]:
+    """The folders the user added to the config roots in ``XNLOS_DATA_ROOTS`` (``os.pathsep``-separated,
+    empty entries ignored): where data kept outside the project (captures on another disk) may be
+    read from. The environment belongs to the user, not to a config, so no config can widen it."""
+    return tuple(d for d in os.environ.get(DATA_ROOTS_ENV, "").split(os.pathsep) if d.strip())
+
+
 def config_roots(root_dir: str | Path) -> tuple[Path, ...]:
-    """The folders paths in a config may point into: ``root_dir`` (the top-level config's folder)
-    and the current working directory, both with symlinks resolved."""
+    """The folders paths in a config may point into: ``root_dir`` (the top-level config's folder),
+    the current working directory and the folders of :func:`data_roots`, all with symlinks resolved."""
     roots = []
-    for d in (root_dir, Path.cwd()):
+    for d in (root_dir, Path.cwd(), *data_roots()):
         try:
             r = Path(d).resolve()
         except (OSError, RuntimeError, ValueError):
@@ -80,7 +93,7 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
         if not any(real.is_relative_to(r) for r in roots):
             raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
                               f"({', '.join(map(str, roots))}); a config may only name files inside the folder "
-                              "of the top-level config or the working directory")
+                              "of the top-level config or the working directory" + linked_out(path, roots))
         mode = real.stat().st_mode
     except FileNotFoundError:
         raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None
@@ -90,6 +103,19 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
     if not stat.S_ISREG(mode):
         raise ConfigError(f"{where} {value!r} ({real}) is {file_kind(mode)}; expected a regular file")
     return real
+
+
+def linked_out(path: Path, roots: tuple[Path, ...]) -> str:
+    """The part of a refusal that explains a symlink: when ``path`` (absolute, not resolved) lies in
+    a config root but resolves outside every root, it or a folder on its way is a symbolic link out
+    of the roots. A link does not widen the roots (a downloaded folder may hold links to ~/.ssh); the
+    user does, with :data:`DATA_ROOTS_ENV`. Empty otherwise."""
+    lexical = Path(os.path.abspath(path))
+    if not any(lexical.is_relative_to(r) or lexical.is_relative_to(os.path.abspath(r)) for r in roots):
+        return ""
+    return (f". {str(path)[:200]!r} lies inside them but is, or passes through, a symbolic link that leads out: a "
+            "link does not widen the config roots. To read data kept elsewhere (e.g. captures on another disk), add "
+            f"its folder to the environment variable {DATA_ROOTS_ENV} (folders separated by {os.pathsep!r})")
 
 
 def open_regular_fd(path: str | Path, *, what: str, error: type[Exception] = ConfigError,

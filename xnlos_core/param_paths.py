@@ -30,7 +30,7 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, ValidationInfo
 
-from .files import config_roots
+from .files import config_roots, linked_out
 
 CONTEXT_KEY = "xnlos_paths"
 
@@ -65,7 +65,7 @@ def resolve_param_path(value: str, ctx: PathContext) -> str:
         raise ValueError(f"path {value[:200]!r} (relative to the config file's folder {ctx.base_dir}) resolves to "
                          f"{real}, outside the config roots ({', '.join(map(str, roots))}); a relative path may only "
                          "name a place inside the folder of the top-level config or the working directory "
-                         "(write an absolute path for a place elsewhere)")
+                         "(write an absolute path for a place elsewhere)" + linked_out(Path(ctx.base_dir) / path, roots))
     return str(real)
 
 
