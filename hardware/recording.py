@@ -36,6 +36,7 @@ opens the recording, refuses what a run would.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,7 @@ from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.files import load_toml, resolve_config_path
 from xnlos_core.radar import RadarConfig, load_radar
 from xnlos_core.signal.chain import decouple, range_fft, ra_map_from_cube
+from xnlos_core.signal.doppler import DopplerRAMaps, doppler_ra_maps
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 
@@ -322,10 +324,30 @@ class Recording:
         return cube
 
     def ra_map(self, i: int) -> RAMap:
-        """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain."""
+        """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain (no velocity)."""
         cube = self.chirp_cube(i).mean(axis=1)
         with self._naming_frame(i):
             return ra_map_from_cube(cube, self.radar)
+
+    @property
+    def has_doppler(self) -> bool:
+        """Whether a frame holds enough chirps per transmitter (n_chirps ≥ 3) for Doppler maps."""
+        return self.radar.n_chirps >= 3
+
+    def doppler_maps(self, i: int) -> DopplerRAMaps:
+        """Frame ``i``'s chirps through the Doppler chain (:func:`xnlos_core.signal.doppler.doppler_ra_maps`),
+        as the simulator processes a simulated chirp sequence, with the noise measured in the frame's own
+        range–Doppler spectrum (``noise="measured"``): velocity σ does not depend on ``[recording] scale``.
+        InputError when the radar has fewer than 3 chirps per transmitter."""
+        cube = self.chirp_cube(i)
+        with self._naming_frame(i):
+            return doppler_ra_maps(cube, self.radar, noise="measured")
+
+    def doppler_ra_map(self, i: int) -> RAMap:
+        """Frame ``i``'s RA map with velocity and velocity σ per cell: the strongest Doppler bin of each
+        cell (``peak_power``, the map a simulated Doppler frame carries) from :meth:`doppler_maps`."""
+        maps = self.doppler_maps(i)
+        return dataclasses.replace(maps.ra_map("peak_power"), velocity=maps.velocity, velocity_std=maps.velocity_std)
 
     def check(self, i: int = 0) -> RAMap:
         """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
@@ -340,10 +362,50 @@ class Recording:
                             f"{self.source} frame {i}", skip_range=self.spec.leakage_range)
         return ra
 
-    def frames(self, start: int = 0, max_frames: int | None = None) -> Iterator[Frame]:
-        """Frames ``start`` … as :class:`Frame` (timestamp i·radar.frame_interval [s]); checks the first one."""
+    def frames(self, start: int = 0, max_frames: int | None = None, doppler: bool | None = None) -> Iterator[Frame]:
+        """Frames ``start`` … as :class:`Frame` (timestamp i·radar.frame_interval [s]); checks the first one.
+
+        doppler: the RA maps carry velocity and its σ (:meth:`doppler_ra_map`); None: when the radar
+        has ≥ 3 chirps per transmitter (:attr:`has_doppler`), else the chirp-averaged map
+        (:meth:`ra_map`). True with fewer chirps is a ConfigError. A recording of more than one frame
+        without ``[radar] frame_period`` warns (:func:`check_frame_period`): its frames would be stamped
+        back to back, n_chirps·n_tdm·T_c apart, which a capture's frame periodicity rarely is.
+        """
+        if doppler is None:
+            doppler = self.has_doppler
+        elif doppler and not self.has_doppler:
+            raise ConfigError(f"{self.source}: Doppler maps need n_chirps ≥ 3 chirps per transmitter in a frame, "
+                              f"the recording's radar has n_chirps = {self.radar.n_chirps}; set doppler = false")
         stop = self._n_frames if max_frames is None else min(self._n_frames, start + max_frames)
+        if stop - start > 1:
+            check_frame_period(self.radar, self.source)
         for i in range(start, stop):
-            ra = self.check(i) if i == start else self.ra_map(i)
+            ra = self.check(i) if i == start else None
+            if doppler:
+                ra = self.doppler_ra_map(i)
+            elif ra is None:
+                ra = self.ra_map(i)
             yield Frame(ra, timestamp=i * self.radar.frame_interval, index=i,
                         meta={"recording": str(self.path), "frame": i})
+
+
+class FramePeriodWarning(RecordingWarning):
+    """A recording's frames are stamped with a frame period that its description does not state."""
+
+
+def check_frame_period(radar: RadarConfig, source: str) -> bool:
+    """Warn (:class:`FramePeriodWarning`) when ``radar.frame_period`` is unset: the frames are then
+    stamped back to back, n_chirps·n_tdm·T_c apart (``radar.frame_interval``), while a capture repeats
+    its frames at the chip's frame periodicity, usually much longer (a 23.5 ms burst every 100 ms or
+    2 s). Timestamps set the time step of every tracker and the velocities it reports, so a wrong one
+    scales them silently. Returns True when it warned."""
+    if radar.frame_period is not None:
+        return False
+    import warnings
+
+    warnings.warn(f"{source}: [radar] frame_period is not set, so the frames are stamped back to back, "
+                  f"n_chirps·n_tdm·T_c = {radar.frame_interval:.6g} s apart; a capture's frames repeat at the "
+                  "frame periodicity its radar was configured with (e.g. frameCfg's periodicity), usually longer. "
+                  "Set [radar] frame_period [s] to it: timestamps set a tracker's time step and the velocities it "
+                  "reports", FramePeriodWarning, stacklevel=3)
+    return True

@@ -169,11 +169,14 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
 def make_adc_recording(folder: str | os.PathLike, radar: RadarConfig | None = None, frames: int = 2,
                        seed: int = 0) -> Path:
     """A small DCA1000 recording of static points (a wall's LOS returns and one farther echo) for
-    ``radar`` (default: :func:`small_radar` with 2 chirp loops): write it to ``folder`` and return its
+    ``radar`` (default: :func:`small_radar` with 2 chirp loops; frame_period 0.1 s unless ``radar``
+    sets one): write it to ``folder`` and return its
     TOML description, e.g. ``check_component("backend", "adc", {"recording": str(make_adc_recording(tmp))})``."""
     from xnlos_core.signal.doppler import add_chirp_noise, chirp_sequence_cube
 
     radar = radar or small_radar(n_chirps=2)
+    if radar.frame_period is None:  # a capture states its frame periodicity (FramePeriodWarning otherwise)
+        radar = radar.model_copy(update={"frame_period": 0.1})
     xy = np.array([[17.0, 8.0], [20.0, 5.0], [23.0, 2.0], [26.0, -1.0], [30.0, 9.0]])
     r = np.hypot(xy[:, 0], xy[:, 1])
     keep = r < radar.max_range - 1.0

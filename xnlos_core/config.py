@@ -14,7 +14,7 @@ A pipeline file names one plugin per kind::
     name = "lsq"
     [reconstructor]             # optional (needs [wall_estimator])
     name = "mirror"
-    [tracker]                   # optional (needs [reconstructor])
+    [tracker]                   # optional: hidden points, or LOS detections without [reconstructor]
     name = "nearest"
     [run]
     frames = 1
@@ -122,7 +122,8 @@ class PipelineConfig(BaseModel):
     wall_estimator: StageConfig | None = Field(None, description="relay-wall stage; leave out for a "
                                                                  "detection-only pipeline")
     reconstructor: StageConfig | None = Field(None, description="mirror stage (needs wall_estimator)")
-    tracker: StageConfig | None = Field(None, description="tracking stage (needs reconstructor)")
+    tracker: StageConfig | None = Field(None, description="tracking stage: the reconstructor's hidden points, "
+                                                          "or the line-of-sight detections without one")
     run: RunConfig = Field(default_factory=RunConfig)
     plugins: PluginsConfig = Field(default_factory=PluginsConfig)
     sweep: dict[str, list[Any]] | None = None
@@ -142,7 +143,8 @@ class PipelineConfig(BaseModel):
             raise ValueError("exactly one of [forward_model] or [backend] must be given as the frame source")
         # Each stage feeds the next; one without its input could never run (a detection-only
         # pipeline, [detector] alone, is fine).
-        for stage, needs in (("reconstructor", "wall_estimator"), ("tracker", "reconstructor")):
+        # A tracker without a reconstructor tracks the line-of-sight detections (pipeline.py).
+        for stage, needs in (("reconstructor", "wall_estimator"),):
             if getattr(self, stage) is not None and getattr(self, needs) is None:
                 raise ValueError(f"[{stage}] needs [{needs}] (it works on that stage's output); add "
                                  f"[{needs}] or remove [{stage}]")

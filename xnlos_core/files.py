@@ -144,7 +144,8 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
         if not any(real.is_relative_to(r) for r in roots):
             raise ConfigError(f"{where} file {value!r} resolves to {real}, outside the config roots "
                               f"({', '.join(map(str, roots))}); a config may only name files inside its "
-                              f"folder, its project, the working directory or a root the user added: {OUTSIDE_HINT}")
+                              f"folder, its project, the working directory or a root the user added: {OUTSIDE_HINT}"
+                              + linked_out(path, roots))
         mode = real.stat().st_mode
     except FileNotFoundError:
         raise ConfigError(f"{where} file {value!r} does not exist (looked for {path})") from None
@@ -154,6 +155,20 @@ def resolve_config_path(value, *, source: str, key: str, base_dir: str | Path,
     if not stat.S_ISREG(mode):
         raise ConfigError(f"{where} {value!r} ({real}) is {file_kind(mode)}; expected a regular file")
     return real
+
+
+def linked_out(path: Path, roots: tuple[Path, ...]) -> str:
+    """The part of a refusal that explains a symlink: when ``path`` (absolute, not resolved) lies in
+    a config root but resolves outside every root, it or a folder on its way is a symbolic link out
+    of the roots. A link does not widen the roots (a downloaded folder may hold links to ~/.ssh); the
+    user does, with :data:`ROOTS_ENV` (``xnlos --root``). Empty otherwise."""
+    lexical = Path(os.path.abspath(path))
+    if not any(lexical.is_relative_to(r) or lexical.is_relative_to(os.path.abspath(r)) for r in roots):
+        return ""
+    return (f". {str(path)[:200]!r} lies inside them but is, or passes through, a symbolic link that leads out: a "
+            "link does not widen the config roots. To read data kept elsewhere (e.g. captures on another disk), add "
+            f"its folder with xnlos --root DIR or the environment variable {ROOTS_ENV} (folders separated by "
+            f"{os.pathsep!r})")
 
 
 def open_regular_fd(path: str | Path, *, what: str, error: type[Exception] = ConfigError,

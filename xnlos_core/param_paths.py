@@ -30,7 +30,7 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, ValidationInfo
 
-from .files import OUTSIDE_HINT, config_roots
+from .files import OUTSIDE_HINT, config_roots, linked_out
 
 CONTEXT_KEY = "xnlos_paths"
 
@@ -65,7 +65,8 @@ def resolve_param_path(value: str, ctx: PathContext) -> str:
         raise ValueError(f"path {value[:200]!r} (relative to the config file's folder {ctx.base_dir}) resolves to "
                          f"{real}, outside the config roots ({', '.join(map(str, roots))}); a relative path may only "
                          "name a place inside the config's folder, its project, the working directory or a root the "
-                         f"user added (write an absolute path for a place elsewhere, or {OUTSIDE_HINT})")
+                         f"user added (write an absolute path for a place elsewhere, or {OUTSIDE_HINT})"
+                         + linked_out(Path(ctx.base_dir) / path, roots))
     return str(real)
 
 

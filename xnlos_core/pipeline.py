@@ -1,5 +1,9 @@
 """A pipeline: frame source → detector → wall estimator → reconstructor (→ tracker), timed per stage.
 
+The tracker follows the reconstructor's hidden points; without a reconstructor it follows the
+line-of-sight detections (:func:`xnlos_core.los_points.detection_points`), e.g. road users in
+one's own recording (``[backend] adc`` → ``[detector]`` → ``[tracker]``).
+
 Every random draw derives from ``config.seed``: frame k is simulated with a generator seeded by
 ``SeedSequence(seed).spawn`` child k, so a frame does not depend on how many frames are run.
 """
@@ -16,6 +20,7 @@ import numpy as np
 from . import metrics
 from .config import PipelineConfig
 from .errors import ConfigError, InsufficientDataError, PipelineWarning
+from .los_points import detection_points
 from .frame_record import SCHEMA_VERSION, detections_record, hidden_record, wall_record
 from .interfaces import FrameState
 from .provenance import provenance
@@ -299,7 +304,10 @@ class Pipeline:
             notes.append(f"reconstructor: {n_mnlos} mNLOS detections but no wall estimate; nothing reconstructed")
         tracks = None
         if "tracker" in self.stages:
-            tracks = timed("tracker", self.stages["tracker"].update, hidden, frame.timestamp)
+            # without a reconstructor the tracker follows what the radar sees directly: the
+            # line-of-sight detections as points (xnlos_core.los_points)
+            points = hidden if "reconstructor" in self.stages else detection_points(det)
+            tracks = timed("tracker", self.stages["tracker"].update, points, frame.timestamp)
         res = FrameResult(frame, det, walls, hidden, tracks, timings, notes=notes)
         if frame.ground_truth is not None:
             res.metrics = self.score(res)

@@ -19,6 +19,7 @@ from .validation import validate_model
 SPEED_OF_LIGHT = 299_792_458.0  # m/s
 BOLTZMANN = 1.380_649e-23  # J/K
 OVERLAP_TOLERANCE = 1e-6  # [wavelengths]: two elements of one array closer than this are one place
+RANGE_BIN_TOLERANCE = 1e-9  # [bins]: max_range within this of a bin centre includes that bin (n_range_bins)
 MIN_HALF_FOV = math.radians(1.0)  # [rad]: a narrower azimuth grid (5e-324 …) is a mistake, not a radar
 
 # one element's (y, z) in wavelengths: y along the array (azimuth), z up (elevation)
@@ -237,8 +238,15 @@ class RadarConfig(BaseModel):
 
     @property
     def n_range_bins(self) -> int:
-        """Range bins kept in the RA map (0 … max_range)."""
-        return int(math.floor(self.max_range / self.range_resolution)) + 1
+        """Range bins kept in the RA map (0 … max_range): ⌊max_range/ΔR⌋ + 1, at most n_samples.
+
+        The quotient is taken with a tolerance of RANGE_BIN_TOLERANCE bins, so a max_range that is
+        k·ΔR up to rounding (a recording's default (N − 1)·c/(2B) gives 126.99999999999999 for some
+        profiles) keeps bin k, whose centre it names, instead of losing it. Bin N would be range
+        N·ΔR, which the complex range FFT folds onto bin 0, so the map never has more than N bins.
+        """
+        k = int(math.floor(self.max_range / self.range_resolution + RANGE_BIN_TOLERANCE)) + 1
+        return min(k, self.n_samples)
 
     @property
     def range_axis(self) -> np.ndarray:

@@ -201,14 +201,31 @@ def resolution_stds(ra_map: RAMap, azimuth: np.ndarray) -> tuple[np.ndarray, np.
     return np.full(k, dr / np.sqrt(12.0)), da / np.sqrt(12.0)
 
 
+def confirmable_columns(shape: tuple[int, int]) -> np.ndarray:
+    """(n_azimuth,) bool: the azimuth columns whose cells can be confirmed as local maxima, all but
+    the first and the last.
+
+    The azimuth grid ends at ±field_of_view, but the array receives from beyond it (its element
+    pattern reaches ±90°): an echo outside the field of view, or one whose beam peaks just past the
+    edge, leaves a map that rises monotonically towards the edge column. That column's cell is then
+    larger than its only inner neighbour and passes the 3×3 test, although its maximum lies in the
+    cell beyond, which the map does not hold; whether an edge cell is a peak cannot be told. So CFAR
+    reports no detection on the edge columns (the field of view of its detections is ±(FOV − one
+    azimuth bin)); an echo inside, however close to the edge, peaks on an inner column."""
+    cols = np.ones(shape[1], bool)
+    cols[[0, -1]] = False
+    return cols
+
+
 def cfar_peaks(ra_map: RAMap, pfa: float, guard: tuple[int, int], train: tuple[int, int],
                min_range: float) -> Detections:
     """CA-CFAR detections of an RA map, all labelled UNCLASSIFIED.
 
     The CFAR window must fit the map (:func:`window_error`; InputError otherwise).
     A detection is a cell with range ≥ ``min_range`` [m] whose power exceeds the CFAR threshold
-    and is a 3×3 local maximum; cells below ``min_range`` are neither tested nor used as training
-    cells. Range/azimuth are refined to sub-bin accuracy (:func:`refine_peaks`, interpolated on
+    and is a 3×3 local maximum, off the first and last azimuth column (:func:`confirmable_columns`:
+    an edge cell's maximum may lie beyond the field of view); cells below ``min_range`` are neither
+    tested nor used as training cells (edge columns still train). Range/azimuth are refined to sub-bin accuracy (:func:`refine_peaks`, interpolated on
     the map's axes); confidence = 1 − threshold/power ∈ [0, 1) (how far above the threshold the
     peak is; 1 only if all its training cells are exactly zero); stds from
     :func:`resolution_stds`. Detections are ordered by descending power. With Doppler maps on
@@ -223,7 +240,7 @@ def cfar_peaks(ra_map: RAMap, pfa: float, guard: tuple[int, int], train: tuple[i
     p = ra_map.power
     valid = np.broadcast_to((ra_map.range_axis >= min_range)[:, None], p.shape)
     thr, _, _ = cfar_threshold(p, guard, train, pfa, valid)
-    hit = valid & (p > thr) & local_maxima(p)
+    hit = valid & (p > thr) & local_maxima(p) & confirmable_columns(p.shape)[None, :]
     rows, cols = np.nonzero(hit)
     if rows.size == 0:
         return Detections.empty()

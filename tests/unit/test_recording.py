@@ -76,12 +76,13 @@ def test_adc_backend_yields_one_frame_per_frame_of_the_file(tmp_path):
     from xnlos_core.registry import get_registry
     from xnlos_core.testing import check_component
 
-    toml = write_dca1000_recording(tmp_path, _cubes(frames=3), RADAR, scale=SCALE)
+    radar = RADAR.model_copy(update={"frame_period": 0.05})
+    toml = write_dca1000_recording(tmp_path, _cubes(frames=3), radar, scale=SCALE)
     backend = get_registry().create("backend", "adc", {"recording": str(toml), "start": 1})
     assert backend.n_frames == 2
     frames = _quiet(list, backend.frames())
     assert [f.index for f in frames] == [1, 2]
-    assert frames[1].timestamp - frames[0].timestamp == pytest.approx(RADAR.frame_interval)
+    assert frames[1].timestamp - frames[0].timestamp == pytest.approx(0.05)
     check_component("backend", "adc", {"recording": str(toml)})
 
 

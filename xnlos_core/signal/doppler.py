@@ -298,8 +298,35 @@ def _work_buffers(radar: RadarConfig) -> tuple[np.ndarray, np.ndarray]:
     return bufs
 
 
+def measured_cell_noise(spectrum: np.ndarray, radar: RadarConfig, window: str = "hann") -> float:
+    """σ_cell [W] (the expected ``power`` of a noise-only RA cell, :attr:`DopplerRAMaps.noise_floor`)
+    measured in a windowed range–Doppler spectrum (n_range_bins, n_chirps, n_channels), Doppler bins
+    ascending, normalised like :func:`range_doppler` (in the spectrum's own units).
+
+    Per channel, a noise-only cell of the spectrum is circular Gaussian of power
+    m = σ_c²·Σw_r²/(Σw_r)²·Σw_d²/(Σw_d)² (σ_c² the per-chirp noise per sample), so |X|² is
+    exponential and its median is m·ln 2. The median over the cells is robust to echoes in up to half
+    of them; the three Doppler bins around zero (static clutter and its Hann leakage) are left out when
+    n_chirps ≥ 8. Beamforming then gives σ_cell = σ_c²/G_p = m · (Σw_a²/(Σw_a)²)/(Σw_d²/(Σw_d)²), the beam
+    factor Σ_k|w_k|² of :func:`~xnlos_core.signal.chain.beam_weights` (averaged over the azimuths)
+    (:mod:`xnlos_core.signal.chain`). Assumes white noise, uncorrelated across channels (coupling
+    compensation correlates it a little). Returns the smallest positive float when the spectrum is
+    zero (noise-free data), so that η stays defined.
+    """
+    d = spectrum.shape[1]
+    keep = np.ones(d, bool)
+    if d >= 8:
+        keep[d // 2 - 1:d // 2 + 2] = False  # zero Doppler at d//2 (bins ascending, fft-shifted)
+    cells = spectrum[:, keep]
+    m = float(np.median(cells.real.astype(np.float64) ** 2 + cells.imag.astype(np.float64) ** 2)) / np.log(2.0)
+    wd = _doppler_window(window, d)
+    beam = float(np.mean(np.sum(np.abs(beam_weights(radar)) ** 2, axis=0)))  # Σw_a²/(Σw_a)², from the beams used
+    sigma = m * beam / float((wd**2).sum() / wd.sum() ** 2)
+    return sigma if np.isfinite(sigma) and sigma > 0 else float(np.finfo(np.float64).tiny)
+
+
 def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
-                    workers: int | None = None) -> DopplerRAMaps:
+                    workers: int | None = None, noise: Literal["model", "measured"] = "model") -> DopplerRAMaps:
     """Chirp-sequence cube → :class:`DopplerRAMaps`: :func:`range_doppler`, then beamforming per Doppler bin.
 
     Velocity per cell: the strongest bin k of the windowed spectrum, refined by Candan's
@@ -329,7 +356,15 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
 
     workers: threads of the FFTs and of the kernels (None: one, the thread policy's choice for
     simulation workers); BLAS is held to one thread during the kernels.
+
+    noise: where σ_cell² comes from. "model": the radar's thermal noise (:func:`chirp_noise_power`),
+    right for simulated cubes, whose amplitudes are in √W. "measured": the noise floor of the cube's
+    own range–Doppler spectrum (:func:`measured_cell_noise`), for recorded data, whose amplitude
+    scale (``[recording] scale``) is arbitrary: η, hence σ_v, is then the same for the cube times any
+    factor, and ``noise_floor`` is the measured one.
     """
+    if noise not in ("model", "measured"):
+        raise InputError(f"doppler_ra_maps: noise must be 'model' or 'measured', got {noise!r}")
     if radar.n_chirps < 3:
         raise InputError(f"doppler_ra_maps: Doppler processing needs n_chirps ≥ 3 (three-bin velocity "
                          f"interpolation), this radar has n_chirps={radar.n_chirps}")
@@ -345,10 +380,13 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     kernels.run(kernels.doppler_tapers, threads, prof, plan.taper, plan.boxcar, spec)
     spec = scipy.fft.fft(spec, axis=2, overwrite_x=True, workers=threads)
     n_az, consts = radar.n_azimuth_bins, plan.consts.copy()  # writable: one compiled signature of the kernel
+    scale2 = 1.0
     if scale != 1.0:
         with np.errstate(over="ignore"):  # a cube below ~1e-154 √W: its powers are below float64's range anyway
             scale2 = np.float64(scale) ** 2
         consts[4] *= scale2  # σ_cell in the rescaled cube's units
+    if noise == "measured":  # in the rescaled cube's units already: measured on its spectrum
+        consts[4] = measured_cell_noise(spec[0], radar, window)
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
         kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
@@ -358,5 +396,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
         power /= scale2
         peak_power /= scale2
     sigma_cell, enbw = plan.sigma_cell, plan.enbw
+    if noise == "measured":
+        with np.errstate(over="ignore"):
+            sigma_cell = float(consts[4] / scale2)
     return DopplerRAMaps(power=power, peak_power=peak_power, velocity=v, velocity_std=v_std,
                          noise_floor=sigma_cell, peak_noise_floor=sigma_cell * enbw / d, radar=radar)
