@@ -7,6 +7,9 @@ A recording description (``*.toml``) has three tables::
     format = "dca1000"          # dca1000 | npy | npz | hdf5
     sampling = "complex"        # complex | real (real-only ADC; made analytic, half the range)
     lanes = 2                   # DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx) or 4 (xWR12xx/14xx)
+    encoding = "twos_complement"  # or "offset_binary" (16-bit codes, 32768 = 0)
+    iq_order = "iq"             # or "qi": Q stored where I is expected
+    iq_interleave = "lanes"     # DCA1000 groups I(n), I(n+1), Q(n), Q(n+1); "samples": I(n), Q(n), …
     scale = 1e-6                # √W per ADC count
     [chirp]                     # ChirpProfile: the chip's profile as its configuration states it
     slope = 29.982e12           # S [Hz/s]
@@ -53,9 +56,9 @@ from xnlos_core.signal.chain import decouple, range_fft, ra_map_from_cube
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 
-from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube
+from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube, signed_words, swap_iq
 from .recording_checks import (RecordingWarning, check_bandwidth, check_channel_order, check_leakage,
-                               check_single_receiver, check_unsigned)
+                               check_single_receiver, check_spec, check_unsigned)
 
 MAX_LEAKAGE_RANGE = 1000.0  # [m]: far beyond any radar's leakage, finite so that bin arithmetic stays exact
 _SUFFIXES = {"dca1000": (".bin", ".dat", ".raw"), "npy": (".npy",), "npz": (".npz",),
@@ -70,6 +73,14 @@ class RecordingSpec(BaseModel):
     format: Literal["dca1000", "npy", "npz", "hdf5"] = Field(..., description="file format")
     sampling: Literal["complex", "real"] = Field("complex", description="complex (I/Q) or real-only ADC samples")
     lanes: Literal[2, 4] = Field(2, description="DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx), 4 (xWR12xx/14xx)")
+    encoding: Literal["twos_complement", "offset_binary"] = Field(
+        "twos_complement", description="16-bit codes: signed two's complement (the DCA1000's), or offset binary "
+                                       "(0 … 65535, 32768 = 0; TSW1400-style cards)")
+    iq_order: Literal["iq", "qi"] = Field("iq", description="complex samples: I first (iq) or Q first (qi) in "
+                                                            "each group of words, or in a cube's I/Q axis")
+    iq_interleave: Literal["lanes", "samples"] = Field(
+        "lanes", description="DCA1000 complex words: 'lanes' = I of each lane then Q of each lane (2 lanes: "
+                            "I(n), I(n+1), Q(n), Q(n+1)); 'samples' = each I beside its Q (I(n), Q(n), …)")
     key: str = Field("adc", min_length=1, description="array name in a .npz, dataset in an HDF5 file")
     axes: tuple[str, ...] = Field(("frame", "sample", "chirp", "channel"),
                                   description="cube axes in order: sample, chirp, channel and optionally frame")
@@ -79,7 +90,8 @@ class RecordingSpec(BaseModel):
         "tx_major", description="tx_major: channel = slot·n_rx + rx (the DCA1000's order); rx_major: rx·n_tx + slot")
     scale: float = Field(1.0, gt=0, le=1e6, allow_inf_nan=False, description="amplitude per ADC count [√W]")
     adc_offset: float = Field(0.0, ge=-2.0**32, le=2.0**32, allow_inf_nan=False,
-                              description="subtracted from every raw count (32768 for offset-binary int16)")
+                              description="subtracted from every count after decoding `encoding` (e.g. the "
+                                          "mid-scale 2048 of a 12-bit ADC stored unsigned)")
     remove_dc: bool = Field(False, description="subtract each channel's mean over a chirp's samples")
     leakage_range: float = Field(1.0, ge=0, le=MAX_LEAKAGE_RANGE, allow_inf_nan=False,
                                  description="near range [m] checked for TX→RX leakage (and skipped by the "
@@ -165,6 +177,7 @@ class Recording:
             raise ConfigError(f"{self.source}: [chirp] tx_order must be a permutation of 0 … {radar.n_tx - 1} "
                               f"(n_tx={radar.n_tx}), got {list(order)}")
         self._tx_order = None if order is None or not radar.mimo or list(order) == sorted(order) else np.array(order)
+        check_spec(spec, radar, self.source)
         if spec.format == "dca1000":
             with open_regular(self.path, what=f"recording {self.path}") as f:
                 self._size = file_size(f)
@@ -296,11 +309,12 @@ class Recording:
 
     def _chirp_cube(self, i: int) -> np.ndarray:
         radar, spec = self.radar, self.spec
-        raw = self.raw_frame(i)
+        raw = signed_words(self.raw_frame(i), spec.encoding)
         x = raw.astype(np.float64) - spec.adc_offset if spec.adc_offset else raw
         if spec.format == "dca1000":
             n_rx = radar.n_channels // radar.n_tdm
-            z = decode_dca1000(x, radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx, spec.sampling, spec.lanes)
+            z = decode_dca1000(x, radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx, spec.sampling, spec.lanes,
+                               spec.iq_order, spec.iq_interleave)
             if spec.sampling == "real":
                 z = analytic_signal(z, axis=0)
             z = z.reshape(radar.n_samples, radar.n_chirps, radar.n_channels)  # slot-major channels
@@ -310,7 +324,7 @@ class Recording:
             if spec.sampling == "real":
                 z, fmt = analytic_signal(x, axis=self._axes.index("sample")), "complex"
             else:
-                z = x
+                z = swap_iq(x, fmt) if spec.iq_order == "qi" else x
             layout = AdcLayout(axes=self._axes, sample_format=fmt, channel_order=spec.channel_order,
                                scale=spec.scale, remove_dc=spec.remove_dc)
         cube = chirp_cube(z, layout, radar)
