@@ -56,6 +56,8 @@ from xnlos_core.signal.chain import decouple, range_fft, ra_map_from_cube
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 
+from .layout.candidates import MAX_WORDS, Layout
+from .layout.checks import check_layout
 from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube, signed_words, swap_iq
 from .recording_checks import (RecordingWarning, check_bandwidth, check_channel_order, check_leakage,
                                check_single_receiver, check_spec, check_unsigned)
@@ -342,17 +344,37 @@ class Recording:
             return ra_map_from_cube(cube, self.radar)
 
     def check(self, i: int = 0) -> RAMap:
-        """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
-        :class:`RecordingWarning`) and return its RA map."""
-        if self.spec.adc_offset == 0:
-            check_unsigned(self.raw_frame(i), f"{self.source} frame {i}")
+        """Run the data checks on frame ``i`` and return its RA map: the layout of DCA1000 words against
+        the file's data (:func:`hardware.layout.checks.check_layout`), unsigned samples, leakage (advice
+        from the data) and channel / TX order, each a :class:`RecordingWarning`."""
+        src = f"{self.source} frame {i}"
+        named = []
+        if self.spec.format == "dca1000":
+            named = check_layout(self._head_words(), self._declared_layout(), self.radar.n_channels // self.radar.n_tdm,
+                                 self.radar.n_tdm, self.source, RecordingWarning)
+        if self.spec.adc_offset == 0 and "recording.encoding" not in named:
+            if check_unsigned(signed_words(self.raw_frame(i), self.spec.encoding), src, self.spec.format):
+                named.append("recording.adc_offset")
         cube = self.chirp_cube(i).mean(axis=1)
         with self._naming_frame(i):
             ra = ra_map_from_cube(cube, self.radar)
-        check_leakage(ra, f"{self.source} frame {i}", self.spec.leakage_range, self.spec.leakage_db)
-        check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar,
-                            f"{self.source} frame {i}", skip_range=self.spec.leakage_range)
+        power = float((np.abs(cube) ** 2).sum())
+        dc_share = float((np.abs(cube.mean(axis=0)) ** 2).sum() * cube.shape[0] / power) if power > 0 else None
+        check_leakage(ra, src, self.spec.leakage_range, self.spec.leakage_db, dc_share, tuple(named))
+        check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar, src,
+                            skip_range=self.spec.leakage_range,
+                            tx_order=None if self.chirp is None else self.chirp.tx_order)
         return ra
+
+    def _declared_layout(self) -> Layout:
+        s = self.spec
+        return Layout(s.lanes, s.sampling, s.iq_order, s.iq_interleave, s.encoding, self.radar.n_samples)
+
+    def _head_words(self) -> np.ndarray:
+        """The first int16 words of a DCA1000 file (at most :data:`hardware.layout.candidates.MAX_WORDS`)."""
+        with open_regular(self.path, what=f"recording {self.path}") as f:
+            data = f.read(2 * min(MAX_WORDS, self._size // 2))
+        return np.frombuffer(data[:len(data) // 2 * 2], dtype="<i2")
 
     def frames(self, start: int = 0, max_frames: int | None = None) -> Iterator[Frame]:
         """Frames ``start`` … as :class:`Frame` (timestamp i·radar.frame_interval [s]); checks the first one."""
