@@ -171,16 +171,16 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
 
 def static_scene_cubes(radar: RadarConfig, frames: int = 1, seed: int = 0, amplitude: float = 1e-3,
                        noise: float = 1e-6) -> list[np.ndarray]:
-    """Chirp cubes (n_samples, n_chirps, n_channels) [√W] of a static scene as a radar sees it: TX→RX
-    leakage at 0.1·ΔR… and four point echoes between 15 % and 70 % of max_range at −35° … +40°, their
-    amplitudes falling as R⁻² (``amplitude`` at 15 %), plus complex white noise of RMS ``noise`` [√W]
-    per sample (seeded: ``seed`` + frame). For tests of layout checks and ``xnlos recording inspect``."""
+    """Chirp cubes (n_samples, n_chirps, n_channels) [√W] of a static scene as a radar sees it: four
+    point echoes between 15 % and 70 % of max_range at −35°, +20°, +40°, −10°, their amplitudes falling
+    as R⁻² (``amplitude`` at 15 %), plus complex white noise of RMS ``noise`` [√W] per sample (seeded:
+    ``seed`` + frame). For tests of layout checks and ``xnlos recording inspect``."""
     from xnlos_core.signal.doppler import chirp_sequence_cube
 
     frac = np.array([0.15, 0.3, 0.45, 0.7])
-    r = np.concatenate([[0.3 * radar.range_resolution], frac * radar.max_range])
-    az = np.radians([0.0, -35.0, 20.0, 40.0, -10.0])
-    amp = np.concatenate([[2 * amplitude], amplitude * (frac[0] / frac) ** 2 * np.exp(1j * np.arange(4))])
+    r = frac * radar.max_range
+    az = np.radians([-35.0, 20.0, 40.0, -10.0])
+    amp = amplitude * (frac[0] / frac) ** 2 * np.exp(1j * np.arange(4))
     clean = chirp_sequence_cube(radar, r, az, amp, np.zeros(r.size))
     out = []
     for k in range(frames):

@@ -13,7 +13,7 @@ from ..raw_formats import signed_words
 from .candidates import MAX_WORDS, Layout, loop_lags, score_layouts
 from .scores import encoding_evidence, periodicity
 
-ENCODING_DB = 12.0  # one reading of the codes this much smaller [dB] in RMS: the encoding is that one
+ENCODING_DB = 6.0  # one reading of the codes this much smaller [dB] in RMS (half): the encoding is that one
 COHERENCE_DROP = 0.3  # periodicity this much lower at the declared loop than at the data's own: misframed
 LAYOUT_DB = 3.0  # another layout scoring this much higher [dB]: the declared one is wrong
 
@@ -48,7 +48,7 @@ def check_layout(words, declared: Layout, n_rx: int, n_tdm: int, source: str,
     lags = loop_lags(r)
     if lags and loop < r.size:
         lag = lags[0]
-        if r[lag] - r[loop] > COHERENCE_DROP and lag % declared.chirp_words(n_rx):
+        if r[lag] - r[loop] > COHERENCE_DROP and loop % lag:  # the declared loop is no multiple of the period
             per_sample = 2 if declared.sampling == "complex" else 1
             width = 4 if declared.lanes == 4 else n_rx
             hints = []
