@@ -1,4 +1,4 @@
-"""``xnlos emulate``, added through the ``xnlos_add_commands`` hook."""
+"""``xnlos emulate`` and ``xnlos recording inspect``, added through the ``xnlos_add_commands`` hook."""
 from __future__ import annotations
 
 import argparse
@@ -26,6 +26,15 @@ def xnlos_add_commands(subparsers) -> None:
     e.add_argument("--fast", action="store_true",
                    help="send frames as fast as the link allows, not at the frame period")
     e.set_defaults(func=cmd_emulate)
+    r = subparsers.add_parser("recording", help="raw radar recordings (DCA1000 .bin)")
+    rsub = r.add_subparsers(dest="recording_command", required=True)
+    i = rsub.add_parser("inspect", help="tell a DCA1000 .bin's layout from its data: best and runner-up layouts "
+                                        "with scores and a [recording]/[chirp] table to paste")
+    i.add_argument("file", type=Path, help="the .bin capture")
+    i.add_argument("--radar", type=Path, required=True,
+                   help="TOML with [radar] n_tx, n_rx (and optionally [chirp] n_samples, [radar] n_chirps, "
+                        "[recording]): a whole recording description or a partial one")
+    i.set_defaults(func=cmd_recording_inspect)
 
 
 def cmd_emulate(args: argparse.Namespace) -> int:
@@ -35,4 +44,11 @@ def cmd_emulate(args: argparse.Namespace) -> int:
                           config=args.config, frames=args.frames, duration=args.duration, record=args.record,
                           client=args.client, payload=args.payload, pace=not args.fast, echo=print)
     print(f"{summary['frames_sent']} frame(s) sent in {summary['seconds']:.2f} s")
+    return 0
+
+
+def cmd_recording_inspect(args: argparse.Namespace) -> int:
+    from .layout.inspect import inspect_file, report_text
+
+    print(report_text(inspect_file(args.file, args.radar), str(args.file)), end="")
     return 0

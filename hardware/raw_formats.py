@@ -10,6 +10,16 @@ chirp the samples arrive in the LVDS lane order of the device family:
   in groups of eight int16, ``I(lane 0..3), Q(lane 0..3)``; real samples four int16 (one per lane).
   Four lanes are always present; receivers beyond ``n_rx`` are unused lanes (zeros).
 
+Two settings change the order of the complex words inside a group (``[recording]``):
+``iq_interleave = "samples"`` pairs each I with its own Q (2 lanes ``I(n), Q(n), I(n+1), Q(n+1)``; 4
+lanes ``I(lane 0), Q(lane 0), I(lane 1) …``), as readers that save complex samples as int16 pairs
+write them; ``iq_order = "qi"`` puts Q where the order has I and I where it has Q. A word's code is
+``encoding``: ``"twos_complement"`` (signed int16, the DCA1000's) or ``"offset_binary"`` (0 … 65535
+with 32768 meaning 0, as TSW1400-style capture cards store it; :func:`signed_words` converts).
+Offset-binary words read as signed int16 wrap: a code u ≥ 32768 (a value u − 32768 ≥ 0) reads as
+u − 65536, so subtracting 32768 from the signed words (``adc_offset``) is wrong by 65536 for every
+non-negative sample; the conversion flips the top bit instead.
+
 :func:`decode_dca1000` turns one frame's int16 words into (n_samples, n_chirp_slots, n_rx) complex128
 counts; :func:`dca1000_frame_words` is the number of int16 words per frame. :func:`encode_dca1000` is the
 inverse (tests, emulators). Real-only samples are made complex by :func:`analytic_signal` (positive
@@ -32,11 +42,46 @@ def dca1000_frame_words(n_samples: int, n_slots: int, n_rx: int, sampling: str, 
     return n_samples * n_slots * width * (2 if sampling == "complex" else 1)
 
 
-def decode_dca1000(words, n_samples: int, n_slots: int, n_rx: int, sampling: str, lanes: int) -> np.ndarray:
+def signed_words(words, encoding: str = "twos_complement") -> np.ndarray:
+    """16-bit codes → signed values [ADC counts]: unchanged for ``"twos_complement"``; for
+    ``"offset_binary"`` the unsigned code u (int16 or uint16 storage, read bit for bit) gives u − 32768.
+
+    Raises InputError when ``encoding`` is offset binary and the words are not 16-bit integers."""
+    w = np.asarray(words)
+    if encoding == "twos_complement":
+        return w
+    if encoding != "offset_binary":
+        raise ConfigError(f"recording.encoding must be 'twos_complement' or 'offset_binary', got {encoding!r}")
+    if w.dtype not in (np.dtype("<i2"), np.dtype(">i2"), np.dtype("<u2"), np.dtype(">u2")):
+        raise InputError(f"recording.encoding = 'offset_binary' reads 16-bit codes; the samples are {w.dtype}")
+    v = w.astype(np.int32)
+    return v - 32768 if w.dtype.kind == "u" else v ^ -32768  # flipping bit 15 of a signed word: u − 32768
+
+
+def offset_binary_words(signed) -> np.ndarray:
+    """Signed int16 values → their offset-binary codes stored as int16 words (the inverse of
+    :func:`signed_words` for ``"offset_binary"``; tests, emulators)."""
+    return (np.asarray(signed).astype(np.int16).view(np.uint16) ^ np.uint16(0x8000)).view("<i2")
+
+
+def _iq_columns(n_lanes: int, iq_order: str, iq_interleave: str) -> tuple[np.ndarray, np.ndarray]:
+    """Positions of I and Q of each lane inside one group of 2·n_lanes words."""
+    lane = np.arange(n_lanes)
+    first, second = (lane, lane + n_lanes) if iq_interleave == "lanes" else (2 * lane, 2 * lane + 1)
+    if iq_interleave not in ("lanes", "samples"):
+        raise ConfigError(f"recording.iq_interleave must be 'lanes' or 'samples', got {iq_interleave!r}")
+    if iq_order not in ("iq", "qi"):
+        raise ConfigError(f"recording.iq_order must be 'iq' or 'qi', got {iq_order!r}")
+    return (first, second) if iq_order == "iq" else (second, first)
+
+
+def decode_dca1000(words, n_samples: int, n_slots: int, n_rx: int, sampling: str, lanes: int,
+                   iq_order: str = "iq", iq_interleave: str = "lanes") -> np.ndarray:
     """One frame's int16 words (1-D, :func:`dca1000_frame_words` long) → (n_samples, n_slots, n_rx)
     complex128 [ADC counts], or float64 for real sampling (see :func:`analytic_signal`).
 
-    Raises InputError on a wrong word count, ConfigError when ``lanes`` = 4 and n_rx > 4.
+    ``iq_order`` ("iq" | "qi") and ``iq_interleave`` ("lanes" | "samples") order the complex words
+    (module doc). Raises InputError on a wrong word count, ConfigError when ``lanes`` = 4 and n_rx > 4.
     """
     if lanes == 4 and n_rx > 4:
         raise ConfigError(f"DCA1000 lanes = 4 carries at most 4 receivers, the radar has n_rx={n_rx}")
@@ -46,27 +91,22 @@ def decode_dca1000(words, n_samples: int, n_slots: int, n_rx: int, sampling: str
         raise InputError(f"DCA1000 frame: expected {want} int16 words (n_samples={n_samples}, chirps={n_slots}, "
                          f"n_rx={n_rx}, {sampling}, {lanes} lanes), got shape {w.shape}")
     w = w.astype(np.float64)
-    if lanes == 2:
-        if sampling == "complex":
-            g = w.reshape(-1, 4)  # I(n), I(n+1), Q(n), Q(n+1)
-            z = np.empty(w.size // 2, dtype=np.complex128)
-            z[0::2] = g[:, 0] + 1j * g[:, 2]
-            z[1::2] = g[:, 1] + 1j * g[:, 3]
-        else:
-            z = w
-        return np.transpose(z.reshape(n_slots, n_rx, n_samples), (2, 0, 1))  # (sample, slot, rx)
     if sampling == "complex":
-        g = w.reshape(n_slots, n_samples, 2, 4)  # per sample: I(lanes), Q(lanes)
-        z = g[:, :, 0, :] + 1j * g[:, :, 1, :]
+        width = 2 if lanes == 2 else 4  # samples (2 lanes) or receivers (4 lanes) per group
+        i_col, q_col = _iq_columns(width, iq_order, iq_interleave)
+        g = w.reshape(-1, 2 * width)
+        z = (g[:, i_col] + 1j * g[:, q_col]).reshape(-1)
     else:
-        z = w.reshape(n_slots, n_samples, 4)
-    return np.transpose(z[:, :, :n_rx], (1, 0, 2))
+        z = w
+    if lanes == 2:
+        return np.transpose(z.reshape(n_slots, n_rx, n_samples), (2, 0, 1))  # (sample, slot, rx)
+    return np.transpose(z.reshape(n_slots, n_samples, 4)[:, :, :n_rx], (1, 0, 2))
 
 
-def encode_dca1000(cube, sampling: str, lanes: int) -> np.ndarray:
+def encode_dca1000(cube, sampling: str, lanes: int, iq_order: str = "iq", iq_interleave: str = "lanes") -> np.ndarray:
     """(n_samples, n_slots, n_rx) counts (complex, or real for ``sampling`` = "real") → one frame's int16
-    words in the DCA1000 order of :func:`decode_dca1000`. Values are rounded and must fit int16
-    (InputError otherwise: nothing is clipped silently)."""
+    words in the DCA1000 order of :func:`decode_dca1000` (same ``iq_order``, ``iq_interleave``). Values
+    are rounded and must fit int16 (InputError otherwise: nothing is clipped silently)."""
     c = np.asarray(cube)
     n, s, r = c.shape
     parts = (c.real, c.imag) if sampling == "complex" else (c.real,)
@@ -74,19 +114,30 @@ def encode_dca1000(cube, sampling: str, lanes: int) -> np.ndarray:
         if np.abs(np.rint(p)).max(initial=0) > 32767:
             raise InputError("encode_dca1000: values exceed the int16 range; lower the scale")
     if lanes == 2:
-        per_chirp = np.transpose(c, (1, 2, 0)).reshape(-1)  # (slot, rx, sample)
-        if sampling == "complex":
-            words = np.stack([per_chirp.real[0::2], per_chirp.real[1::2], per_chirp.imag[0::2],
-                              per_chirp.imag[1::2]], axis=1).reshape(-1)
-        else:
-            words = per_chirp.real
+        z = np.transpose(c, (1, 2, 0)).reshape(-1)  # (slot, rx, sample)
     else:
         if r > 4:
             raise InputError(f"encode_dca1000: lanes = 4 carries at most 4 receivers, got {r}")
         full = np.zeros((s, n, 4), dtype=c.dtype)
         full[:, :, :r] = np.transpose(c, (1, 0, 2))
-        words = (np.stack([full.real, full.imag], axis=2) if sampling == "complex" else full.real).reshape(-1)
-    return np.rint(words).astype("<i2")
+        z = full.reshape(-1)
+    if sampling != "complex":
+        return np.rint(z.real).astype("<i2")
+    width = 2 if lanes == 2 else 4
+    i_col, q_col = _iq_columns(width, iq_order, iq_interleave)
+    zg = z.reshape(-1, width)
+    g = np.empty((zg.shape[0], 2 * width))
+    g[:, i_col] = zg.real
+    g[:, q_col] = zg.imag
+    return np.rint(g.reshape(-1)).astype("<i2")
+
+
+def swap_iq(x: np.ndarray, sample_format: str) -> np.ndarray:
+    """Samples stored Q first (``iq_order = "qi"``) → I first: the trailing I/Q axis reversed
+    (``sample_format = "iq"``), or real and imaginary parts exchanged (complex dtype, Q + jI → I + jQ)."""
+    if sample_format == "iq":
+        return x[..., ::-1]
+    return x.imag + 1j * x.real
 
 
 def analytic_signal(real_cube: np.ndarray, axis: int = 0) -> np.ndarray:

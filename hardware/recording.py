@@ -7,6 +7,9 @@ A recording description (``*.toml``) has three tables::
     format = "dca1000"          # dca1000 | npy | npz | hdf5
     sampling = "complex"        # complex | real (real-only ADC; made analytic, half the range)
     lanes = 2                   # DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx) or 4 (xWR12xx/14xx)
+    encoding = "twos_complement"  # or "offset_binary" (16-bit codes, 32768 = 0)
+    iq_order = "iq"             # or "qi": Q stored where I is expected
+    iq_interleave = "lanes"     # DCA1000 groups I(n), I(n+1), Q(n), Q(n+1); "samples": I(n), Q(n), …
     scale = 1e-6                # √W per ADC count
     [chirp]                     # ChirpProfile: the chip's profile as its configuration states it
     slope = 29.982e12           # S [Hz/s]
@@ -55,9 +58,11 @@ from xnlos_core.signal.doppler import DopplerRAMaps, doppler_ra_maps
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 
-from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube
+from .layout.candidates import MAX_WORDS, Layout
+from .layout.checks import check_layout
+from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube, signed_words, swap_iq
 from .recording_checks import (RecordingWarning, check_bandwidth, check_channel_order, check_leakage,
-                               check_single_receiver, check_unsigned)
+                               check_single_receiver, check_spec, check_unsigned)
 
 MAX_LEAKAGE_RANGE = 1000.0  # [m]: far beyond any radar's leakage, finite so that bin arithmetic stays exact
 _SUFFIXES = {"dca1000": (".bin", ".dat", ".raw"), "npy": (".npy",), "npz": (".npz",),
@@ -72,6 +77,14 @@ class RecordingSpec(BaseModel):
     format: Literal["dca1000", "npy", "npz", "hdf5"] = Field(..., description="file format")
     sampling: Literal["complex", "real"] = Field("complex", description="complex (I/Q) or real-only ADC samples")
     lanes: Literal[2, 4] = Field(2, description="DCA1000 LVDS lane order: 2 (xWR16xx/18xx/68xx), 4 (xWR12xx/14xx)")
+    encoding: Literal["twos_complement", "offset_binary"] = Field(
+        "twos_complement", description="16-bit codes: signed two's complement (the DCA1000's), or offset binary "
+                                       "(0 … 65535, 32768 = 0; TSW1400-style cards)")
+    iq_order: Literal["iq", "qi"] = Field("iq", description="complex samples: I first (iq) or Q first (qi) in "
+                                                            "each group of words, or in a cube's I/Q axis")
+    iq_interleave: Literal["lanes", "samples"] = Field(
+        "lanes", description="DCA1000 complex words: 'lanes' = I of each lane then Q of each lane (2 lanes: "
+                            "I(n), I(n+1), Q(n), Q(n+1)); 'samples' = each I beside its Q (I(n), Q(n), …)")
     key: str = Field("adc", min_length=1, description="array name in a .npz, dataset in an HDF5 file")
     axes: tuple[str, ...] = Field(("frame", "sample", "chirp", "channel"),
                                   description="cube axes in order: sample, chirp, channel and optionally frame")
@@ -81,7 +94,8 @@ class RecordingSpec(BaseModel):
         "tx_major", description="tx_major: channel = slot·n_rx + rx (the DCA1000's order); rx_major: rx·n_tx + slot")
     scale: float = Field(1.0, gt=0, le=1e6, allow_inf_nan=False, description="amplitude per ADC count [√W]")
     adc_offset: float = Field(0.0, ge=-2.0**32, le=2.0**32, allow_inf_nan=False,
-                              description="subtracted from every raw count (32768 for offset-binary int16)")
+                              description="subtracted from every count after decoding `encoding` (e.g. the "
+                                          "mid-scale 2048 of a 12-bit ADC stored unsigned)")
     remove_dc: bool = Field(False, description="subtract each channel's mean over a chirp's samples")
     leakage_range: float = Field(1.0, ge=0, le=MAX_LEAKAGE_RANGE, allow_inf_nan=False,
                                  description="near range [m] checked for TX→RX leakage (and skipped by the "
@@ -167,6 +181,7 @@ class Recording:
             raise ConfigError(f"{self.source}: [chirp] tx_order must be a permutation of 0 … {radar.n_tx - 1} "
                               f"(n_tx={radar.n_tx}), got {list(order)}")
         self._tx_order = None if order is None or not radar.mimo or list(order) == sorted(order) else np.array(order)
+        check_spec(spec, radar, self.source)
         if spec.format == "dca1000":
             with open_regular(self.path, what=f"recording {self.path}") as f:
                 self._size = file_size(f)
@@ -298,11 +313,12 @@ class Recording:
 
     def _chirp_cube(self, i: int) -> np.ndarray:
         radar, spec = self.radar, self.spec
-        raw = self.raw_frame(i)
+        raw = signed_words(self.raw_frame(i), spec.encoding)
         x = raw.astype(np.float64) - spec.adc_offset if spec.adc_offset else raw
         if spec.format == "dca1000":
             n_rx = radar.n_channels // radar.n_tdm
-            z = decode_dca1000(x, radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx, spec.sampling, spec.lanes)
+            z = decode_dca1000(x, radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx, spec.sampling, spec.lanes,
+                               spec.iq_order, spec.iq_interleave)
             if spec.sampling == "real":
                 z = analytic_signal(z, axis=0)
             z = z.reshape(radar.n_samples, radar.n_chirps, radar.n_channels)  # slot-major channels
@@ -312,7 +328,7 @@ class Recording:
             if spec.sampling == "real":
                 z, fmt = analytic_signal(x, axis=self._axes.index("sample")), "complex"
             else:
-                z = x
+                z = swap_iq(x, fmt) if spec.iq_order == "qi" else x
             layout = AdcLayout(axes=self._axes, sample_format=fmt, channel_order=spec.channel_order,
                                scale=spec.scale, remove_dc=spec.remove_dc)
         cube = chirp_cube(z, layout, radar)
@@ -350,17 +366,37 @@ class Recording:
         return dataclasses.replace(maps.ra_map("peak_power"), velocity=maps.velocity, velocity_std=maps.velocity_std)
 
     def check(self, i: int = 0) -> RAMap:
-        """Run the data checks on frame ``i`` (unsigned samples, leakage, channel order; each a
-        :class:`RecordingWarning`) and return its RA map."""
-        if self.spec.adc_offset == 0:
-            check_unsigned(self.raw_frame(i), f"{self.source} frame {i}")
+        """Run the data checks on frame ``i`` and return its RA map: the layout of DCA1000 words against
+        the file's data (:func:`hardware.layout.checks.check_layout`), unsigned samples, leakage (advice
+        from the data) and channel / TX order, each a :class:`RecordingWarning`."""
+        src = f"{self.source} frame {i}"
+        named = []
+        if self.spec.format == "dca1000":
+            named = check_layout(self._head_words(), self._declared_layout(), self.radar.n_channels // self.radar.n_tdm,
+                                 self.radar.n_tdm, self.source, RecordingWarning)
+        if self.spec.adc_offset == 0 and "recording.encoding" not in named:
+            if check_unsigned(signed_words(self.raw_frame(i), self.spec.encoding), src, self.spec.format):
+                named.append("recording.adc_offset")
         cube = self.chirp_cube(i).mean(axis=1)
         with self._naming_frame(i):
             ra = ra_map_from_cube(cube, self.radar)
-        check_leakage(ra, f"{self.source} frame {i}", self.spec.leakage_range, self.spec.leakage_db)
-        check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar,
-                            f"{self.source} frame {i}", skip_range=self.spec.leakage_range)
+        power = float((np.abs(cube) ** 2).sum())
+        dc_share = float((np.abs(cube.mean(axis=0)) ** 2).sum() * cube.shape[0] / power) if power > 0 else None
+        check_leakage(ra, src, self.spec.leakage_range, self.spec.leakage_db, dc_share, tuple(named))
+        check_channel_order(decouple(range_fft(cube, self.radar), self.radar), self.radar, src,
+                            skip_range=self.spec.leakage_range,
+                            tx_order=None if self.chirp is None else self.chirp.tx_order)
         return ra
+
+    def _declared_layout(self) -> Layout:
+        s = self.spec
+        return Layout(s.lanes, s.sampling, s.iq_order, s.iq_interleave, s.encoding, self.radar.n_samples)
+
+    def _head_words(self) -> np.ndarray:
+        """The first int16 words of a DCA1000 file (at most :data:`hardware.layout.candidates.MAX_WORDS`)."""
+        with open_regular(self.path, what=f"recording {self.path}") as f:
+            data = f.read(2 * min(MAX_WORDS, self._size // 2))
+        return np.frombuffer(data[:len(data) // 2 * 2], dtype="<i2")
 
     def frames(self, start: int = 0, max_frames: int | None = None, doppler: bool | None = None) -> Iterator[Frame]:
         """Frames ``start`` … as :class:`Frame` (timestamp i·radar.frame_interval [s]); checks the first one.

@@ -131,17 +131,19 @@ def _toml_value(v) -> str:
 
 def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: RadarConfig, *, scale: float,
                             name: str = "capture", sampling: str = "complex", lanes: int = 2,
+                            encoding: str = "twos_complement", iq_order: str = "iq", iq_interleave: str = "lanes",
                             recording: dict | None = None, chirp: dict | None = None) -> Path:
     """Write frames as a DCA1000-style ``{name}_Raw_0.bin`` plus its description ``{name}.toml`` in
     ``folder``; return the TOML's path (for ``Recording.from_toml`` or the ``adc`` backend).
 
     chirp_cubes: per frame (n_samples, n_chirps, n_channels) complex [√W], channels tx-major (the
     layout of :func:`xnlos_core.signal.doppler.chirp_sequence_cube`); stored as round(cube/scale) int16 in
-    transmission order (the real part only for ``sampling`` = "real"). The description gives the
+    transmission order (the real part only for ``sampling`` = "real"), in the words' ``encoding``,
+    ``iq_order`` and ``iq_interleave`` (:mod:`hardware.raw_formats`). The description gives the
     waveform as a chip's profile ([chirp] slope = B/T, sample_rate = N/T) and every other field of
     ``radar`` in [radar]; ``recording`` / ``chirp`` add or replace keys of those tables.
     """
-    from .raw_formats import encode_dca1000
+    from .raw_formats import encode_dca1000, offset_binary_words
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -150,11 +152,12 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
     for c in chirp_cubes:
         c = np.asarray(c) / scale
         slots = c.reshape(radar.n_samples, radar.n_chirps * radar.n_tdm, n_rx)  # (sample, loop·slot, rx)
-        words.append(encode_dca1000(slots.real if sampling == "real" else slots, sampling, lanes))
+        w = encode_dca1000(slots.real if sampling == "real" else slots, sampling, lanes, iq_order, iq_interleave)
+        words.append(offset_binary_words(w) if encoding == "offset_binary" else w)
     data = folder / f"{name}_Raw_0.bin"
     np.concatenate(words).tofile(data)
-    rec = {"file": data.name, "format": "dca1000", "sampling": sampling, "lanes": lanes, "scale": scale,
-           **(recording or {})}
+    rec = {"file": data.name, "format": "dca1000", "sampling": sampling, "lanes": lanes, "encoding": encoding,
+           "iq_order": iq_order, "iq_interleave": iq_interleave, "scale": scale, **(recording or {})}
     prof = {"slope": radar.chirp_slope, "sample_rate": radar.sample_rate, "n_samples": radar.n_samples,
             **(chirp or {})}
     skip = {"bandwidth", "chirp_duration", "n_samples"}
@@ -164,6 +167,27 @@ def write_dca1000_recording(folder: str | os.PathLike, chirp_cubes, radar: Radar
     toml = folder / f"{name}.toml"
     toml.write_text(text, encoding="utf-8")
     return toml
+
+
+def static_scene_cubes(radar: RadarConfig, frames: int = 1, seed: int = 0, amplitude: float = 1e-3,
+                       noise: float = 1e-6) -> list[np.ndarray]:
+    """Chirp cubes (n_samples, n_chirps, n_channels) [√W] of a static scene as a radar sees it: four
+    point echoes between 15 % and 70 % of max_range at −35°, +20°, +40°, −10°, their amplitudes falling
+    as R⁻² (``amplitude`` at 15 %), plus complex white noise of RMS ``noise`` [√W] per sample (seeded:
+    ``seed`` + frame). For tests of layout checks and ``xnlos recording inspect``."""
+    from xnlos_core.signal.doppler import chirp_sequence_cube
+
+    frac = np.array([0.15, 0.3, 0.45, 0.7])
+    r = frac * radar.max_range
+    az = np.radians([-35.0, 20.0, 40.0, -10.0])
+    amp = amplitude * (frac[0] / frac) ** 2 * np.exp(1j * np.arange(4))
+    clean = chirp_sequence_cube(radar, r, az, amp, np.zeros(r.size))
+    out = []
+    for k in range(frames):
+        rng = np.random.default_rng(seed + k)
+        out.append(clean + noise * (rng.standard_normal(clean.shape) + 1j * rng.standard_normal(clean.shape))
+                   / np.sqrt(2))
+    return out
 
 
 def make_adc_recording(folder: str | os.PathLike, radar: RadarConfig | None = None, frames: int = 2,

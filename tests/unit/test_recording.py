@@ -136,7 +136,7 @@ def test_hdf5_cube(tmp_path):
 
 # --- warnings ---------------------------------------------------------------------------------------
 
-@pytest.mark.filterwarnings("ignore:.*leakage or DC")
+@pytest.mark.filterwarnings("ignore:.*strongest cell")
 def test_unsigned_samples_warn_and_the_map_peaks_at_dc(tmp_path):
     cube = _cubes(frames=1)[0]
     counts = np.rint(cube / SCALE / 16)  # a 12-bit ADC …
@@ -147,14 +147,15 @@ def test_unsigned_samples_warn_and_the_map_peaks_at_dc(tmp_path):
     rec = Recording.from_table(table, "t.toml", tmp_path)
     with pytest.warns(RecordingWarning, match="unsigned") as rec_w:
         ra = rec.check(0)
-    assert any("leakage or DC" in str(w.message) for w in rec_w)
+    leak = [str(w.message) for w in rec_w if "strongest cell" in str(w.message)]
+    assert leak and "recording.adc_offset" in leak[0] and "set recording.remove_dc" not in leak[0]
     assert _peak(ra)[0] == 0.0 and 10 * np.log10(ra.power.max() / np.median(ra.power)) > 30
     table["recording"]["adc_offset"] = 2048  # the fix: no warning, the target is back
     fixed = _quiet(Recording.from_table(table, "t.toml", tmp_path).check, 0)
     assert _peak(fixed)[0] == pytest.approx(5.221, abs=RADAR.range_resolution / 2)
 
 
-@pytest.mark.filterwarnings("ignore:.*leakage or DC")
+@pytest.mark.filterwarnings("ignore:.*strongest cell")
 def test_int16_words_all_non_negative_warn(tmp_path):
     toml = write_dca1000_recording(tmp_path, _cubes(frames=1), RADAR, scale=SCALE)
     rec = Recording.from_toml(toml)
