@@ -57,7 +57,7 @@ def check_spec(spec, radar: RadarConfig, source: str) -> None:
     * DCA1000 words are read as signed int16: ``adc_offset = ±32768`` makes every count wrong
       (offset-binary words are ``encoding = "offset_binary"``), a ConfigError;
     * ``iq_interleave`` orders DCA1000 words only (a cube's I/Q axis is ``sample_format``/``iq_order``);
-    * a DCA1000 capture carries one chip's receivers, at most 4 per chirp: n_rx > 4 per TX slot is most
+    * a DCA1000 capture carries one chip's receivers, at most 4 per chirp: one TX with n_rx > 4 is most
       likely an n_tx × n_rx capture read as 1 × (n_tx·n_rx), whose map is right but whose chirp loop is
       n_tx times too short (every velocity × n_tx), a warning.
     """
@@ -73,7 +73,7 @@ def check_spec(spec, radar: RadarConfig, source: str) -> None:
         raise ConfigError(f"{source}: [recording] iq_order = '{spec.iq_order}' needs complex samples; sampling = "
                           "'real' has no Q")
     n_rx = radar.n_channels // radar.n_tdm
-    if spec.format == "dca1000" and n_rx > 4:
+    if spec.format == "dca1000" and n_rx > 4 and radar.n_tx == 1:  # the 1 × (n_tx·n_rx) misreading
         warnings.warn(f"{source}: {n_rx} receivers per chirp (radar.n_rx = {radar.n_rx}, n_tx = {radar.n_tx}), but "
                       "a DCA1000 carries one radar chip's receivers, at most 4: a 2 TX × 4 RX capture described as "
                       "n_tx = 1, n_rx = 8 beamforms the same map but takes each chirp loop for one chirp, so every "

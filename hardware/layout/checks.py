@@ -16,6 +16,7 @@ from .scores import encoding_evidence, periodicity
 ENCODING_DB = 6.0  # one reading of the codes this much smaller [dB] in RMS (half): the encoding is that one
 COHERENCE_DROP = 0.3  # periodicity this much lower at the declared loop than at the data's own: misframed
 LAYOUT_DB = 3.0  # another layout scoring this much higher [dB]: the declared one is wrong
+IQ_ORDER_DB = 25.0  # far half over near half [dB] beyond which Q + jI is named (R⁻⁴ alone gives ≤ ~16 dB in a scene)
 
 _KEY = {"n_samples": "chirp.n_samples"}
 
@@ -69,6 +70,10 @@ def check_layout(words, declared: Layout, n_rx: int, n_tdm: int, source: str,
     mine = next(s for s in scored if s.layout == declared)
     if best.layout != declared and best.score - mine.score > LAYOUT_DB:
         diff = best.layout.differences(declared)
+        # I/Q order alone shows only as energy in the spectrum's far half, which far echoes give too (a
+        # corner 60 m away at 100 m range): named only when the imbalance is beyond any scene's
+        if set(diff) == {"iq_order"} and mine.stats.near_far_db > -IQ_ORDER_DB:
+            diff = {}
         if set(diff) - {"encoding"}:
             settings = ", ".join(f"{_KEY.get(k, 'recording.' + k)} = {v[0]!r}" for k, v in diff.items())
             why = []
