@@ -158,8 +158,10 @@ class PipelineConfig(BaseModel):
         ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
         them on resumes a finished run, and runs made before they existed keep their hash); so are
         ``run.blas_threads`` and ``run.share_cores``, which change only speed (like OPENBLAS_NUM_THREADS,
-        never hashed)."""
-        dump = self.model_dump(exclude={"base_dir": True, "run": {"animation", "figures", "blas_threads", "share_cores"}})
+        never hashed); and ``run.frames``: frame k is the same whatever the count (its draws come from
+        child k of the seed), so a finished run is extended by asking for more frames."""
+        dump = self.model_dump(exclude={"base_dir": True,
+                                        "run": {"frames", "animation", "figures", "blas_threads", "share_cores"}})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

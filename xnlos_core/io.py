@@ -202,6 +202,26 @@ def json_default(o):
     return str(o)
 
 
+def finite_json(obj):
+    """``obj`` with every non-finite float (NaN, ±inf) replaced by None, recursively through dicts,
+    lists and tuples, so that ``json.dumps(..., allow_nan=False)`` writes strict JSON (RFC 8259 has
+    no NaN or Infinity; Python's and JavaScript's strict parsers refuse them). None reads as "no
+    finite value", e.g. a Chamfer distance with an empty side."""
+    if isinstance(obj, float | np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
+def strict_json_text(obj, **kwargs) -> str:
+    """``json.dumps`` of :func:`finite_json` (``obj``) with ``allow_nan=False`` (and ``kwargs``; numpy
+    scalars and arrays as numbers and lists, anything else as its str)."""
+    return json.dumps(finite_json(json.loads(json.dumps(obj, default=json_default))), allow_nan=False, **kwargs)
+
+
 # GroundTruth fields a frame file holds only when the truth records them (gt_<name>)
 GT_OPTIONAL = ("hidden_velocity", "mnlos_velocity", "los_object", "los_radial_velocity")
 

@@ -33,9 +33,11 @@ import numpy as np
 
 from xnlos_core.app.plot.animation import SNAPSHOT_DIR, snapshot_path, write_sequence_gif
 from xnlos_core.config import PipelineConfig
+from xnlos_core.errors import ConfigError
 from xnlos_core.app.plot.figures import split_outlines
 from xnlos_core.app.plot.frame_snapshot import FrameSnapshot
-from xnlos_core.io import append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, write_jsonl
+from xnlos_core.io import (append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, strict_json_text,
+                          write_jsonl)
 from xnlos_core.pipeline import Pipeline
 from xnlos_core.app.run_outputs import STAMP, outputs_current, outputs_key, write_outputs_stamp
 from xnlos_core.rundir import claim, write_record
@@ -59,7 +61,12 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
                 what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE, STAMP],
                 state=prov["state_sha256"])
     if old is not None:
-        done = read_results(res_path, n if "forward_model" in pipe.stages else None)
+        done = read_results(res_path)
+        beyond = sorted(k for k in done if k >= n) if "forward_model" in pipe.stages else []
+        if beyond:
+            raise ConfigError(f"{out}: holds frames up to {max(done)} of this configuration, more than the "
+                              f"{n} asked for (run.frames / --frames); ask for at least {max(done) + 1} frames to "
+                              "use it (more extend it), or give --overwrite to start again")
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
         write_jsonl(res_path, done.values())
         resumed = old.get("resumed", 0)
@@ -110,7 +117,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         summary["animation"] = GIF
     summary["state_sha256"] = prov.get("state_sha256", {})
     texts = {"summary.md": render_summary(summary, prov, config),
-             "summary.json": json.dumps(summary, indent=2, sort_keys=True, default=str)}
+             "summary.json": strict_json_text(summary, indent=2, sort_keys=True)}  # null: no finite value
     # A rerun of a finished run whose summary, figures and GIF on disk are those of this config and
     # these results (xnlos_core.app.run_outputs) writes none of them again.
     names = [*texts, *(p.name for p in figures), *([GIF] if animate else [])]

@@ -42,7 +42,7 @@ import numpy as np
 from xnlos_core.app.crossmodal import score as cs
 from xnlos_core.app.crossmodal.config import RadarModality, SpadModality, StudyConfig, load_study
 from xnlos_core.errors import ConfigError
-from xnlos_core.io import atomic_write_text
+from xnlos_core.io import atomic_write_text, strict_json_text
 
 
 # ---------------------------------------------------------------------------------------------- scene
@@ -230,7 +230,7 @@ def run_study(config: str | Path, out: str | Path, *, progress: bool = True, fig
             _log(f"({done}/{n_cells}) {mod.label} d = {d:g} m [{took}]: {summary}", progress)
     res = summarise(cfg, results)
     res["wall_s"] = time.perf_counter() - t_start
-    atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))
+    atomic_write_text(out / "crossmodal.json", strict_json_text(res, indent=2))
     atomic_write_text(out / "crossmodal.md", render_markdown(cfg, res, str(config)))
     if figures:
         from xnlos_core.app.crossmodal.figures import panel_figure, range_curve, row_colours
@@ -250,7 +250,7 @@ def run_study(config: str | Path, out: str | Path, *, progress: bool = True, fig
             panel[label] = {**shown, "colour": colours[label]}
         panel_figure(cfg, panel, out / "panel.png")
         res["figures"] = ["range_curve.png", "panel.png"]
-        atomic_write_text(out / "crossmodal.json", json.dumps(res, indent=2, default=float))
+        atomic_write_text(out / "crossmodal.json", strict_json_text(res, indent=2))
     return res
 
 
