@@ -47,6 +47,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         cfg = trainer.parse(table, f"{args.config} (with command-line overrides)")
     s = trainer.train(cfg, overwrite=args.overwrite, progress=not args.quiet, source=str(args.config),
                       named_export=args.export is not None, base_dir=base_dir)
+    if s.get("resumed_from_epoch") is not None:
+        print(f"resumed after epoch {s['resumed_from_epoch']}")
+    if s.get("stop_reason"):
+        print(s["stop_reason"])
     print(f"{trainer.report(s)}; wrote {s['model']}" + (f" and {s['export']}" if s.get("export") else ""))
     if s.get("export_skipped"):
         print(f"note: {s['export_skipped']}", file=sys.stderr)

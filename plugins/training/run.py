@@ -81,6 +81,14 @@ class Run:
     bad_epochs: int = 0
     history: list[dict[str, Any]] = field(default_factory=list)
     best_weights: tuple[dict, dict] | None = None
+    resumed_from: int | None = None  # the epochs a resumed run had done when it was restored
+
+    def stop_reason(self) -> str | None:
+        """Why the run ended before ``epochs``, or None (it ran them all, or has not ended)."""
+        if self.epoch < self.epochs and self.bad_epochs >= self.patience:
+            return (f"stopped early after epoch {self.epoch} of {self.epochs}: {self.bad_epochs} validation(s) without "
+                    f"a better score (optim.patience = {self.patience}); the best model is epoch {self.best_epoch}'s")
+        return None
 
     def __post_init__(self):
         self.best = float("inf") if self.minimise else float("-inf")
@@ -110,6 +118,7 @@ class Run:
         self.epoch, self.best, self.best_epoch, self.bad_epochs = (p[k] for k in ("epoch", "best", "best_epoch",
                                                                                   "bad_epochs"))
         self.history, self.best_weights = saved.history, saved.best
+        self.resumed_from = self.epoch
 
 
 def _progress(p: dict) -> dict[str, Any]:
@@ -151,6 +160,9 @@ def train_epochs(run: Run, net, opt, sched, meta: dict[str, Any], train_epoch: C
     checkpoint (architecture, hyper-parameters, …)."""
     from tqdm import tqdm
 
+    if run.resumed_from is not None and progress:
+        tqdm.write(f"resuming {run.out} after epoch {run.resumed_from} of {run.epochs}" +
+                   ("" if run.best_epoch < 0 else f" (best so far: epoch {run.best_epoch})"))
     while not run.done():
         epoch = run.epoch + 1
         rec: dict[str, Any] = {"epoch": epoch, **train_epoch(epoch)}
@@ -213,7 +225,7 @@ def finish(cfg, run: Run, net, meta: dict[str, Any], *, dataset: dict[str, Any],
     result = {"out": str(out), "model": str(out / "model.pt"), "export": str(dest) if dest else None,
               "best_epoch": run.best_epoch, "epochs_run": len(epochs), "n_parameters": n_params,
               "seconds_per_epoch": record["seconds_per_epoch"], "stopped_early": len(epochs) < cfg.optim.epochs,
-              **(summary or {})}
+              "stop_reason": run.stop_reason(), "resumed_from_epoch": run.resumed_from, **(summary or {})}
     if skipped:
         result["export_skipped"] = skipped
     atomic_write_text(out / "summary.json", json.dumps(result, indent=2, sort_keys=True, default=str) + "\n")

@@ -101,10 +101,13 @@ def test_train_cli_writes_a_documented_model_and_resumes_identically(tmp_path, o
         return real_epoch(self, seed, epoch)
 
     monkeypatch.setattr(tr.Batcher, "epoch", dies_in_epoch_2)
+    capsys.readouterr()
     assert main(["train", str(TINY_TOML), "--out", str(tmp_path / "b"), "--epochs", "2", "-q"]) == 130
+    assert "interrupted; finished epochs are saved (last.pt)" in capsys.readouterr().err  # not "frames"
     assert not (tmp_path / "b" / "model.pt").exists() and (tmp_path / "b" / "last.pt").exists()
     monkeypatch.setattr(tr.Batcher, "epoch", real_epoch)
     assert main(["train", str(TINY_TOML), "--out", str(tmp_path / "b"), "--epochs", "2", "-q"]) == 0
+    assert "resumed after epoch 1" in capsys.readouterr().out
     sd_b, _, _ = load_checkpoint(tmp_path / "b" / "model.pt", "swin_unet")
     for key in sd_a:
         torch.testing.assert_close(sd_b[key], sd_a[key], rtol=0, atol=0)

@@ -234,6 +234,19 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
     return p
 
 
+# what an interrupted command keeps (its resume unit), by command
+INTERRUPTED = {"run": "completed frames are saved", "demo": "completed frames are saved",
+               "eval": "scored maps are saved", "sweep": "finished points and frames are saved",
+               "train": "finished epochs are saved (last.pt)", "simulate": "finished shards are saved",
+               "crossmodal": "finished cells are saved"}
+
+
+def argv_command(argv: list[str] | None) -> str | None:
+    """The command word of ``argv`` (default sys.argv[1:]): the first argument naming one of
+    :data:`INTERRUPTED`'s commands, or None."""
+    return next((a for a in (sys.argv[1:] if argv is None else argv) if a in INTERRUPTED), None)
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer ≥ 1 (a count of frames, epochs, maps)."""
     try:
@@ -302,7 +315,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"xnlos: error: cannot use {where}: {reason}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("xnlos: interrupted; completed frames are saved, rerun the same command to resume", file=sys.stderr)
+        done = INTERRUPTED.get(argv_command(argv), "completed work is saved")
+        print(f"xnlos: interrupted; {done}, rerun the same command to resume", file=sys.stderr)
         return 130
 
 
