@@ -34,7 +34,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from .dataset import load_dataset_config, manifest_config, simulate_dataset, verify_dataset
 
     config, out = args.config, args.out
-    if out is None and (args.verify or args.repair) and config is not None and config.is_dir():
+    if out is None and (args.verify or args.repair) and config is not None:
+        if not config.is_dir():
+            what = "does not exist" if not config.exists() else "is a file, not a dataset folder"
+            raise ConfigError(f"simulate --{'verify' if args.verify else 'repair'} {config}: {what}; expected the "
+                              "folder of a dataset that xnlos simulate wrote (it holds manifest.json)")
         config, out = None, config  # xnlos simulate --verify DIR | --repair DIR
     if out is None:
         raise ConfigError("simulate: give --out DIR (or: xnlos simulate --verify DIR | --repair DIR)")

@@ -33,14 +33,17 @@ import copy
 import hashlib
 import itertools
 import json
+import warnings
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from .errors import ConfigError
+from .errors import ConfigError, PipelineWarning
 # load_toml, MAX_DEPTH and validate_model are re-exported: plugins and tests import them from here.
 from .files import MAX_DEPTH, load_toml  # noqa: F401
+
+SLOW_FRAMES = 10.0  # [s] a frame interval beyond which run.frame_interval warns (ms written as s)
 from .interfaces import STAGE_KINDS
 from .validation import format_errors, validate_model  # noqa: F401
 
@@ -60,7 +63,8 @@ class RunConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     frames: int = Field(1, ge=1, le=1_000_000, description="frames to simulate or read")
-    frame_interval: float = Field(0.1, gt=0, le=3600, description="time between simulated frames [s]")
+    frame_interval: float = Field(0.1, gt=0, le=3600, description="time between simulated frames [s]; above "
+                                  f"{SLOW_FRAMES:g} s warns (milliseconds written as seconds)")
     match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m]")
     figure: bool = Field(True, description="write frame PNGs (which ones: ``figures``); false: none")
     figures: Literal["last", "all"] | Annotated[int, Field(ge=1, le=1_000_000)] = Field(
@@ -76,6 +80,15 @@ class RunConfig(BaseModel):
     share_cores: bool = Field(True, description="before each frame, run torch with the cores that other processes "
                               "left free since the previous frame (xnlos_core.core_share): no collapse when the "
                               "cores are shared; false: torch keeps its thread count")
+
+    @field_validator("frame_interval")
+    @classmethod
+    def _seconds(cls, v: float) -> float:
+        if v > SLOW_FRAMES:
+            warnings.warn(f"run.frame_interval = {v:g} s between frames: a radar frames every few milliseconds to "
+                          f"a second; if milliseconds were meant, write {v / 1000:g} (the unit is seconds)",
+                          PipelineWarning, stacklevel=2)
+        return v
 
     def figure_frames(self, indices) -> list[int]:
         """Which of the recorded frame ``indices`` get a figure (sorted): none without ``figure``;
@@ -179,10 +192,38 @@ def parse_pipeline(table: dict[str, Any], source: str, base_dir: str | Path = ".
         raise ConfigError(f"{source}: {exc}") from None
 
 
+# config kind → (the keys that mark it, the command that takes it, a shipped example)
+CONFIG_KINDS = {
+    "cross-modality study": (("modality",), "xnlos crossmodal", "configs/ablations/crossmodal.toml"),
+    "training": (("data", "model"), "xnlos train", "configs/training/tiny.toml"),
+    "dataset": (("families",), "xnlos simulate", "configs/datasets/smoke.toml"),
+    "pipeline": (("detector",), "xnlos run / sweep / eval", "configs/pipelines/corner.toml"),
+}
+
+
+def config_kind(table: dict[str, Any]) -> str | None:
+    """Which kind of config ``table`` is, by the keys that mark each (:data:`CONFIG_KINDS`); None when
+    it holds none of them."""
+    return next((kind for kind, (keys, _, _) in CONFIG_KINDS.items() if all(k in table for k in keys)), None)
+
+
+def expect_kind(table: dict[str, Any], kind: str, source: str) -> None:
+    """ConfigError naming the command that takes ``table`` when it is plainly another kind of config
+    than ``kind`` (a pipeline config given to ``xnlos crossmodal``, …), instead of a list of the keys
+    it lacks."""
+    found = config_kind(table)
+    if found is not None and found != kind:
+        command, example = CONFIG_KINDS[found][1], CONFIG_KINDS[kind][2]
+        raise ConfigError(f"{source}: this is a {found} config (for {command}), not a {kind} config "
+                          f"(like {example})")
+
+
 def load_pipeline(path: str | Path) -> PipelineConfig:
-    """Load and validate a pipeline TOML file."""
+    """Load and validate a pipeline TOML file (ConfigError naming the right command for another kind)."""
     path = Path(path)
-    return parse_pipeline(load_toml(path), str(path), base_dir=path.resolve().parent)
+    table = load_toml(path)
+    expect_kind(table, "pipeline", str(path))
+    return parse_pipeline(table, str(path), base_dir=path.resolve().parent)
 
 
 def _set_dotted(table: dict[str, Any], key: str, value: Any, source: str) -> None:

@@ -53,9 +53,11 @@ def register(names: tuple[str, ...], target: str, *, default: str | None = None)
 
 def trainer_for(table: dict[str, Any], source: str) -> Trainer:
     """The trainer of a training table's ``[model] name``; ConfigError naming ``source`` when none is."""
+    from xnlos_core.config import expect_kind
     from xnlos_core.registry import get_manager
 
     get_manager()  # loads the plugins, whose modules register their trainers
+    expect_kind(table, "training", source)
     model = table.get("model")
     name = model.get("name") if isinstance(model, dict) else None
     name = name if name is not None else (_DEFAULT[0] if _DEFAULT else None)

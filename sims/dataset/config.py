@@ -215,8 +215,12 @@ def parse_dataset_config(table: dict[str, Any], source: str, base_dir: str | Pat
 
 def load_dataset_config(path: str | Path, n_maps: int | None = None) -> DatasetConfig:
     """Load and validate a dataset TOML file (not yet resolved; see :func:`resolve`)."""
+    from xnlos_core.config import expect_kind
+
     path = Path(path)
-    return parse_dataset_config(load_toml(path), str(path), path.resolve().parent, n_maps)
+    table = load_toml(path)
+    expect_kind(table, "dataset", str(path))
+    return parse_dataset_config(table, str(path), path.resolve().parent, n_maps)
 
 
 def generator_classes(config: DatasetConfig, source: str = "<config>", registry=None) -> dict[str, type]:

@@ -110,3 +110,30 @@ def test_shipped_configs_are_valid():
         if "radar" in p.parts or "scenes" in p.parts:
             continue
         assert main(["check", str(p)]) == 0, p
+
+
+def test_frame_interval_in_milliseconds_warns():
+    import warnings
+
+    from xnlos_core.errors import PipelineWarning
+
+    with pytest.warns(PipelineWarning, match=r"frame_interval = 200 s .* write 0.2"):
+        parse_pipeline(small_pipeline_table(run={"frame_interval": 200}), "t")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        parse_pipeline(small_pipeline_table(run={"frame_interval": 0.2}), "t")
+
+
+def test_shipped_pipeline_configs_have_distinct_names():
+    # a run's name is its label in summaries and sweeps; two shipped pipelines with one name mix up
+    from pathlib import Path
+
+    from xnlos_core.files import load_toml
+
+    root = Path(__file__).resolve().parents[2] / "configs"
+    names: dict[str, list[str]] = {}
+    for path in sorted([*root.glob("pipelines/*.toml"), *root.glob("ablations/*.toml")]):
+        table = load_toml(path)
+        if isinstance(table.get("name"), str):
+            names.setdefault(table["name"], []).append(str(path.relative_to(root)))
+    assert {n: p for n, p in names.items() if len(p) > 1} == {}

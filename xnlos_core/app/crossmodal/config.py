@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from xnlos_core.config import expect_kind
 from xnlos_core.files import load_toml
 from xnlos_core.validation import validate_model
 
@@ -107,4 +108,6 @@ class StudyConfig(BaseModel):
 def load_study(path: str | Path) -> tuple[StudyConfig, Path]:
     """Validate a study TOML; unknown or bad keys are a ConfigError naming the file and key."""
     path = Path(path)
-    return validate_model(StudyConfig, load_toml(path), source=str(path)), path.resolve().parent
+    table = load_toml(path)
+    expect_kind(table, "cross-modality study", str(path))
+    return validate_model(StudyConfig, table, source=str(path)), path.resolve().parent
