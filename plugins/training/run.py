@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 import time
 from collections.abc import Callable
@@ -132,9 +133,11 @@ def _progress(p: dict) -> dict[str, Any]:
 
 def config_path(base_dir: str | Path, path: str | Path) -> Path:
     """``path`` from a training config, resolved against the config file's folder ``base_dir``
-    (absolute paths stay as they are), as every path in every xnlos config is."""
+    (absolute paths stay as they are), as every path in every xnlos config is; ``..`` folded away
+    (``os.path.normpath``) so that printed paths read ``out/train/tiny``, not
+    ``configs/training/../../out/train/tiny``."""
     path = Path(path)
-    return path if path.is_absolute() else Path(base_dir) / path
+    return Path(os.path.normpath(path if path.is_absolute() else Path(base_dir) / path))
 
 
 def open_run(cfg, *, overwrite: bool, minimise: bool, base_dir: str | Path = ".") -> Run:
