@@ -150,3 +150,17 @@ def test_shipped_swin_unet_on_a_3x4_board(tmp_path, capsys):
     got = prov["accepted_mismatch"]["detector"]
     assert got[0].startswith("virtual array 32 channels") and any("range bins" in p for p in got)
     assert prov["plugins"]["detector"]["params"]["allow_mismatch"] is True
+
+
+@pytest.mark.parametrize("radar, named", [
+    ({"carrier_frequency": 77e9}, "carrier 10 GHz trained, 77 GHz here"),   # refused by check, not only by run
+    ({"n_tx": 2, "n_rx": 4}, "virtual array 32 channels, y 0…15.5 λ, z 0 λ trained, 8 channels"),
+])
+def test_check_refuses_what_a_strict_run_refused(tmp_path, capsys, radar, named):
+    cfg = tmp_path / "c.toml"
+    lines = "".join(f"{k} = {v!r}\n" for k, v in radar.items())
+    cfg.write_text(f'name = "c"\n[radar]\n{lines}[scene]\nbuiltin = "corner"\n[forward_model]\nname = "image"\n'
+                   '[detector]\nname = "swin_unet"\nparams = { device = "cpu", strict = true }\n')
+    capsys.readouterr()
+    assert main(["check", str(cfg)]) == 2
+    assert named in capsys.readouterr().err
