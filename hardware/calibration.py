@@ -49,37 +49,67 @@ def calibration_table(gains) -> list[list[float]]:
     return [[float(f"{abs(v):.6g}"), round(math.degrees(np.angle(v)), 3)] for v in g]
 
 
-def estimate_calibration(recording, azimuth: float = 0.0, elevation: float = 0.0, frames: int = 1,
-                         range_bin: int | None = None, skip_range: float | None = None) -> np.ndarray:
-    """Per-channel gains ĝ (n_channels,) complex128 of ``recording`` (a :class:`hardware.recording.Recording`
-    of a corner reflector at azimuth θ = ``azimuth`` and elevation ε = ``elevation`` [rad]), as the module
-    doc states: from the first ``frames`` frames (chirps and frames averaged coherently), at ``range_bin``
-    or the strongest bin beyond ``skip_range`` [m] (default the recording's ``leakage_range``). A
-    calibration the recording already carries is undone first, so the result is the channels' own.
-    :func:`calibration_table` turns it into ``[recording] calibration``."""
+def channel_profiles(recording, frames: int = 1) -> np.ndarray:
+    """Range profiles (n_range, n_channels) complex128 of ``recording``'s first ``frames`` frames, chirps
+    and frames summed coherently, any calibration the recording carries undone (the channels' own)."""
     radar = recording.radar
     n = min(int(frames), recording.n_frames)
     if n < 1:
         raise InputError(f"estimate_calibration: frames = {frames}; expected ≥ 1")
     x = 0.0
     for i in range(n):
-        cube = recording.chirp_cube(i).mean(axis=1)
-        x = x + decouple(range_fft(cube, radar), radar)
+        x = x + decouple(range_fft(recording.chirp_cube(i).mean(axis=1), radar), radar)
     if recording.spec.calibration is not None:
         x = x * calibration_gains(recording.spec.calibration, radar.n_channels)[None, :]
-    power = np.sum(np.abs(x) ** 2, axis=1)
+    return x
+
+
+def reflector_bin(recording, profiles: np.ndarray, skip_range: float | None = None) -> int:
+    """The strongest range bin (Σ_k |X_k|²) of ``profiles`` beyond ``skip_range`` [m] (default the
+    recording's ``leakage_range``, which skips the TX→RX leakage)."""
+    radar = recording.radar
+    skip = recording.spec.leakage_range if skip_range is None else float(skip_range)
+    power = np.sum(np.abs(profiles) ** 2, axis=1)
+    first = int(np.searchsorted(radar.range_axis, skip, side="right"))
+    if first >= len(power):
+        raise InputError(f"estimate_calibration: no range bin beyond skip_range = {skip} m "
+                         f"(max_range {radar.max_range} m)")
+    return first + int(np.argmax(power[first:]))
+
+
+def estimate_calibration(recording, azimuth: float = 0.0, elevation: float = 0.0, frames: int = 1,
+                         range_bin: int | None = None, skip_range: float | None = None) -> np.ndarray:
+    """Per-channel gains ĝ (n_channels,) complex128 of ``recording`` (a :class:`hardware.recording.Recording`
+    of a corner reflector at azimuth θ = ``azimuth`` and elevation ε = ``elevation`` [rad]), as the module
+    doc states: from the first ``frames`` frames (:func:`channel_profiles`), at ``range_bin`` or the
+    strongest bin beyond ``skip_range`` [m] (:func:`reflector_bin`). A calibration the recording already
+    carries is undone first, so the result is the channels' own. :func:`calibration_table` turns it into
+    ``[recording] calibration``."""
+    radar = recording.radar
+    x = channel_profiles(recording, frames)
     if range_bin is None:
-        skip = recording.spec.leakage_range if skip_range is None else float(skip_range)
-        first = int(np.searchsorted(radar.range_axis, skip, side="right"))
-        if first >= len(power):
-            raise InputError(f"estimate_calibration: no range bin beyond skip_range = {skip} m "
-                             f"(max_range {radar.max_range} m)")
-        range_bin = first + int(np.argmax(power[first:]))
-    elif not 0 <= range_bin < len(power):
-        raise InputError(f"estimate_calibration: range_bin = {range_bin}; expected 0 … {len(power) - 1}")
+        range_bin = reflector_bin(recording, x, skip_range)
+    elif not 0 <= range_bin < x.shape[0]:
+        raise InputError(f"estimate_calibration: range_bin = {range_bin}; expected 0 … {x.shape[0] - 1}")
     g = x[range_bin] / steering_vector(radar, float(azimuth), float(elevation))[:, 0]
     if not np.all(np.abs(g) > 0):
         raise InputError(f"estimate_calibration: a channel is zero at range bin {range_bin} "
                          f"({radar.range_axis[range_bin]:.3g} m): no echo to calibrate on")
     g = g * np.exp(-1j * np.angle(g[0]))
     return g / np.sqrt(np.mean(np.abs(g) ** 2))
+
+
+def calibrate_command(recording_toml, azimuth_deg: float = 0.0, elevation_deg: float = 0.0, frames: int = 1,
+                      range_m: float | None = None) -> str:
+    """``xnlos calibrate``: the ``calibration = …`` line for ``[recording]`` measured on the corner-reflector
+    capture ``recording_toml`` describes (reflector at ``azimuth_deg``, ``elevation_deg`` [deg]; at the
+    range bin nearest ``range_m`` [m], else the strongest), after a comment naming where it was measured."""
+    from .recording import Recording
+
+    rec = Recording.from_toml(recording_toml)
+    x = channel_profiles(rec, frames)
+    k = reflector_bin(rec, x) if range_m is None else int(np.argmin(np.abs(rec.radar.range_axis - range_m)))
+    g = estimate_calibration(rec, math.radians(azimuth_deg), math.radians(elevation_deg), frames, range_bin=k)
+    return (f"# corner reflector at {rec.radar.range_axis[k]:.4g} m (range bin {k}), azimuth {azimuth_deg:g}°, "
+            f"elevation {elevation_deg:g}°, {min(frames, rec.n_frames)} frame(s); paste into [recording]\n"
+            f"calibration = {calibration_table(g)}")

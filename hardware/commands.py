@@ -1,4 +1,4 @@
-"""``xnlos emulate``, added through the ``xnlos_add_commands`` hook."""
+"""``xnlos emulate`` and ``xnlos calibrate``, added through the ``xnlos_add_commands`` hook."""
 from __future__ import annotations
 
 import argparse
@@ -26,6 +26,26 @@ def xnlos_add_commands(subparsers) -> None:
     e.add_argument("--fast", action="store_true",
                    help="send frames as fast as the link allows, not at the frame period")
     e.set_defaults(func=cmd_emulate)
+    add_calibrate(subparsers)
+
+
+def add_calibrate(subparsers) -> None:
+    """``xnlos calibrate``: per-channel gains of a recording from a corner-reflector capture."""
+    c = subparsers.add_parser("calibrate", help="measure a recording's per-channel gain and phase on a corner "
+                                                "reflector; prints the [recording] calibration line")
+    c.add_argument("recording", type=Path, help="TOML description of the corner-reflector capture")
+    c.add_argument("--azimuth", type=float, default=0.0, help="the reflector's azimuth [deg] (default 0)")
+    c.add_argument("--elevation", type=float, default=0.0, help="the reflector's elevation [deg] (default 0)")
+    c.add_argument("--range", type=float, help="the reflector's range [m] (default: the strongest bin)")
+    c.add_argument("--frames", type=int, default=1, help="frames averaged (default 1)")
+    c.set_defaults(func=cmd_calibrate)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from .calibration import calibrate_command
+
+    print(calibrate_command(args.recording, args.azimuth, args.elevation, args.frames, args.range))
+    return 0
 
 
 def cmd_emulate(args: argparse.Namespace) -> int:

@@ -85,3 +85,13 @@ def test_given_calibration_is_checked():
 def test_a_recording_with_the_wrong_number_of_gains_is_refused(tmp_path):
     with pytest.raises(ConfigError, match=r"cap.toml: \[recording\] calibration: expected 8"):
         _capture(tmp_path / "bad", ERRORS, calibration=ERRORS[:4])
+
+
+def test_calibrate_command_prints_the_line_to_paste(tmp_path, capsys):
+    from xnlos_core.app.cli import main
+
+    raw = _capture(tmp_path / "raw", ERRORS)
+    assert main(["calibrate", str(raw.source), "--azimuth", "10"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("# corner reflector at 11.99 m (range bin 48)") and "azimuth 10°" in out[0]
+    assert out[1] == f"calibration = {calibration_table(estimate_calibration(raw, azimuth=REFLECTOR[1]))}"
