@@ -97,19 +97,3 @@ def estimate_calibration(recording, azimuth: float = 0.0, elevation: float = 0.0
                          f"({radar.range_axis[range_bin]:.3g} m): no echo to calibrate on")
     g = g * np.exp(-1j * np.angle(g[0]))
     return g / np.sqrt(np.mean(np.abs(g) ** 2))
-
-
-def calibrate_command(recording_toml, azimuth_deg: float = 0.0, elevation_deg: float = 0.0, frames: int = 1,
-                      range_m: float | None = None) -> str:
-    """``xnlos calibrate``: the ``calibration = …`` line for ``[recording]`` measured on the corner-reflector
-    capture ``recording_toml`` describes (reflector at ``azimuth_deg``, ``elevation_deg`` [deg]; at the
-    range bin nearest ``range_m`` [m], else the strongest), after a comment naming where it was measured."""
-    from .recording import Recording
-
-    rec = Recording.from_toml(recording_toml)
-    x = channel_profiles(rec, frames)
-    k = reflector_bin(rec, x) if range_m is None else int(np.argmin(np.abs(rec.radar.range_axis - range_m)))
-    g = estimate_calibration(rec, math.radians(azimuth_deg), math.radians(elevation_deg), frames, range_bin=k)
-    return (f"# corner reflector at {rec.radar.range_axis[k]:.4g} m (range bin {k}), azimuth {azimuth_deg:g}°, "
-            f"elevation {elevation_deg:g}°, {min(frames, rec.n_frames)} frame(s); paste into [recording]\n"
-            f"calibration = {calibration_table(g)}")

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from xnlos_core import hookimpl
@@ -42,8 +43,6 @@ def add_calibrate(subparsers) -> None:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from .calibration import calibrate_command
-
     print(calibrate_command(args.recording, args.azimuth, args.elevation, args.frames, args.range))
     return 0
 
@@ -56,3 +55,22 @@ def cmd_emulate(args: argparse.Namespace) -> int:
                           client=args.client, payload=args.payload, pace=not args.fast, echo=print)
     print(f"{summary['frames_sent']} frame(s) sent in {summary['seconds']:.2f} s")
     return 0
+
+
+def calibrate_command(recording_toml, azimuth_deg: float = 0.0, elevation_deg: float = 0.0, frames: int = 1,
+                      range_m: float | None = None) -> str:
+    """``xnlos calibrate``: the ``calibration = …`` line for ``[recording]`` measured on the corner-reflector
+    capture ``recording_toml`` describes (reflector at ``azimuth_deg``, ``elevation_deg`` [deg]; at the
+    range bin nearest ``range_m`` [m], else the strongest), after a comment naming where it was measured."""
+    import numpy as np
+
+    from .calibration import calibration_table, channel_profiles, estimate_calibration, reflector_bin
+    from .recording import Recording
+
+    rec = Recording.from_toml(recording_toml)
+    x = channel_profiles(rec, frames)
+    k = reflector_bin(rec, x) if range_m is None else int(np.argmin(np.abs(rec.radar.range_axis - range_m)))
+    g = estimate_calibration(rec, math.radians(azimuth_deg), math.radians(elevation_deg), frames, range_bin=k)
+    return (f"# corner reflector at {rec.radar.range_axis[k]:.4g} m (range bin {k}), azimuth {azimuth_deg:g}°, "
+            f"elevation {elevation_deg:g}°, {min(frames, rec.n_frames)} frame(s); paste into [recording]\n"
+            f"calibration = {calibration_table(g)}")
