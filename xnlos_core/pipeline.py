@@ -172,7 +172,7 @@ class Pipeline:
         """The radar of the maps the detector will see: the pipeline's with a forward model or a live
         sensor; a source's own (:meth:`xnlos_core.interfaces.Backend.source_radar`: a recording's
         description, a dataset's manifest); None when the source has its own radar but cannot tell it
-        before the first frame (the detector then compares each frame's, :meth:`Detector.check_frame`)."""
+        before the first frame (a learned detector then compares each frame's radar as it comes)."""
         backend = self.stages.get("backend")
         if backend is None:
             return self.radar

@@ -47,7 +47,7 @@ def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = 
     its settings, :meth:`xnlos_core.pipeline.Pipeline.model_mismatches`, recorded as
     ``accepted_mismatch`` when there is any)."""
     extra = {"accepted_mismatch": {k: list(v) for k, v in mismatch.items()}} if mismatch else {}
-    return {**extra,
+    return {
         "config_sha256": config.digest(),
         "state_sha256": dict(state or {}),
         "seed": config.seed,
@@ -56,4 +56,5 @@ def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = 
         "python": sys.version.split()[0],
         "platform": platform.platform(),
         "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        **extra,
     }
