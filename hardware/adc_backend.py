@@ -37,6 +37,7 @@ class ADCBackend(Backend):
     """Yields the frames of a raw recording in file order (frame ``start`` first)."""
 
     Params = ADCParams
+    own_radar = True
 
     def __init__(self, params=None):
         super().__init__(params)
@@ -52,6 +53,10 @@ class ADCBackend(Backend):
     @property
     def n_frames(self) -> int:
         return max(self.recording.n_frames - self.params.start, 0)
+
+    def source_radar(self):
+        """The recording description's radar: the maps' radar, whatever the pipeline's ``[radar]`` says."""
+        return self.recording.radar
 
     def check_source(self) -> None:
         """Open the recording (its description, file, header and cube shape) and check that ``start``

@@ -29,6 +29,7 @@ class NPZBackend(Backend):
     """Replays frames saved by xnlos_core.io.save_frame from a directory (files in name order)."""
 
     Params = NPZParams
+    own_radar = True  # each saved frame carries its radar; compared frame by frame
 
     def files(self) -> list[Path]:
         """The ``*.npz`` files of ``directory`` sorted by name; InputError if it is not a directory."""

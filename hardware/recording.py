@@ -58,6 +58,7 @@ from xnlos_core.signal.doppler import DopplerRAMaps, doppler_ra_maps
 from xnlos_core.types import Frame, RAMap
 from xnlos_core.validation import validate_model
 
+from .calibration import calibration_gains
 from .layout.candidates import MAX_WORDS, Layout
 from .layout.checks import check_layout
 from .raw_formats import analytic_signal, dca1000_frame_words, decode_dca1000, load_cube, signed_words, swap_iq
@@ -102,6 +103,10 @@ class RecordingSpec(BaseModel):
                                              "channel-order check), 0 … 1000 m")
     leakage_db: float = Field(30.0, gt=0, le=300, allow_inf_nan=False,
                               description="leakage warning threshold above the map's median [dB]")
+    calibration: tuple[tuple[float, float], ...] | None = Field(
+        None, description="each channel's gain as [amplitude, phase_deg] (tx-major by array position); the "
+                          "samples are divided by it (hardware.calibration; estimate_calibration measures it "
+                          "on a corner-reflector capture)")
 
     @field_validator("axes")
     @classmethod
@@ -215,6 +220,8 @@ class Recording:
             self._cube = cube
             self._n_frames = int(cube.shape[0])
         check_single_receiver(radar, self.source)
+        self._gains = None if spec.calibration is None else \
+            calibration_gains(spec.calibration, radar.n_channels, f"{self.source}: [recording] calibration")
 
     def _check_cube(self, cube: np.ndarray) -> None:
         """InputError naming the file unless ``cube`` has the rank, axis lengths and dtype that
@@ -337,7 +344,7 @@ class Recording:
             for slot, tx in enumerate(self._tx_order):
                 out[:, :, tx * radar.n_rx:(tx + 1) * radar.n_rx] = cube[:, :, slot * radar.n_rx:(slot + 1) * radar.n_rx]
             cube = out
-        return cube
+        return cube if self._gains is None else cube / self._gains
 
     def ra_map(self, i: int) -> RAMap:
         """Frame ``i``'s RA map: chirps integrated coherently, then the shared chain (no velocity)."""

@@ -21,6 +21,16 @@ if FUZZ_LONG:
     settings.load_profile("xnlos-fuzz-long")
 
 
+@pytest.fixture(autouse=True)
+def _torch_threads_not_load_driven(monkeypatch):
+    """Tests run with torch's thread count left as set: the per-frame count that follows the load of the
+    machine (xnlos_core.core_share) would make a test's outcome depend on what else runs. Its own
+    tests use fakes (tests/unit/test_core_share.py)."""
+    from xnlos_core import core_share
+
+    monkeypatch.setattr(core_share, "_governor", False)
+
+
 @pytest.fixture
 def fuzz_cases() -> int:
     """How many generated cases a hand-rolled fuzz loop runs: 50 in `make test`, 10,000 in `make fuzz`."""

@@ -169,6 +169,17 @@ class Backend(Plugin, abc.ABC):
         sensor, the default); progress bars use it."""
         return None
 
+    #: True when the frames carry the source's own radar (a recording's description, a dataset, saved
+    #: frames), not the pipeline's ``[radar]`` that :meth:`open` is given (a live sensor: False).
+    own_radar: ClassVar[bool] = False
+
+    def source_radar(self) -> RadarConfig | None:
+        """The radar of the maps :meth:`frames` will yield when the source fixes it (:attr:`own_radar`)
+        and it can be read without yielding a frame; None (the default): the pipeline's radar, or, for
+        a source with its own radar, not known before the first frame. :class:`xnlos_core.pipeline.Pipeline`
+        checks a learned detector against it before the first frame (:meth:`Detector.check_model`)."""
+        return None
+
     def check_source(self) -> None:
         """Open what :meth:`frames` reads and check it as far as it can be without yielding a frame
         (a recording's file: its format, header, shape and frame count), raising the typed error
@@ -217,6 +228,15 @@ class Detector(Plugin, abc.ABC):
         calls it before its first frame. Returns how many warm-up passes were made; the default
         prepares nothing: 0."""
         return 0
+
+    def check_model(self, radar: RadarConfig) -> list[str]:
+        """Optional: compare what a learned model was trained on (carrier, bandwidth, virtual array,
+        grid) with ``radar``, the radar of the maps it will see, before any frame; raise
+        :class:`xnlos_core.errors.ConfigError` naming each difference it refuses. Returns the
+        differences it accepts (a setting to run anyway), which the run's provenance records.
+        :meth:`xnlos_core.pipeline.Pipeline.check_inputs` (``xnlos check``) and ``warm_up`` call it.
+        The default has no model to compare: []."""
+        return []
 
     def check_frame(self, frame: Frame) -> None:
         """InputError unless ``frame`` is a :class:`xnlos_core.types.Frame` (every :meth:`detect` checks it)."""

@@ -24,7 +24,7 @@ from .los_points import detection_points
 from .frame_record import SCHEMA_VERSION, detections_record, hidden_record, wall_record
 from .interfaces import FrameState
 from .provenance import provenance
-from .radar import load_radar
+from .radar import RadarConfig, load_radar
 from .registry import PluginManager, Registry, get_registry
 from .scene import load_scene
 from .core_share import adapt_torch_threads
@@ -170,7 +170,31 @@ class Pipeline:
         state = self.state_sha256()
         if "backend" in self.stages:
             self.stages["backend"].check_source()
+        self.model_mismatches()
         return state
+
+    @property
+    def frame_radar(self) -> RadarConfig | None:
+        """The radar of the maps the detector will see: the pipeline's with a forward model or a live
+        sensor; a source's own (:meth:`xnlos_core.interfaces.Backend.source_radar`: a recording's
+        description, a dataset's manifest); None when the source has its own radar but cannot tell it
+        before the first frame (a learned detector then compares each frame's radar as it comes)."""
+        backend = self.stages.get("backend")
+        if backend is None:
+            return self.radar
+        radar = backend.source_radar()
+        if radar is None and not backend.own_radar:
+            return self.radar
+        return radar
+
+    def model_mismatches(self) -> dict[str, list[str]]:
+        """kind → the differences between a learned stage's training radar and :attr:`frame_radar` that
+        it accepts (:meth:`xnlos_core.interfaces.Detector.check_model`, which raises ConfigError on those
+        it refuses); only stages with any. ``check_inputs``, :meth:`warm_up` and :meth:`provenance`
+        call it, so ``xnlos check`` refuses what a run would before its first frame."""
+        radar = self.frame_radar
+        found = self.stages["detector"].check_model(radar) if radar is not None else []
+        return {"detector": list(found)} if found else {}
 
     def warn_unreachable(self) -> None:
         """:class:`PipelineWarning` when the configured stages can never deliver what they are there
@@ -208,7 +232,10 @@ class Pipeline:
         return out
 
     def provenance(self) -> dict:
-        return provenance(self.config, self.plugin_info(), self.state_sha256())
+        """The run's record (:func:`xnlos_core.provenance.provenance`); refuses (ConfigError) a learned
+        detector trained on another radar unless its settings accept it (:meth:`model_mismatches`), and
+        then records what differs (``accepted_mismatch``)."""
+        return provenance(self.config, self.plugin_info(), self.state_sha256(), self.model_mismatches())
 
     def frames(self, start: int = 0, skip: Collection[int] = ()) -> Iterator[Frame]:
         """Frames ``start`` … ``run.frames``−1 from the forward model or the backend, leaving out
@@ -247,7 +274,9 @@ class Pipeline:
         if self._warm:
             return 0
         with blas_limit(self.config.run.blas_threads):
-            n = self.stages["detector"].warm_up(self.radar)
+            self.model_mismatches()
+            radar = self.frame_radar
+            n = self.stages["detector"].warm_up(self.radar if radar is None else radar)
             if self.stages.get("wall_estimator") is not None:
                 n += self.stages["wall_estimator"].warm_up()
         self._warm = True

@@ -39,9 +39,14 @@ def require_same_state(out, old: dict[str, str] | None, new: dict[str, str], wha
                           "--out or pass --overwrite")
 
 
-def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = None) -> dict:
+def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = None,
+               mismatch: dict[str, list[str]] | None = None) -> dict:
     """Provenance record of a pipeline run (config: PipelineConfig; plugins: kind → info; state:
-    kind → hash of the stage's learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`)."""
+    kind → hash of the stage's learned weights, :meth:`xnlos_core.pipeline.Pipeline.state_sha256`;
+    mismatch: kind → what differs between a learned stage's training radar and the run's, accepted by
+    its settings, :meth:`xnlos_core.pipeline.Pipeline.model_mismatches`, recorded as
+    ``accepted_mismatch`` when there is any)."""
+    extra = {"accepted_mismatch": {k: list(v) for k, v in mismatch.items()}} if mismatch else {}
     return {
         "config_sha256": config.digest(),
         "state_sha256": dict(state or {}),
@@ -51,4 +56,5 @@ def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = 
         "python": sys.version.split()[0],
         "platform": platform.platform(),
         "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        **extra,
     }

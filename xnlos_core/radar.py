@@ -103,6 +103,12 @@ class RadarConfig(BaseModel):
     max_range: float = Field(100.0, gt=0, description="RA maps are cropped to [0, max_range] [m]")
     range_window: str = Field("hann", description="scipy.signal window for the range FFT")
     azimuth_window: str = Field("taylor", description="scipy.signal window for beamforming")
+    azimuth_channels: Literal["all", "row"] = Field(
+        "all", description="channels the RA map is beamformed from (at elevation 0, each at its true (y, z)): "
+                           "'all'; 'row': only the channels at the height most of them share (a raised "
+                           "transmitter's channels left out, so a target off the horizontal plane keeps the "
+                           "row's sidelobes; xnlos_core.signal.antenna.azimuth_row). Left out of the saved "
+                           "config while 'all'")
     # TDM-MIMO slow-time timing. None keeps the implied back-to-back timing, and unset
     # fields are left out of the serialised config, so existing configs keep their JSON and digest.
     chirp_period: float | None = Field(
@@ -196,6 +202,8 @@ class RadarConfig(BaseModel):
             for name in _OMIT_WHEN_UNSET:
                 if data.get(name, 0) is None:
                     del data[name]
+            if data.get("azimuth_channels") == "all":
+                del data["azimuth_channels"]
         return data
 
     # --- derived quantities (float64) ----------------------------------------------------

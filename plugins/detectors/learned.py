@@ -25,10 +25,16 @@ plumbing only).
 
 Self-describing models: a checkpoint records the radar and RA grid it was trained on (metadata
 ``trained_on``, or for older checkpoints the sidecar ``NAME.trained_on.json``, see
-:mod:`plugins.training.trained_on`). A frame of another carrier or grid (range or azimuth bins,
-spacing, field of view) gives a :class:`~xnlos_core.errors.GridMismatchWarning` naming both, once
-per detector instance; with ``strict = true`` it is an InputError instead. A checkpoint without a
-record (and ``checkpoint = "none"``) is not checked.
+:mod:`plugins.training.trained_on`): carrier, bandwidth, the virtual array's element positions and
+the grid. :meth:`LearnedDetector.check_model` compares them with the radar whose maps the detector
+will see when the pipeline is checked (``xnlos check``) and warmed up, before any frame: a
+difference is a :class:`~xnlos_core.errors.ConfigError` naming each item (trained value, value
+here), unless ``allow_mismatch = true``, which runs anyway with one
+:class:`~xnlos_core.errors.GridMismatchWarning` and lists the differences in the run's provenance
+(``accepted_mismatch``). A frame whose radar was not checked before (e.g. saved frames of another
+radar) is compared too: a GridMismatchWarning once per detector instance, or with ``strict = true``
+(and without ``allow_mismatch``) an InputError. A checkpoint without a record (and
+``checkpoint = "none"``) is not checked.
 """
 from __future__ import annotations
 
@@ -91,9 +97,14 @@ class LearnedParams(BaseModel):
     tta: Literal["none", "flip"] = Field("none", description="test-time augmentation: 'flip' averages the logits "
                                          "of the map and of its azimuth mirror (twice the network time; "
                                          "dense heads only)")
-    strict: bool = Field(False, description="refuse (InputError) a frame of another carrier or RA grid than "
-                                            "the checkpoint was trained on; false: warn once "
-                                            "(GridMismatchWarning)")
+    strict: bool = Field(False, description="refuse (InputError) a frame whose radar was not checked before the "
+                                            "run (check_model) and differs from the one the checkpoint was "
+                                            "trained on; false: warn once (GridMismatchWarning)")
+    allow_mismatch: StrictBool = Field(
+        False, description="run the checkpoint on a radar other than the one it was trained on (carrier, "
+                           "bandwidth, virtual array, grid): one GridMismatchWarning, and the run's provenance "
+                           "lists each difference; false: refuse it (ConfigError) when the pipeline is checked "
+                           "or warmed up")
 
     @field_validator("threshold")
     @classmethod
@@ -236,6 +247,7 @@ class LearnedDetector(Detector):
                     meta = {**meta, "trained_on": rec}
         self._meta = meta
         self._grid_warned = False
+        self._checked: dict[RadarConfig, list[str]] = {}  # radar → differences accepted (check_model)
         self._head = make_head(meta["head"])
         self._device = device
         self._runner = InferenceRunner(net, device, p.precision, p.compile, p.threads, name=type(self).__name__)
@@ -247,7 +259,8 @@ class LearnedDetector(Detector):
         n_azimuth_bins), so that loading, kernel set-up and (``compile = true``) compilation are not
         paid by the first frame; the pipeline calls it before its first frame
         (:meth:`xnlos_core.pipeline.Pipeline.warm_up`). Once per grid shape: returns the number of
-        network forwards made now (1, or 0 when already warm for that shape or ``radar`` is None)."""
+        network forwards made now (1, or 0 when already warm for that shape or ``radar`` is None).
+        The pipeline compares the checkpoint with the maps' radar first (:meth:`check_model`)."""
         self._load()
         if radar is None:
             return 0
@@ -283,22 +296,62 @@ class LearnedDetector(Detector):
         cells = self.params.cells if self.params.cells is not None else bool(dec.get("cells", False))
         return thr, tuple(win), dec.get("calibration", {}), cells
 
-    def check_grid(self, ra_map: RAMap, where: str = "frame") -> list[str]:
-        """What differs between ``ra_map`` and the radar / grid the checkpoint was trained on (module
-        doc); warns (GridMismatchWarning, once per instance) or, with ``strict``, raises InputError.
-        [] when they agree or the checkpoint has no record."""
-        from plugins.training.trained_on import grid_mismatches, mismatch_message
+    def check_model(self, radar: RadarConfig) -> list[str]:
+        """Compare the radar the checkpoint was trained on with ``radar``, whose maps the detector will
+        see (:func:`plugins.training.trained_on.radar_mismatches`: carrier, bandwidth, virtual array,
+        range and azimuth grid). A difference is a ConfigError naming each item (trained value, value
+        here), unless ``allow_mismatch``: then one GridMismatchWarning per instance. Returns the
+        differences accepted ([] when they agree, the checkpoint has no record or is ``"none"``), which
+        :meth:`xnlos_core.pipeline.Pipeline.provenance` records; frames of ``radar`` are not compared
+        again (:meth:`check_grid`)."""
+        from plugins.training.trained_on import radar_mismatches
 
         self._load()
         rec = self._meta.get("trained_on")
         if rec is None:
             return []
-        problems = grid_mismatches(rec, ra_map)
+        if radar in self._checked:
+            return list(self._checked[radar])
+        problems = radar_mismatches(rec, radar)
+        if problems:
+            what = f"{type(self).__name__} (checkpoint {self.params.checkpoint!r})"
+            text = "; ".join(problems)
+            if not self.params.allow_mismatch:
+                raise ConfigError(f"{what} was trained on another radar than the one whose maps it would see: "
+                                  f"{text}. Its outputs there are not what its validation figures describe: retrain "
+                                  "it on maps of this radar (xnlos train), or set allow_mismatch = true in the "
+                                  "detector's params to run anyway (the run's provenance records it)")
+            if not self._grid_warned:
+                self._grid_warned = True
+                warnings.warn(f"{what} runs on another radar than it was trained on (allow_mismatch = true): "
+                              f"{text}; its outputs are not what its validation figures describe (retrain on "
+                              "maps of this radar)", GridMismatchWarning, stacklevel=3)
+        self._checked[radar] = problems
+        return list(problems)
+
+    def check_grid(self, ra_map: RAMap, where: str = "frame") -> list[str]:
+        """What differs between ``ra_map`` and the radar / grid the checkpoint was trained on (module
+        doc; :func:`plugins.training.trained_on.map_mismatches`); warns (GridMismatchWarning, once per
+        instance) or, with ``strict`` and without ``allow_mismatch``, raises InputError. A map on the
+        grid of a radar :meth:`check_model` accepted is not compared again. [] when they agree or the
+        checkpoint has no record."""
+        from plugins.training.trained_on import axis_summary, map_mismatches, mismatch_message
+
+        self._load()
+        rec = self._meta.get("trained_on")
+        if rec is None:
+            return []
+        radar = ra_map.radar
+        if radar in self._checked and axis_summary(ra_map.range_axis) == axis_summary(radar.range_axis) and \
+                axis_summary(ra_map.azimuth_axis) == axis_summary(radar.azimuth_axis):
+            return []  # decided before the run (check_model)
+        problems = map_mismatches(rec, ra_map)
         if problems:
             what = f"{type(self).__name__} (checkpoint {self.params.checkpoint!r}) on {where}"
             msg = mismatch_message(what, rec, ra_map, problems)
-            if self.params.strict:
-                raise InputError(f"{msg}; strict = true refuses it (set strict = false to only warn)")
+            if self.params.strict and not self.params.allow_mismatch:
+                raise InputError(f"{msg}; strict = true refuses it (set strict = false to only warn, or "
+                                 "allow_mismatch = true)")
             if not self._grid_warned:
                 self._grid_warned = True
                 warnings.warn(msg, GridMismatchWarning, stacklevel=3)

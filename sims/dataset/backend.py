@@ -44,6 +44,17 @@ class DatasetBackend(Backend):
     """Maps ``start`` … ``start + limit`` − 1 of a dataset split, as Frames with ground truth."""
 
     Params = DatasetParams
+    own_radar = True
+
+    def source_radar(self):
+        """The dataset's radar (its manifest); None while ``path`` holds no readable dataset."""
+        path = Path(self.params.path).expanduser()
+        if not (path / "manifest.json").is_file():
+            return None
+        try:
+            return open_dataset(path, None, verify=False).radar
+        except DatasetError:
+            return None
 
     def dataset(self):
         """The opened :class:`sims.dataset.reader.Dataset` view; InputError naming the path or split

@@ -7,8 +7,9 @@ Where the virtual array has an elevation aperture (a raised transmitter, or ``rx
     κ(r, θ, ε) = Σ_k w_k a_k*(θ, ε) X_k(r) / Σ_k w_k
 
 with a_k the channel steering vector (:func:`xnlos_core.signal.antenna.steering_vector`) and w_k the
-azimuth taper (:func:`xnlos_core.signal.antenna.azimuth_weights`), so the ε = 0 row is the RA map's row at
-that range bin and a unit plane wave from a grid direction gives 1.
+azimuth taper (:func:`xnlos_core.signal.antenna.azimuth_weights`) over every channel, so the ε = 0 row is
+the RA map's row at that range bin (unless the map uses one row, ``radar.azimuth_channels = "row"``) and a
+unit plane wave from a grid direction gives 1.
 """
 from __future__ import annotations
 
@@ -46,7 +47,8 @@ def azimuth_elevation_spectrum(range_profiles, radar: RadarConfig, range_bin: in
         raise InputError(f"range_bin: expected an integer in [0, {x.shape[0]}), got {range_bin!r}")
     th = as_array("azimuth", radar.azimuth_axis if azimuth is None else azimuth, ndim=1)
     el = as_array("elevation", elevation_axis(radar) if elevation is None else elevation, ndim=1)
-    w = azimuth_weights(radar, window)
+    # every channel, also where the RA map uses one row (azimuth_channels = "row"): heights resolve elevation
+    w = azimuth_weights(radar.model_copy(update={"azimuth_channels": "all"}), window)
     grid_th, grid_el = np.meshgrid(th, el)  # (n_el, n_az)
     a = array_response(channel_positions(radar), radar.wavelength, grid_th.ravel(), grid_el.ravel())
     weights = (w / w.sum())[:, None] * a.conj()  # (n_channels, n_dirs), as signal_chain.beam_weights
