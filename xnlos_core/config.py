@@ -171,10 +171,18 @@ class PipelineConfig(BaseModel):
         ``run.figures`` are left out: they change no result, only which pictures are drawn (so turning
         them on resumes a finished run, and runs made before they existed keep their hash); so are
         ``run.blas_threads`` and ``run.share_cores``, which change only speed (like OPENBLAS_NUM_THREADS,
-        never hashed); and ``run.frames``: frame k is the same whatever the count (its draws come from
-        child k of the seed), so a finished run is extended by asking for more frames."""
-        dump = self.model_dump(exclude={"base_dir": True,
-                                        "run": {"frames", "animation", "figures", "blas_threads", "share_cores"}})
+        never hashed)."""
+        return self._digest({"animation", "figures", "blas_threads", "share_cores"})
+
+    def run_digest(self) -> str:
+        """:meth:`digest` without ``run.frames``: frame k is the same whatever the count (its draws come
+        from child k of the seed), so a run directory holding this digest (``run_sha256``) is extended by
+        asking for more frames. Run directories written before it existed are recognised by
+        ``config_sha256`` (:func:`xnlos_core.rundir.claim` takes the first key the old record holds)."""
+        return self._digest({"frames", "animation", "figures", "blas_threads", "share_cores"})
+
+    def _digest(self, run_exclude: set[str]) -> str:
+        dump = self.model_dump(exclude={"base_dir": True, "run": run_exclude})
         blob = json.dumps(dump, sort_keys=True, default=str)
         return hashlib.sha256(blob.encode()).hexdigest()
 

@@ -49,6 +49,7 @@ def provenance(config, plugins: dict[str, dict], state: dict[str, str] | None = 
     extra = {"accepted_mismatch": {k: list(v) for k, v in mismatch.items()}} if mismatch else {}
     return {
         "config_sha256": config.digest(),
+        "run_sha256": config.run_digest(),
         "state_sha256": dict(state or {}),
         "seed": config.seed,
         "plugins": plugins,

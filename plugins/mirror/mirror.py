@@ -70,6 +70,10 @@ class MirrorParams(BaseModel):
                                          "as the frame's n_gated; false: report every mirror image")
     behind_radar: bool = Field(False, description="with gate: accept hidden points behind the radar (x < 0), "
                                                   "which only a wall facing the radar across its boresight shows")
+    wall_echo: float = Field(1.0, ge=0, le=100, description="with gate and Doppler: an mNLOS detection within this "
+                             "[m] of an estimated wall and at rest is that wall's own echo, not a hidden road user")
+    static_speed: float = Field(0.3, ge=0, le=100, description="with gate and Doppler: radial speed [m/s] below which "
+                                "(or within 3 σ of 0) a detection is at rest")
 
 
 class MirrorReconstructor(Reconstructor):
@@ -128,21 +132,25 @@ class MirrorReconstructor(Reconstructor):
             jx, jw = mirror_jacobians(pts[m], float(w.mean[0]), float(w.mean[1]))
             c = jx @ pcov[m] @ np.swapaxes(jx, -1, -2) + jw @ w.cov @ np.swapaxes(jw, -1, -2)
             cov[m] = 0.5 * (c + np.swapaxes(c, -1, -2))
-        keep = self.visible(mean, pts, walls, choice, src)
+        keep = self.visible(mean, pts, walls, choice, src, detections)
         mean, cov, pts, pcov, choice, gated, src = mean[keep], cov[keep], pts[keep], pcov[keep], choice[keep], \
             src[~keep], src[keep]
         vel = self._velocities(detections, walls, pts, pcov, choice, src) or (None, None)
         return HiddenPoints(mean, cov, src, choice, *vel, view=self._views(walls, pts, choice), gated=gated), pts
 
     def visible(self, hidden: np.ndarray, virtual: np.ndarray, walls: list[WallPosterior], choice: np.ndarray,
-                src: np.ndarray) -> np.ndarray:
+                src: np.ndarray, detections: Detections) -> np.ndarray:
         """(M,) bool: the hidden points (M, 2) [m] that pass the visibility gate
-        (:func:`plugins.mirror.visibility.visibility` with ``extent_margin`` and ``behind_radar``); all
-        True without ``gate``. The gated ones are logged by rule with their detection indices ``src``."""
+        (:func:`plugins.mirror.visibility.visibility` with ``extent_margin``, ``behind_radar``,
+        ``wall_echo``, ``static_speed`` and the radial velocities of the detections ``src`` when they carry
+        Doppler); all True without ``gate``. The gated ones are logged by rule with their detection indices."""
         if not self.params.gate or len(hidden) == 0:
             return np.ones(len(hidden), dtype=bool)
-        reason = visibility(hidden, virtual, walls, choice, self.params.extent_margin,
-                            None if self.params.behind_radar else 0.0)
+        p = self.params
+        vel = None if detections.velocity is None else detections.velocity[src]
+        var = None if detections.velocity_var is None else detections.velocity_var[src]
+        reason = visibility(hidden, virtual, walls, choice, p.extent_margin, None if p.behind_radar else 0.0,
+                            vel, var, p.wall_echo, p.static_speed)
         line = describe_gated(reason, src)
         if line:
             log.info("%s: %s", type(self).__name__, line)

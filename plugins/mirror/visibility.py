@@ -17,6 +17,14 @@ specular reflection off a finite wall can put o only in some places:
    wall the estimator then returns is almost always a spurious fit near the radar that mirrors far
    echoes 10–20 m behind the vehicle (the tracks "behind the radar" of a run).
 
+4. **Not a wall's own echo.** o' does not lie on an estimated wall (within ``wall_echo`` [m] of
+   its line, inside its extent ± ``margin``) with a radial velocity consistent with rest
+   (|v_r| ≤ max(``static_speed``, 3σ_v)), where the detections carry Doppler. Such an echo is the
+   facade itself (or a pole on it), labelled mNLOS: mirrored through a far wall it lands among the
+   road users, static, and pulls their tracks and velocities towards zero. A hidden road user seen
+   through a wall is behind it, not on it, or it moves. Without Doppler the rule is not applied
+   (a parked car beside a wall looks the same).
+
 A point that fails any of them is a **ghost**: not reported as hidden, but counted (the frame's
 ``n_gated``, :attr:`xnlos_core.types.HiddenPoints.gated` lists the detections) and named in the
 frame's notes with the rule it broke. :func:`visibility` returns the reason per point; the
@@ -29,21 +37,26 @@ import numpy as np
 from xnlos_core.errors import InputError
 from xnlos_core.types import WallPosterior
 
-from .association import crossing_parameters, signed_distances
+from .association import crossing_parameters, signed_distances, wall_support
 
-VISIBLE, OUTSIDE_WEDGE, BEHIND_WALL, BEHIND_RADAR = 0, 1, 2, 3
+VISIBLE, OUTSIDE_WEDGE, BEHIND_WALL, BEHIND_RADAR, WALL_ECHO = 0, 1, 2, 3, 4
 REASONS = {OUTSIDE_WEDGE: "outside its wall's visibility wedge", BEHIND_WALL: "not in front of its wall",
-           BEHIND_RADAR: "behind the radar"}
+           BEHIND_RADAR: "behind the radar", WALL_ECHO: "a static echo on a wall"}
+STATIC_SIGMAS = 3.0  # a radial velocity within this many σ of 0 is consistent with rest
 
 
 def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: float = 2.0,
-               ahead: float | None = 0.0) -> np.ndarray:
+               ahead: float | None = 0.0, velocity=None, velocity_var=None, wall_echo: float = 1.0,
+               static_speed: float = 0.3) -> np.ndarray:
     """(M,) int reason code per hidden point (module doc): ``VISIBLE`` (0) or the first rule it breaks,
-    ``OUTSIDE_WEDGE`` (1), ``BEHIND_WALL`` (2), ``BEHIND_RADAR`` (3).
+    ``OUTSIDE_WEDGE`` (1), ``BEHIND_WALL`` (2), ``BEHIND_RADAR`` (3), ``WALL_ECHO`` (4).
 
     hidden: (M, 2) hidden points o [m]; virtual: (M, 2) the virtual points o' [m] they were mirrored
     from; wall_index: (M,) the wall of each (index into ``walls``); margin [m] ≥ 0; ahead [m]: the
-    least x of a hidden point (None: no such rule)."""
+    least x of a hidden point (None: no such rule); velocity, velocity_var: (M,) the detections'
+    radial velocity [m/s] and its variance [m²/s²], or None (no Doppler: rule 4 not applied);
+    wall_echo [m]: how near a wall o' is on it; static_speed [m/s]: the least |v_r| that is motion
+    whatever σ_v says."""
     o = np.asarray(hidden, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(virtual, dtype=np.float64).reshape(-1, 2)
     j = np.asarray(wall_index, dtype=np.int64).reshape(-1)
@@ -65,6 +78,15 @@ def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: 
         reason[m] = np.where(~crossed, OUTSIDE_WEDGE, np.where(~(in_front & beyond), BEHIND_WALL, VISIBLE))
     if ahead is not None:
         reason = np.where((reason == VISIBLE) & ~(o[:, 0] >= ahead), BEHIND_RADAR, reason)
+    if velocity is not None and len(o):
+        vr = np.asarray(velocity, dtype=np.float64).reshape(-1)
+        sd = np.sqrt(np.maximum(np.asarray(velocity_var, dtype=np.float64).reshape(-1), 0.0)) \
+            if velocity_var is not None else np.zeros_like(vr)
+        static = np.abs(vr) <= np.maximum(static_speed, STATIC_SIGMAS * sd)
+        on_wall = np.zeros(len(o), dtype=bool)
+        for idx in wall_support(v, list(walls), wall_echo, margin):
+            on_wall[idx] = True
+        reason = np.where((reason == VISIBLE) & static & on_wall, WALL_ECHO, reason)
     return reason
 
 

@@ -124,8 +124,9 @@ def test_thread_count_leaves_the_config_digest_alone():
     # Speed only: a finished run resumes under another blas_threads, and old runs keep their hash.
     digest = lambda **run: parse_pipeline(small_pipeline_table(run={"frames": 1, **run}), "t").digest()  # noqa: E731
     assert digest(blas_threads=4) == digest() == digest(blas_threads=0)
-    assert digest(frames=2) == digest()  # more frames extend a run (frame k is the same draw either way)
-    assert digest(frame_interval=0.5) != digest()
+    assert digest(frames=2) != digest()
+    run = lambda **r: parse_pipeline(small_pipeline_table(run={"frames": 1, **r}), "t").run_digest()  # noqa: E731
+    assert run(frames=2) == run() != run(frame_interval=0.5)  # more frames extend a run
 
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -114,3 +114,20 @@ def test_frame_record_counts_gated(tmp_path):
     assert rec["n_gated"] == 1 and rec["hidden"]["gated"] == [2]
     validate_record(rec)
     assert hidden_from_record(hidden_record(hidden)).gated.tolist() == [2]
+
+
+def test_a_static_echo_on_a_wall_is_that_walls_own_echo():
+    from plugins.mirror.visibility import WALL_ECHO
+
+    # o' = (20.2, 8) lies 0.2 m behind a far wall x = 20 (seen for y ∈ [0, 10]); its ray crosses the facade
+    # at x = 12.6, so it mirrors to (20.2, 2), among the road users.
+    far = WallPosterior("line", np.array([np.pi, 20.0]), COV, extent=np.array([[20.0, 0.0], [20.0, 10.0]]))
+    v = np.array([[20.2, 8.0]])
+    o = mirrored(v, FACADE)
+    walls = [FACADE, far]
+    assert visibility(o, v, walls, [0], velocity=[0.05], velocity_var=[0.01]).tolist() == [WALL_ECHO]
+    assert visibility(o, v, walls, [0], velocity=[2.0], velocity_var=[0.01]).tolist() == [VISIBLE]  # it moves
+    assert visibility(o, v, walls, [0]).tolist() == [VISIBLE]  # no Doppler: cannot tell a parked car
+    assert visibility(o, v, walls, [0], velocity=[0.4], velocity_var=[0.04]).tolist() == [WALL_ECHO]  # 2σ
+    v2 = np.array([[22.0, 9.0]])  # 2 m behind the far wall: a hidden object, not the wall
+    assert visibility(mirrored(v2, FACADE), v2, walls, [0], velocity=[0.0], velocity_var=[0.01]).tolist() == [VISIBLE]

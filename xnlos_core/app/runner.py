@@ -57,7 +57,9 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     n = config.run.frames
     done: dict[int, dict] = {}
     animate = config.run.wants_animation("tracker" in pipe.stages)
-    old = claim(out, "provenance.json", {"config_sha256": prov["config_sha256"]}, overwrite=overwrite,
+    # run_sha256 (frames left out: more frames extend a run) decides; config_sha256 for older run directories
+    old = claim(out, "provenance.json", {"run_sha256": prov["run_sha256"], "config_sha256": prov["config_sha256"]},
+                overwrite=overwrite,
                 what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE, STAMP],
                 state=prov["state_sha256"])
     if old is not None:
@@ -70,7 +72,8 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
         write_jsonl(res_path, done.values())
         resumed = old.get("resumed", 0)
-        prov = {**old, "resumed": (resumed if isinstance(resumed, int) and not isinstance(resumed, bool) else 0) + 1}
+        prov = {**old, "config_sha256": prov["config_sha256"], "run_sha256": prov["run_sha256"],  # frames may grow
+                "resumed": (resumed if isinstance(resumed, int) and not isinstance(resumed, bool) else 0) + 1}
     write_record(out, "provenance.json", prov)
     # As a resume reads it back (keys sorted, JSON types), so that a fresh run and a rerun of it render
     # the same summary (the plugin and version lists in key order) and the rerun need not rewrite it.
@@ -89,7 +92,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
     stateful = pipe.stateful()
     names = {kind: config.stages()[kind].name for kind in stateful}
     checkpoint = bool(stateful) and all(stage.supports_state for stage in stateful.values())
-    restored = checkpoint and restore_checkpoint(out, stateful, names, done, prov["config_sha256"])
+    restored = checkpoint and restore_checkpoint(out, stateful, names, done, prov["run_sha256"])
     # Only the frames not recorded, by index: a gap in the middle (a lost line) is recomputed too.
     for res in pipe.run(skip=done, restored=restored):
         if animate:  # before the record: a recorded frame always has its snapshot
@@ -98,7 +101,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
         append_jsonl(res_path, rec)
         records[rec["frame"]] = rec
         if checkpoint and rec["frame"] == max(records):  # the stages have seen every recorded frame
-            write_checkpoint(out, stateful, names, rec["frame"], len(records), prov["config_sha256"])
+            write_checkpoint(out, stateful, names, rec["frame"], len(records), prov["run_sha256"])
         if res.frame.index in early:
             plot_result(pipe, res, out, list(records.values()))
         bar.update(1)

@@ -134,7 +134,7 @@ class ResidualMirrorReconstructor(MirrorReconstructor):
         mean = geom.mean + delta
         # the residual moves a point: the gate applies to where it ends up, too
         keep = self.visible(mean, detections.position[geom.source_index], list(walls), geom.wall_index,
-                            geom.source_index)
+                            geom.source_index, detections)
         self.last_residual_ = delta[keep]
         cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
         view = None if geom.view is None else geom.view[keep]
