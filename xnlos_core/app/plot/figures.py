@@ -368,7 +368,7 @@ def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5,
             legend_outside(ax_ra, where="above", fontsize=8, ncol=4, frameon=False)
     if rd:
         ax_rd = axes[1]
-        db, v_axis = radar_views.range_velocity_from_ra(ra, v_max=None if norm is None else norm.vmax)
+        db, v_axis = radar_views.range_velocity_from_ra(ra)
         mesh = radar_views.draw_range_doppler(ax_rd, db, ra.range_axis, v_axis)
         fig.colorbar(mesh, ax=ax_rd, label="power at that velocity, above median [dB]")
         ax_rd.set_title("range–Doppler (per-cell velocity)")
