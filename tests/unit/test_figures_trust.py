@@ -62,13 +62,14 @@ def test_positive_azimuth_is_on_the_left_of_every_ra_panel_like_the_bev(fig):
 
 
 def test_the_six_panel_figure_orients_all_its_ra_panels():
-    f = frame_panels_figure(_result())
-    try:
-        axes = _ra_axes(f)
-        assert len(axes) == 4  # (a) map, (b), (c) heatmaps, (d) detections
-        assert all(ax.get_xlim()[0] > ax.get_xlim()[1] for ax in axes)
-    finally:
-        plt.close(f)
+    for heatmaps, n in ((None, 2), (np.zeros((2, 4, 4)), 4)):
+        f = frame_panels_figure(_result(), heatmaps)
+        try:
+            axes = _ra_axes(f)
+            assert len(axes) == n  # (a) map, (d) detections, and (b), (c) heatmaps when the detector has them
+            assert all(ax.get_xlim()[0] > ax.get_xlim()[1] for ax in axes)
+        finally:
+            plt.close(f)
 
 
 def test_the_hidden_object_outline_and_a_zoom_inset_are_drawn(fig):
@@ -138,7 +139,7 @@ def test_one_colour_per_detector(monkeypatch):
     roles = {palette.TRUTH, palette.ESTIMATE, palette.WALL_ESTIMATE} | {c for _, c, _ in palette.CLASS_STYLE.values()}
     assert not roles & set(palette.DETECTOR_COLOURS.values())
     # a third party's detector gets the same colour in every process and on every machine (CRC-32 of its name)
-    assert palette.detector_colour("my_detector") == "orchid"
+    assert palette.detector_colour("my_detector") == "lightcoral"
     assert palette.detector_colour("mine") == palette.EXTRA_COLOURS[zlib.crc32(b"mine") % len(palette.EXTRA_COLOURS)]
 
 

@@ -29,13 +29,14 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from xnlos_core.config import PipelineConfig, expand_sweep, load_toml, parse_pipeline
-from xnlos_core.errors import InputError
+from xnlos_core.errors import GridMismatchWarning, InputError
 from xnlos_core.io import append_jsonl, atomic_write_text, read_keyed_jsonl, write_jsonl
 from xnlos_core.rundir import claim, write_record
 from xnlos_core.app.sequence_eval import render_tracking
@@ -242,19 +243,24 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
     bar = _progress(total, 0 if tracking else len(done), progress, f"eval {cfg.name}")
     seqs = None
     backend.open(pipe.radar)
-    try:
-        if tracking:
-            from xnlos_core.app.sequence_eval import evaluate_sequences
+    with warnings.catch_warnings(record=True) as seen:  # grid mismatches go into the table (setup_differs)
+        warnings.simplefilter("always", GridMismatchWarning)
+        try:
+            if tracking:
+                from xnlos_core.app.sequence_eval import evaluate_sequences
 
-            records, seqs = evaluate_sequences(
-                pipe, backend.frames(), out, done, record=frame_record, bar=bar, figures=figures, source=run["source"],
-                figure=lambda res, pos: _figure(pipe, res, out / f"map_{res.frame.index:05d}.png", cfg.name))
-            n = total
-        else:
-            records, n = _score_maps(pipe, backend, log, done, bar, figures, out, run["source"])
-    finally:
-        backend.close()
-        bar.close()
+                records, seqs = evaluate_sequences(
+                    pipe, backend.frames(), out, done, record=frame_record, bar=bar, figures=figures, source=run["source"],
+                    figure=lambda res, pos: _figure(pipe, res, out / f"map_{res.frame.index:05d}.png", cfg.name))
+                n = total
+            else:
+                records, n = _score_maps(pipe, backend, log, done, bar, figures, out, run["source"])
+        finally:
+            backend.close()
+            bar.close()
+    for w in seen:  # emitted again, through the caller's filters, as they would have been
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    differs = list(dict.fromkeys(str(w.message) for w in seen if issubclass(w.category, GridMismatchWarning)))
     records = sorted((r for r in records if r["position"] < n), key=lambda r: r["position"])
     figs = [f"map_{r['map']:05d}.png" for r in records[:figures]]
     if any(not (out / f).exists() for f in figs):
@@ -276,7 +282,8 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
             "wall_estimator": cfg.wall_estimator.name if cfg.wall_estimator else None,
             "reconstructor": cfg.reconstructor.name if cfg.reconstructor else None, "dataset": dict(cfg.backend.params),
             "match_radius_m": cfg.run.match_radius, "overall": aggregate(records),
-            "families": by_family(records), "figures": figs, "notes": note_summary(records, run["note"]),
+            "families": by_family(records), "figures": figs, "notes": note_summary(records, run["note"]) + differs,
+            "setup_differs": differs,
             **({"tracker": cfg.tracker.name, "tracking": _tracking(seqs)} if tracking else {})}
 
 
@@ -359,15 +366,20 @@ def render_markdown(result: dict[str, Any]) -> str:
              + f"; config `{result['config']}`; match radius {runs[0]['match_radius_m'] if runs else '-'} m.", "",
              "## Table 2 (simulation): ours (paper)", "",
              "Each cell: our value, the paper's in parentheses ('-': not reported / not defined). "
-             "F1 [-] ↑, CD [m²] ↓.", "",
-             "| run | method | detector → reconstructor | maps | " + " | ".join(TABLE_COLUMNS) + " |",
-             "|" + "---|" * (4 + len(TABLE_COLUMNS))]
+             "F1 [-] ↑, CD [m²] ↓. Set-up: 'as the paper' when the run is a paper row on the grid its "
+             "detector was trained on; 'DIFFERS' (the paper's numbers left out: ours are not comparable) "
+             "when the maps' grid differs from it (see Notes).", "",
+             "| run | method | detector → reconstructor | maps | set-up | " + " | ".join(TABLE_COLUMNS) + " |",
+             "|" + "---|" * (5 + len(TABLE_COLUMNS))]
     for r in runs:
         ours = _ours(r["overall"])
-        paper = PAPER_TABLE2.get(r["name"])
+        differs = r.get("setup_differs") or []
+        paper = None if differs else PAPER_TABLE2.get(r["name"])
+        setup = ("DIFFERS: grid ≠ the detector's training grid (see Notes)" if differs
+                 else "as the paper" if paper else "-")
         cells = [_fmt(v, d) + (f" ({_fmt(paper[i], d)})" if paper else "") for i, (v, d) in enumerate(zip(ours, digits))]
         lines.append(f"| {r['run']} | {r['name']} | {r['detector']} → {r['reconstructor']} | {r['overall']['maps']} | "
-                     + " | ".join(cells) + " |")
+                     f"{setup} | " + " | ".join(cells) + " |")
     lines += ["", "## Per scene family", "",
               "| run | method | family | maps | " + " | ".join(TABLE_COLUMNS) + " |",
               "|" + "---|" * (4 + len(TABLE_COLUMNS))]

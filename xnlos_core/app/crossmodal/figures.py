@@ -20,42 +20,67 @@ from xnlos_core.types import LOS, MNLOS
 
 
 def row_colours(rows: dict[str, str | None]) -> dict[str, str]:
-    """One colour per study row (row → its radar detector's registry name, None for a SPAD row):
-    the detector's palette colour (:func:`palette.detector_colour`) for the first row that uses the
-    detector, otherwise the palette's stable pick for the row label, skipping colours taken."""
-    out: dict[str, str] = {}
-    for row, detector in rows.items():
-        c = pal.detector_colour(detector) if detector else None
-        if c is None or c in out.values():
-            choices = [pal.detector_colour(row)] + list(pal.EXTRA_COLOURS)
-            c = next((k for k in choices if k not in out.values()), choices[0])
-        out[row] = c
-    return out
+    """One colour per study row (row → its radar detector's registry name, None for a SPAD row),
+    every two at least :data:`palette.MIN_DELTA_E` apart in CIELAB: the detector's palette colour
+    (:func:`palette.detector_colour`) for the first row that uses the detector, the palette's
+    stable pick for the row label otherwise, moved to the next free palette colour when too
+    close to one taken (:func:`palette.distinct_colours`)."""
+    return pal.distinct_colours({row: pal.detector_colour(detector or row) for row, detector in rows.items()})
 
 
-def range_curve(res: dict, path: str | Path, colours: dict[str, str] | None = None) -> Path:
-    """F1 vs distance [m] (log axis): reconstruction solid, detection dashed, one colour per row
-    (``colours``: row → colour, :func:`row_colours`; default: by row label); legend outside."""
-    import matplotlib
+def log_distance_ticks(ax, distances, min_gap: float = 0.07) -> list[float]:
+    """Label a log x-axis at the study's ``distances`` [m] only, as plain numbers, dropping a
+    distance whose label would sit closer than ``min_gap`` (fraction of the axis' log span) to
+    the previous one, so that no two tick labels overlap; minor ticks keep no labels. Returns
+    the labelled distances."""
+    from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    d = np.unique(np.asarray([x for x in distances if x and x > 0], float))
+    lo, hi = np.log10(ax.get_xlim())
+    kept: list[float] = []
+    for x in d:
+        if not kept or (np.log10(x) - np.log10(kept[-1])) >= min_gap * max(hi - lo, 1e-9):
+            kept.append(float(x))
+    ax.xaxis.set_major_locator(FixedLocator(kept))
+    ax.xaxis.set_major_formatter(lambda x, _: f"{x:g}")
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    return kept
 
+
+def draw_range_curve(ax, res: dict, colours: dict[str, str] | None = None) -> dict[str, list]:
+    """F1 vs distance [m] (log axis, labelled at the study's distances only:
+    :func:`log_distance_ticks`) on ``ax``: reconstruction solid, detection dashed, one colour per
+    row (``colours``: row → colour, :func:`row_colours`; default: by row label), legend outside
+    right. Returns row → its two Line2D."""
     colours = colours or row_colours({r: None for r in res["rows"]})
-    fig, ax = plt.subplots(figsize=(8, 4))
+    lines: dict[str, list] = {}
     for row, t in res["rows"].items():
         c = colours[row]
         ds = t["distances"]
         nan = lambda v: [np.nan if x is None else x for x in v]  # noqa: E731
-        ax.plot(ds, nan(t["reconstruction_f1"]), "-o", color=c, ms=4, label=f"{row} reconstruction")
-        ax.plot(ds, nan(t["detection_f1"]), "--", color=c, alpha=0.7, label=f"{row} detection")
+        lines[row] = ax.plot(ds, nan(t["reconstruction_f1"]), "-o", color=c, ms=4, label=f"{row} reconstruction")
+        lines[row] += ax.plot(ds, nan(t["detection_f1"]), "--", color=c, alpha=0.7, label=f"{row} detection")
     ax.axhline(res["threshold"], color="0.5", lw=0.8, ls=":")
     ax.set_xscale("log")
+    log_distance_ticks(ax, [d for t in res["rows"].values() for d in t["distances"]])
     ax.set_xlabel("distance behind the corner [m]")
     ax.set_ylabel("F1 over seeds")
     ax.set_ylim(-0.03, 1.03)
     ax.set_title(f"{res['name']}: NLOS range at equal transmit power")
     legend_outside(ax, where="right")
+    return lines
+
+
+def range_curve(res: dict, path: str | Path, colours: dict[str, str] | None = None) -> Path:
+    """Write :func:`draw_range_curve` of the study result ``res`` to ``path`` (PNG); returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    draw_range_curve(ax, res, colours)
     return save_png(fig, path)
 
 

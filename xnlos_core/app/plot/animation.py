@@ -2,13 +2,14 @@
 
 Each GIF frame shows, left, the RA map (power above its median [dB], grey) with the detections
 coloured by radial velocity (diverging colormap, limits ±v symmetric about 0 and fixed over the
-sequence, colourbar in m/s, positive receding; grey where a detection has no velocity; marker by
-class: LOS ○, mNLOS ×, unclassified □) and, right, the bird's-eye view: true and fitted walls, the
+sequence, colourbar in m/s, positive receding; grey where a detection has no velocity; no velocity
+colourbar when no frame of the sequence has one; marker by class: LOS ○, mNLOS ×, unclassified □) and, right, the bird's-eye view: true and fitted walls, the
 mNLOS detections (virtual points o'), the reconstructed hidden points, the true hidden points and
 the tracks with their history and prediction cones (:mod:`xnlos_core.app.plot.track_figure`). Axis limits
 and colour scales are fixed over the sequence so that motion reads as motion; the bird's-eye box
 holds the radar, the true hidden points of every frame and the tracks (the true walls instead
-when no hidden point is known, the estimates without ground truth), 5 m margin.
+when no hidden point is known, the estimates without ground truth), 5 m margin; a track outside
+that box is marked on its edge and counted in the title as such.
 
 The frames are drawn one at a time from the run's results.jsonl records (tracks, forecasts) and
 its per-frame snapshots (:class:`xnlos_core.app.plot.frame_snapshot.FrameSnapshot`), so the animation can
@@ -33,7 +34,7 @@ from xnlos_core.bev import bev, legend_outside, orient_azimuth, set_bev_limits
 from xnlos_core.app.plot.figures import CLASS_STYLE, ellipse_xy, credible_radius
 from xnlos_core.app.plot.frame_snapshot import FrameSnapshot
 from xnlos_core.io import atomic_write_bytes
-from xnlos_core.app.plot.track_figure import draw_tracks, track_legend_handles
+from xnlos_core.app.plot.track_figure import count_outside, draw_tracks, mark_outside_view, track_legend_handles
 from xnlos_core.track_record import track_history, tracks_from_record
 from xnlos_core.types import LOS, MNLOS
 
@@ -65,6 +66,7 @@ class _Scales:
         v = np.abs(np.concatenate(speeds)) if speeds else np.zeros(0)
         v = v[np.isfinite(v)]
         self.v_max = max(1.0, float(np.percentile(v, 99))) if len(v) else 1.0
+        self.has_velocity = bool(len(v))  # a Doppler run: else no velocity colourbar at all
         self.db_max = max([30.0, *db_tops])
 
 
@@ -96,25 +98,28 @@ def _ra_panel(fig, ax, s: FrameSnapshot, scales: _Scales) -> None:
                    vmax=scales.db_max, extent=ext)
     fig.colorbar(im, ax=ax, location="bottom", fraction=0.05, pad=0.12, label="power above median [dB]")
     sc = None
-    for lab, (name, _, marker) in CLASS_STYLE.items():
+    for lab, (name, colour, marker) in CLASS_STYLE.items():
         m = s.det_label == lab
         if not m.any():
             continue
         v = s.det_velocity[m]
         known = np.isfinite(v)
         mk = MARKERS.get(lab, marker)
-        if (~known).any():
-            ax.scatter(_az(s, m)[~known], s.det_range[m][~known], s=30, marker=mk, c="0.6", edgecolors="k",
-                       linewidths=0.5, label=f"{name}, no velocity ({(~known).sum()})")
+        if (~known).any():  # grey in a Doppler run; the class colour in a run without velocities
+            ax.scatter(_az(s, m)[~known], s.det_range[m][~known], s=30, marker=mk,
+                       c="0.6" if scales.has_velocity else colour, edgecolors="k", linewidths=0.5,
+                       label=f"{name}{', no velocity' * scales.has_velocity} ({(~known).sum()})")
         if known.any():
             sc = ax.scatter(_az(s, m)[known], s.det_range[m][known], s=30, marker=mk, c=v[known], cmap="RdBu_r",
                             vmin=-scales.v_max, vmax=scales.v_max, edgecolors="k", linewidths=0.5,
                             label=f"{name} ({known.sum()})")
-    if sc is None:  # keep the layout of every frame the same: a colourbar even without velocities
+    if scales.has_velocity:  # on every frame of a Doppler run, with or without moving detections: same layout
         import matplotlib as mpl
 
-        sc = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(-scales.v_max, scales.v_max), cmap="RdBu_r")
-    fig.colorbar(sc, ax=ax, label="radial velocity [m/s] (+ receding)")
+        from xnlos_core.app.plot.radar_views import VELOCITY_LABEL
+
+        sc = sc or mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(-scales.v_max, scales.v_max), cmap="RdBu_r")
+        fig.colorbar(sc, ax=ax, label=VELOCITY_LABEL)
     orient_azimuth(ax, ext[:2])
     ax.set_ylim(ext[2], ext[3])
     ax.set_ylabel("range [m]")
@@ -142,7 +147,7 @@ def _bev_panel(ax, s: FrameSnapshot, tracks, history, region, scales: _Scales) -
     m = s.det_label == MNLOS
     if m.any():
         ax.scatter(*bev(s.det_position[m]), s=10, c=CLASS_STYLE[MNLOS][1], marker="x", alpha=0.5,
-                   label=f"mNLOS (virtual o') ({m.sum()})", zorder=palette.Z_ESTIMATE)
+                   label=f"mNLOS (virtual o') ({m.sum()})", zorder=palette.Z_DETECTION)
     if len(s.hidden_mean):
         ax.scatter(*bev(s.hidden_mean), s=40, c=palette.ESTIMATE, marker="+", linewidths=1.4, zorder=palette.Z_ESTIMATE,
                    label=f"reconstructed hidden points ({len(s.hidden_mean)}; 90 % credible)")
@@ -155,14 +160,15 @@ def _bev_panel(ax, s: FrameSnapshot, tracks, history, region, scales: _Scales) -
     draw_tracks(ax, tracks, history, region)
     ax.scatter([0], [0], marker="^", s=70, c="k", label="radar", zorder=palette.Z_RADAR)
     set_bev_limits(ax, scales.points, margin=5.0)
+    outside = count_outside(mark_outside_view(ax, tracks))
     handles, _ = ax.get_legend_handles_labels()
     if tracks is not None and len(tracks):
         handles += track_legend_handles(tracks)
     legend_outside(ax, handles=handles, where="right", frameon=False)
     ax.grid(alpha=0.3)
     n, m = 0 if tracks is None else len(tracks), len(s.hidden_mean)
-    ax.set_title(f"bird's-eye view: {m} reconstructed hidden point{'s' * (m != 1)}, {n} track{'s' * (n != 1)}",
-                 fontsize=10)
+    ax.set_title(f"bird's-eye view: {m} reconstructed hidden point{'s' * (m != 1)}, {n} track{'s' * (n != 1)}"
+                 + (f" ({outside} outside, at the edge)" if outside else ""), fontsize=10)
 
 
 def render_frame(s: FrameSnapshot, record: dict, history=None, region=None, scales: _Scales | None = None,

@@ -35,8 +35,8 @@ def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", sampl
                     zorder=palette.Z_BAND)
             ax.plot(*bev([w.start, w.end]), color=palette.TRUE_WALL, lw=1.0, zorder=palette.Z_TRUTH,
                     label="true walls" if i == 0 else None)
-    drawn = False
-    for i, w in enumerate(walls):
+    drawn = sampled = False
+    for w in walls:
         curve = wall_curve(w)
         if curve is None:
             continue
@@ -44,7 +44,8 @@ def draw_walls(ax, walls, true_walls=None, label: str = "estimated walls", sampl
                 label=None if drawn else label)
         drawn = True
         if w.samples is not None and samples > 0 and w.extent is not None:
-            _plot_wall_draws(ax, w, samples, first=i == 0)
+            _plot_wall_draws(ax, w, samples, first=not sampled)
+            sampled = True
 
 
 def draw_objects(ax, outlines: dict, annotate: bool = True) -> None:
@@ -62,7 +63,7 @@ def draw_objects(ax, outlines: dict, annotate: bool = True) -> None:
         if annotate:
             x, y = bev(pts.mean(0, keepdims=True))
             ax.annotate(name, (x[0], y[0]), textcoords="offset points", xytext=(0, 10), ha="center", fontsize=8,
-                        color=palette.TRUTH, zorder=palette.Z_TRUTH)
+                        color=palette.TRUTH, zorder=palette.Z_TRUTH, gid=OBJECT_LABEL)
 
 
 def draw_unobservable(ax, outlines: dict, annotate: bool = True) -> None:
@@ -81,7 +82,32 @@ def draw_unobservable(ax, outlines: dict, annotate: bool = True) -> None:
         if annotate:
             x, y = bev(pts.mean(0, keepdims=True))
             ax.annotate(f"{name}: not observable", (x[0], y[0]), textcoords="offset points", xytext=(0, 10),
-                        ha="center", fontsize=8, color="0.25")
+                        ha="center", fontsize=8, color="0.25", gid=OBJECT_LABEL)
+
+
+#: gid of the object name labels that :func:`separate_labels` moves apart.
+OBJECT_LABEL = "object label"
+
+
+def separate_labels(ax, gid: str = OBJECT_LABEL, pad_pt: float = 2.0) -> int:
+    """Move the annotations of ``ax`` with ``gid`` (object names, placed in offset points) upward,
+    lowest anchor first, until no two boxes overlap at the current layout (``pad_pt`` points
+    apart); call once limits are set. Returns how many were moved."""
+    fig = ax.figure
+    renderer = fig.canvas.get_renderer()
+    texts = sorted((t for t in ax.texts if t.get_gid() == gid), key=lambda t: (t.xy[1], t.xy[0]))
+    placed, moved = [], 0
+    for t in texts:
+        for _ in range(len(texts) + 1):
+            box = t.get_window_extent(renderer)
+            hits = [b for b in placed if box.x0 < b.x1 and b.x0 < box.x1 and box.y0 < b.y1 and b.y0 < box.y1]
+            if not hits:
+                break
+            dx, dy = t.xyann
+            t.xyann = (dx, dy + (max(b.y1 for b in hits) - box.y0) * 72.0 / fig.dpi + pad_pt)
+            moved += 1
+        placed.append(t.get_window_extent(renderer))
+    return moved
 
 
 OUTLINES_META = "object_outlines"
@@ -144,6 +170,8 @@ def zoom_inset(ax, draw, focus, *, margin: float = 2.0, bounds=(1.04, 0.0, 0.55,
     inset.set_ylim(cy - half, cy + half)
     inset.set_aspect("equal")
     inset.tick_params(labelsize=6)
+    if bounds[0] >= 1.0:  # right of the panel: tick labels on the far side, off the panel's data area
+        inset.yaxis.tick_right()
     inset.set_title("zoom: hidden object", fontsize=7)
     inset.grid(alpha=0.3)
     ax.indicate_inset_zoom(inset, edgecolor="0.3")
@@ -204,13 +232,84 @@ def plot_frame(result, path: str | Path, title: str = "", **kw) -> Path:
     return save_png(frame_figure(result, title, **kw), path, dpi=110)
 
 
+def has_velocity(result) -> bool:
+    """Whether a FrameResult carries radial velocities (a Doppler run): its detections' velocities
+    (some finite) or its RA map's per-cell ``velocity``."""
+    v = result.detections.velocity
+    return (v is not None and bool(np.isfinite(v).any())) or result.frame.ra_map.velocity is not None
+
+
+def velocity_norm(velocities, floor: float = 1.0):
+    """Symmetric colour scale ±v [m/s] for radial velocities: v = the 99th percentile of |v| (finite
+    ones), at least ``floor``; a matplotlib Normalize."""
+    from matplotlib.colors import Normalize
+
+    v = np.abs(np.asarray(velocities, float).ravel())
+    v = v[np.isfinite(v)]
+    top = max(floor, float(np.percentile(v, 99))) if len(v) else floor
+    return Normalize(-top, top)
+
+
+#: Diverging colormap of radial velocity (blue approaching, red receding).
+VELOCITY_CMAP = "RdBu_r"
+
+
+def scatter_ra_detections(ax, det, norm=None, *, s: float = 28, zorder: float = palette.Z_ESTIMATE):
+    """Detections on an RA-map panel (azimuth [deg] × range [m]), marker by class (CLASS_STYLE).
+    Without ``norm``: class colours. With ``norm`` (a Doppler run, :func:`velocity_norm`): filled
+    by radial velocity (:data:`VELOCITY_CMAP`, black edge), grey where a detection has none.
+    Returns the velocity-coloured PathCollection to hang a colour bar on, or None."""
+    mappable = None
+    vel = None if det.velocity is None else np.asarray(det.velocity, float)
+    for lab, (name, color, marker) in CLASS_STYLE.items():
+        m = det.label == lab
+        if not m.any():
+            continue
+        az, r = np.degrees(det.azimuth[m]), det.range[m]
+        if norm is None or vel is None:
+            style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
+            ax.scatter(az, r, s=s, marker=marker, label=f"{name} ({m.sum()})", linewidths=1.2, zorder=zorder, **style)
+            continue
+        v = vel[m]
+        known = np.isfinite(v)
+        mk = "X" if marker == "x" else marker
+        if (~known).any():
+            ax.scatter(az[~known], r[~known], s=s, marker=mk, c="0.6", edgecolors="k", linewidths=0.5,
+                       label=f"{name}, no velocity ({(~known).sum()})", zorder=zorder)
+        if known.any():
+            mappable = ax.scatter(az[known], r[known], s=s, marker=mk, c=v[known], cmap=VELOCITY_CMAP, norm=norm,
+                                  edgecolors="k", linewidths=0.5, label=f"{name} ({known.sum()})", zorder=zorder)
+    return mappable
+
+
+def velocity_colorbar(fig, ax, norm, **kw):
+    """The radial-velocity colour bar of ``ax`` (drawn only for a Doppler run); returns it."""
+    import matplotlib as mpl
+
+    from xnlos_core.app.plot.radar_views import VELOCITY_LABEL
+
+    return fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=VELOCITY_CMAP), ax=ax, label=VELOCITY_LABEL, **kw)
+
+
 def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5, 0.9), wall_samples: int = 30,
-                 history=None, region=None, unobservable=None, objects=None, zoom: bool = True):
-    """The two-panel figure of one FrameResult: RA map (dB, positive azimuth on the left like the
-    bird's-eye view) with the detections, and the bird's-eye reconstruction with the tracks
-    (history, velocity, prediction cones: :func:`xnlos_core.app.plot.track_figure.draw_tracks`) when the
-    result has them; legends outside the data areas, ground truth drawn above the estimates.
+                 history=None, region=None, unobservable=None, objects=None, zoom: bool = True,
+                 ra_view: str = "polar", range_doppler: bool | None = None):
+    """The figure of one FrameResult: the RA map with the detections, for a Doppler run its
+    range–Doppler view, and the bird's-eye reconstruction with the tracks (history, velocity,
+    prediction cones: :func:`xnlos_core.app.plot.track_figure.draw_tracks`) when the result has them.
+    Legends sit outside the data areas (the bird's-eye one below its panel, the zoom inset right
+    of it), ground truth above the estimates, detections under the walls fitted through them.
     Returns the matplotlib Figure (not closed).
+
+    Velocity: when the result carries radial velocities (:func:`has_velocity`), the RA map is grey
+    and the detections are filled by radial velocity with a colour bar in m/s; without, no
+    velocity colour bar. ra_view: "polar" (azimuth × range image) or "cartesian" (the fan in the
+    bird's-eye plane, :func:`xnlos_core.app.plot.radar_views.draw_ra_cartesian`); range_doppler:
+    add the range–Doppler panel from the map's per-cell velocity
+    (:func:`~xnlos_core.app.plot.radar_views.range_velocity_from_ra`); default: when the RA map
+    has one. Tracks outside the bird's-eye view are marked at its edge
+    (:func:`~xnlos_core.app.plot.track_figure.mark_outside_view`), so the title's count is what
+    is drawn.
 
     credible: levels of the credible ellipses drawn around each reconstructed hidden point (from
     HiddenPoints.cov; the largest solid, the others dotted); wall_samples: how many posterior
@@ -226,28 +325,53 @@ def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from xnlos_core.app.plot import radar_views
+
+    if ra_view not in ("polar", "cartesian"):
+        from xnlos_core.errors import InputError
+
+        raise InputError(f"frame_figure ra_view={ra_view!r}: expected 'polar' or 'cartesian'")
     frame, det = result.frame, result.detections
     ra = frame.ra_map
-    fig, (ax_ra, ax_bev) = plt.subplots(1, 2, figsize=(17, 6.8), gridspec_kw={"width_ratios": [1, 1.25]})
+    doppler = has_velocity(result)
+    rd = ra.velocity is not None if range_doppler is None else bool(range_doppler)
+    ratios = [1.0] + ([0.75] if rd else []) + [1.25]
+    fig, axes = plt.subplots(1, len(ratios), figsize=(9 + 8 * sum(ratios) / 2.25, 7.2),
+                             gridspec_kw={"width_ratios": ratios})
+    ax_ra, ax_bev = axes[0], axes[-1]
 
     p_db = ra.power_db()
     floor = np.median(p_db)
+    vmax = max(30.0, float(np.percentile(p_db - floor, 99.9)))
     az_deg = np.degrees(ra.azimuth_axis)
-    im = ax_ra.imshow(p_db - floor, origin="lower", aspect="auto", cmap="viridis", vmin=0,
-                      vmax=max(30.0, np.percentile(p_db - floor, 99.9)),
-                      extent=[az_deg[0], az_deg[-1], ra.range_axis[0], ra.range_axis[-1]])
+    norm = velocity_norm(det.velocity if det.velocity is not None else []) if doppler else None
+    cmap = "gray" if doppler else "viridis"
+    if ra_view == "polar":
+        im = ax_ra.imshow(p_db - floor, origin="lower", aspect="auto", cmap=cmap, vmin=0, vmax=vmax,
+                          extent=[az_deg[0], az_deg[-1], ra.range_axis[0], ra.range_axis[-1]])
+        scatter_ra_detections(ax_ra, det, norm)
+        orient_azimuth(ax_ra, az_deg)
+        ax_ra.set_ylabel("range [m]")
+    else:
+        im = radar_views.draw_ra_cartesian(ax_ra, ra, vmax=vmax, cmap=cmap)
+        _scatter_bev_detections(ax_ra, det, norm, s=20)
     fig.colorbar(im, ax=ax_ra, label="power above median [dB]")
-    for lab, (name, color, marker) in CLASS_STYLE.items():
-        m = det.label == lab
-        if m.any():
-            style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
-            ax_ra.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker,
-                          label=f"{name} ({m.sum()})", linewidths=1.2, **style)
-    orient_azimuth(ax_ra, az_deg)
-    ax_ra.set_ylabel("range [m]")
-    ax_ra.set_title(f"RA map and detections ({len(det)})")
-    if len(det):
-        legend_outside(ax_ra, where="below", fontsize=8)
+    if norm is not None:
+        velocity_colorbar(fig, ax_ra, norm)
+    if ra_view == "polar":
+        ax_ra.set_title(f"RA map and detections ({len(det)})")
+        if len(det):
+            legend_outside(ax_ra, where="below", fontsize=8)
+    else:  # an equal-aspect fan leaves no fixed room below: the legend goes between it and its title
+        ax_ra.set_title(f"RA map and detections ({len(det)}), fan view", pad=22 if len(det) else 6)
+        if len(det):
+            legend_outside(ax_ra, where="above", fontsize=8, ncol=4, frameon=False)
+    if rd:
+        ax_rd = axes[1]
+        db, v_axis = radar_views.range_velocity_from_ra(ra)
+        mesh = radar_views.draw_range_doppler(ax_rd, db, ra.range_axis, v_axis)
+        fig.colorbar(mesh, ax=ax_rd, label="power at that velocity, above median [dB]")
+        ax_rd.set_title("range–Doppler (per-cell velocity)")
 
     gt = frame.ground_truth
     h = result.hidden
@@ -266,8 +390,8 @@ def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5,
             m = det.label == lab
             if m.any():
                 label = f"mNLOS detections (virtual o') ({m.sum()})" if lab == MNLOS else f"{name} detections ({m.sum()})"
-                ax.scatter(*bev(det.position[m]), s=16, c=color, marker=marker, label=label, alpha=0.8,
-                           zorder=palette.Z_ESTIMATE)
+                ax.scatter(*bev(det.position[m]), s=12, c=color, marker=marker, label=label, alpha=0.8,
+                           zorder=palette.Z_DETECTION)
         if len(h):
             levels = sorted(credible)
             pct = "/".join(f"{100 * p:g}" for p in levels)
@@ -293,15 +417,22 @@ def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5,
     draw(ax_bev)
     frame_bev(ax_bev, gt, [det.position, h.mean], extra=list(objects.values()) + list(unobservable.values()))
     n_tracks = 0 if tracks is None else len(tracks)
+    outside = 0
+    if n_tracks:
+        from xnlos_core.app.plot.track_figure import count_outside, mark_outside_view
+
+        outside = count_outside(mark_outside_view(ax_bev, tracks))
     ax_bev.set_title(f"bird's-eye view: {len(h)} reconstructed hidden point{'s' * (len(h) != 1)}"
-                     + (f", {n_tracks} track{'s' * (n_tracks != 1)}" if n_tracks else ""))
+                     + (f", {n_tracks} track{'s' * (n_tracks != 1)}" if n_tracks else "")
+                     + (f" ({outside} outside the view, marked at its edge)" if outside else ""))
     handles, _ = ax_bev.get_legend_handles_labels()
     if n_tracks:
         from xnlos_core.app.plot.track_figure import track_legend_handles
 
         handles += track_legend_handles(tracks)
-    legend_outside(ax_bev, handles=handles, where="right", framealpha=0.85)
+    legend_outside(ax_bev, handles=handles, where="below", framealpha=0.85, ncol=2)
     ax_bev.grid(alpha=0.3)
+    separate_labels(ax_bev)
     if zoom:
         focus = (np.concatenate([np.reshape(v, (-1, 2)) for v in objects.values()]) if objects
                  else gt.hidden_points if gt is not None and len(gt.hidden_points) else h.mean)
@@ -311,17 +442,52 @@ def frame_figure(result, title: str = "", *, credible: tuple[float, ...] = (0.5,
     return fig
 
 
+def _scatter_bev_detections(ax, det, norm=None, *, s: float = 16) -> None:
+    """Detections at their bird's-eye positions (mNLOS: the virtual point o'), marker by class,
+    filled by radial velocity when ``norm`` is given (as :func:`scatter_ra_detections`)."""
+    vel = None if det.velocity is None else np.asarray(det.velocity, float)
+    for lab, (name, color, marker) in CLASS_STYLE.items():
+        m = det.label == lab
+        if not m.any():
+            continue
+        if norm is None or vel is None:
+            ax.scatter(*bev(det.position[m]), s=s, c=color, marker=marker, label=f"{name} ({m.sum()})",
+                       zorder=palette.Z_DETECTION)
+        else:
+            ax.scatter(*bev(det.position[m]), s=s, c=vel[m], cmap=VELOCITY_CMAP, norm=norm, plotnonfinite=True,
+                       marker="X" if marker == "x" else marker, edgecolors="k", linewidths=0.5,
+                       label=f"{name} ({m.sum()})", zorder=palette.Z_DETECTION)
+
+
 def _plot_wall_draws(ax, wall, k: int, first: bool) -> None:
-    """Thin lines: ``k`` evenly spaced posterior draws of a sampled wall over its extent."""
+    """``k`` evenly spaced posterior draws of a sampled wall over its extent, drawn over its mean
+    in :data:`palette.WALL_DRAWS`; the legend entry states how far they spread: the 90th
+    percentile over the draws of their largest distance from the mean curve [cm], which may be
+    less than a line width at the figure's scale."""
     from dataclasses import replace
 
     idx = np.linspace(0, len(wall.samples) - 1, min(k, len(wall.samples))).astype(int)
-    for j, s in enumerate(wall.samples[idx]):
+    mean_curve = wall_curve(wall)
+    curves = []
+    for s in wall.samples[idx]:
         draw = replace(wall, mean=s, cov=np.zeros_like(wall.cov), samples=None, info={})
-        curve = wall_curve(draw)
-        if curve is not None:
-            ax.plot(*bev(curve), color=palette.WALL_ESTIMATE, lw=0.5, alpha=0.25, zorder=palette.Z_ESTIMATE,
-                    label="wall posterior draws" if first and j == 0 else None)
+        if wall.model == "line":  # the extent is the mean's: its ends projected onto the drawn line
+            n = np.array([np.cos(s[0]), np.sin(s[0])])
+            ends = np.asarray(wall.extent, float)
+            curve = ends - (ends @ n + s[1])[:, None] * n
+        else:
+            curve = wall_curve(draw)
+        if curve is not None and np.isfinite(curve).all():
+            curves.append(curve)
+    if not curves:
+        return
+    spread = [float(np.max(np.linalg.norm(c - mean_curve, axis=1))) for c in curves
+              if mean_curve is not None and c.shape == mean_curve.shape]
+    label = f"wall posterior draws ({len(curves)}"
+    label += f"; 90 % within {100 * np.percentile(spread, 90):.0f} cm)" if spread else ")"
+    for j, curve in enumerate(curves):
+        ax.plot(*bev(curve), color=palette.WALL_DRAWS, lw=0.8, alpha=0.45, zorder=palette.Z_ESTIMATE + 0.5,
+                label=label if first and j == 0 else None)
 
 
 def plot_wall_corner(posterior, path: str | Path, truth=None, n_draws: int = 4000, seed: int = 0) -> Path:

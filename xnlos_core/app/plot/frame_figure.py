@@ -3,8 +3,9 @@ and the bird's-eye reconstruction (written by ``xnlos eval`` for its first maps)
 
 Panels (2 × 3): (a) RA map, power above the map's median [dB] over azimuth [deg] × range [m];
 (b), (c) LOS and mNLOS confidence heatmaps in [0, 1] (a learned detector's ``heatmap(frame)``;
-classical detectors have none and the panel says so); (d) detections on the RA map (LOS ○,
-mNLOS ×) with the thinned ground truth as small dots; (e) bird's-eye view of the LOS detections,
+classical detectors have none: then one text panel across (b) and (c) says so); (d) detections
+on the RA map (LOS ○, mNLOS ×; for a Doppler run filled by radial velocity, with its colour bar)
+with the thinned ground truth as small dots; (e) bird's-eye view of the LOS detections,
 the fitted relay walls and the true walls; (f) bird's-eye reconstruction: LOS detections, fitted
 walls, reconstructed hidden points with their 90 % credible ellipses (HiddenPoints.cov), the
 true hidden points, when the result has tracks, the tracks and their prediction cones, and, when
@@ -20,7 +21,8 @@ import numpy as np
 from xnlos_core.errors import InputError
 from xnlos_core.app.plot import palette
 from xnlos_core.app.plot.figures import (CLASS_STYLE, ellipse_xy, bev, credible_radius, draw_objects, draw_unobservable, draw_walls,
-                      frame_bev, legend_outside, orient_azimuth, outlines_from_meta, save_png, split_outlines,
+                      frame_bev, has_velocity, legend_outside, orient_azimuth, outlines_from_meta, save_png,
+                      scatter_ra_detections, separate_labels, split_outlines, velocity_colorbar, velocity_norm,
                       zoom_inset)
 from xnlos_core.geometry import cartesian_to_polar
 from xnlos_core.types import LOS, MNLOS
@@ -43,7 +45,7 @@ def _detections_bev(ax, det, classes=(LOS, MNLOS)):
         if m.any():
             label = "mNLOS detections (virtual o')" if lab == MNLOS else f"{name} detections"
             ax.scatter(*bev(det.position[m]), s=12, c=color, marker=marker, label=f"{label} ({m.sum()})", alpha=0.8,
-                       zorder=palette.Z_ESTIMATE)
+                       zorder=palette.Z_DETECTION)
 
 
 def _walls_bev(ax, result, gt):
@@ -102,16 +104,24 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
     im = ax.imshow(rel, origin="lower", aspect="auto", cmap="viridis", vmin=0, vmax=vmax, extent=ext)
     fig.colorbar(im, ax=ax, label="power above median [dB]")
     ax.set_title("(a) RA map")
-    for k, (ax, cls) in enumerate(zip(axes[0, 1:], ("LOS", "mNLOS"))):
-        ax.set_title(f"({'bc'[k]}) {cls} heatmap" + (f" ({detector})" if detector else ""))
-        if heatmaps is None:
-            ax.imshow(np.zeros((2, 2)), origin="lower", aspect="auto", cmap="magma", vmin=0, vmax=1, extent=ext)
-            ax.text(0.5, 0.5, f"no heatmap:\n{detector or 'this detector'} is not a learned detector",
-                    ha="center", va="center", transform=ax.transAxes, color="w", fontsize=10)
-        else:
+    if heatmaps is None:  # one plain text panel in place of (b) and (c): no empty images
+        gs = axes[0, 1].get_subplotspec().get_gridspec()
+        for ax in axes[0, 1:]:
+            ax.remove()
+        ax = fig.add_subplot(gs[0, 1:])
+        ax.set_axis_off()
+        ax.set_title(f"(b), (c) LOS / mNLOS heatmaps" + (f" ({detector})" if detector else ""))
+        ax.text(0.5, 0.5, f"no heatmaps: {detector or 'this detector'} is not a learned detector;\n"
+                "its detections are in (d)", ha="center", va="center", transform=ax.transAxes, fontsize=11,
+                color="0.25", bbox={"boxstyle": "round,pad=0.8", "fc": "0.96", "ec": "0.7"})
+        ra_top = [axes[0, 0]]
+    else:
+        for k, (ax, cls) in enumerate(zip(axes[0, 1:], ("LOS", "mNLOS"))):
+            ax.set_title(f"({'bc'[k]}) {cls} heatmap" + (f" ({detector})" if detector else ""))
             im = ax.imshow(heatmaps[k], origin="lower", aspect="auto", cmap="magma", vmin=0, vmax=1, extent=ext)
             fig.colorbar(im, ax=ax, label="confidence")
-    for ax in axes[0]:
+        ra_top = list(axes[0])
+    for ax in ra_top:
         orient_azimuth(ax, ext[:2])
         ax.set_ylabel("range [m]")
 
@@ -121,12 +131,10 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
         for pts, color, label in ((gt.los_points, "tab:cyan", "true LOS"), (gt.mnlos_points, "tab:red", "true mNLOS")):
             if len(pts):
                 ax.scatter(*_polar_deg(pts), s=4, c=color, alpha=0.5, label=label, zorder=palette.Z_TRUTH)
-    for lab, (name, color, marker) in CLASS_STYLE.items():
-        m = det.label == lab
-        if m.any():
-            style = {"facecolors": "none", "edgecolors": color} if marker == "o" else {"c": color}
-            ax.scatter(np.degrees(det.azimuth[m]), det.range[m], s=28, marker=marker, linewidths=1.2,
-                       label=f"{name} ({m.sum()})", zorder=palette.Z_ESTIMATE, **style)
+    norm = velocity_norm(det.velocity if det.velocity is not None else []) if has_velocity(result) else None
+    scatter_ra_detections(ax, det, norm)
+    if norm is not None:
+        velocity_colorbar(fig, ax, norm)
     orient_azimuth(ax, ext[:2])
     ax.set_ylim(ext[2], ext[3])
     ax.set_title(f"(d) detections ({len(det)})")
@@ -164,11 +172,12 @@ def frame_panels_figure(result, heatmaps: np.ndarray | None = None, title: str =
     draw(ax)
     ax.set_title(f"(f) reconstruction ({len(h)} reconstructed hidden point{'s' * (len(h) != 1)})")
     _frame_bev(ax, result, gt, extra=list(objects.values()) + list(unobservable.values()))
+    separate_labels(ax)
     if inset:  # beside the panel, under nothing: (f) is the right column and its legend sits below it
         zoom_inset(ax, lambda a: draw(a, main=False), np.concatenate(list(objects.values())),
                    bounds=(1.04, 0.0, 0.45, 0.45))
 
     fam = frame.meta.get("family")
-    head = f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")
+    head = (f"{title} — map {frame.index}" + (f" ({fam})" if fam else "")).lstrip(" —")
     fig.suptitle(head)
     return fig

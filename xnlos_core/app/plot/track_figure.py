@@ -103,7 +103,7 @@ def draw_tracks(ax, tracks: Tracks | None, history: Mapping[int, np.ndarray] | N
                     art[f"cone{level}"].append(ax.add_patch(PathPatch(path, fc=color, ec="none",
                                                                       alpha=CONE_ALPHA[level], zorder=2)))
         art["positions"].append(ax.scatter(*bev(p), s=40, c=color, marker="D", edgecolors="k", linewidths=0.6,
-                                           zorder=6))
+                                           zorder=6, gid=f"track {int(tid)}"))
         if np.isfinite(v).all() and np.hypot(*v) > 0:
             tip = np.column_stack(bev(p + arrow_s * v))[0]
             art["arrows"].append(ax.annotate("", xy=tip, xytext=np.column_stack(bev(p))[0], zorder=6,
@@ -112,6 +112,41 @@ def draw_tracks(ax, tracks: Tracks | None, history: Mapping[int, np.ndarray] | N
                                          textcoords="offset points", fontsize=fontsize, color=color, zorder=7,
                                          bbox={"boxstyle": "round,pad=0.2", "fc": "w", "ec": "none", "alpha": 0.7}))
     return art
+
+
+def mark_outside_view(ax, tracks: Tracks | None, *, fontsize: float = 7) -> list:
+    """Mark on ``ax`` (limits already set) each track whose position lies outside the view: a
+    hollow diamond on the view's edge where the line from the view's centre to the track leaves
+    it, labelled "#id at (x, y) m", so that every counted track is seen. Call after the limits
+    are final. Returns the artists (gid "track <id> outside")."""
+    if tracks is None or not len(tracks):
+        return []
+    x0, x1 = sorted(ax.get_xlim())
+    y0, y1 = sorted(ax.get_ylim())
+    c = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1)])
+    half = 0.97 * 0.5 * np.array([x1 - x0, y1 - y0])  # just inside the frame, so the marker shows whole
+    arts = []
+    for tid, p in zip(tracks.track_id, tracks.position):
+        q = np.column_stack(bev(p))[0]
+        d = q - c
+        if not np.isfinite(d).all() or (abs(d) <= 0.5 * np.array([x1 - x0, y1 - y0])).all():
+            continue
+        edge = c + d / np.max(np.abs(d) / half)
+        color = track_color(tid)
+        arts.append(ax.scatter(*edge, s=40, marker="D", facecolors="none", edgecolors=color, linewidths=1.2,
+                               zorder=7, clip_on=False, gid=f"track {int(tid)} outside"))
+        inward = -np.sign(d) * (np.abs(d / half) >= np.abs(d / half).max() - 1e-9)
+        arts.append(ax.annotate(f"#{int(tid)} at ({p[0]:.0f}, {p[1]:.0f}) m", edge, xytext=tuple(10 * inward),
+                                textcoords="offset points", fontsize=fontsize, color=color, zorder=7,
+                                ha="left" if inward[0] > 0 else "right" if inward[0] < 0 else "center",
+                                va="bottom" if inward[1] > 0 else "top" if inward[1] < 0 else "center",
+                                gid=f"track {int(tid)} outside"))
+    return arts
+
+
+def count_outside(arts) -> int:
+    """Number of tracks :func:`mark_outside_view` marked (its returned artists)."""
+    return len({a.get_gid() for a in arts})
 
 
 def track_legend_handles(tracks: Tracks | None):
