@@ -184,6 +184,13 @@ def test_table2_sweep_end_to_end_on_a_tiny_dataset(tiny_dataset, tmp_path):
     for r in res["runs"]:
         assert r["overall"]["maps"] == 2 and len(r["figures"]) == 1
         assert (tmp_path / "out" / r["dir"] / r["figures"][0]).read_bytes()[:8] == PNG
+    # the learned rows ran off their training set-up: the table says so, also when fully resumed
+    learned = {"rtn", "further_than_cfar", "unet", "swin_unet"}
+    assert all(bool(r["setup_differs"]) == (r["detector"] in learned) for r in res["runs"])
+    assert "DIFFERS" in md
+    again = run_eval(tmp_path / "table2.toml", tmp_path / "out", dataset=str(tiny_dataset),
+                     split="test", limit=2, figures=1, progress=False)
+    assert [bool(r["setup_differs"]) for r in again["runs"]] == [bool(r["setup_differs"]) for r in res["runs"]]
 
 
 def test_table2_config_checks():

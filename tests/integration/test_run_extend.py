@@ -7,7 +7,7 @@ import pytest
 
 from xnlos_core.app.runner import run_to_dir
 from xnlos_core.config import parse_pipeline
-from xnlos_core.errors import ConfigError
+from xnlos_core.errors import InputError
 from xnlos_core.io import finite_json, read_jsonl, strict_json_text
 from xnlos_core.testing import small_pipeline_table
 
@@ -31,7 +31,7 @@ def test_more_frames_extend_a_finished_run(tmp_path):
     assert [r["frame"] for r in a] == [0, 1, 2]
     for x, y in zip(a, b):
         assert x["hidden_points"] == y["hidden_points"] and x["detection_table"] == y["detection_table"]
-    with pytest.raises(ConfigError, match="holds frames up to 2 .* ask for at least 3 frames"):
+    with pytest.raises(InputError, match=r"frame = 2; expected a frame index in 0 … 1 .* asking for at least"):
         run_to_dir(_cfg(2), tmp_path / "a", progress=False)
 
 

@@ -38,7 +38,8 @@ def test_seed_picks_the_draw_and_defaults_to_zero():
 
 
 @pytest.mark.parametrize(("scene", "message"), [
-    ({"family": "t_junctoin"}, r"\[scene.family\] unknown scene_generator 't_junctoin'; registered .*t_junction"),
+    ({"family": "t_junctoin"},
+     r"\[scene.family\] unknown scene_generator 't_junctoin' \(did you mean 't_junction'\?\); registered .*t_junction"),
     ({"family": "t_junction", "overrides": {"cross_widht": [8.0, 9.0]}},
      r"\[scene.overrides.cross_widht\] unknown key; did you mean 'cross_width'"),
     ({"family": "t_junction", "overrides": {"cross_width": [1.0, 2.0]}}, r"\[scene.overrides.cross_width"),

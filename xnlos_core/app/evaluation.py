@@ -234,9 +234,10 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
         # Keyed on the map's position: repeated lines are dropped, bad ones refused naming the line.
         done = list(read_keyed_jsonl(log, "position").values())
         write_jsonl(log, done)  # the repairs (a torn last line, repeats) made durable before appending
+    prov = pipe.provenance()
     write_record(out, "run.json", {"name": cfg.name, "assignment": run["assignment"], "resume_sha256": digest,
                                    "state_sha256": state, "config": cfg.model_dump(mode="json"),
-                                   "provenance": pipe.provenance()})
+                                   "provenance": prov})
     backend = pipe.stages["backend"]
     total = backend.n_frames
     tracking = "tracker" in pipe.stages
@@ -260,7 +261,12 @@ def evaluate_run(run: dict[str, Any], out: str | Path, *, figures: int = 2, prog
             bar.close()
     for w in seen:  # emitted again, through the caller's filters, as they would have been
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    differs = list(dict.fromkeys(str(w.message) for w in seen if issubclass(w.category, GridMismatchWarning)))
+    # the set-up differences the detector accepted (known before any map: a fully resumed evaluation has
+    # them too) and any grid mismatch met on a frame
+    accepted = [f"{kind} set-up differs from its training: {'; '.join(items)}"
+                for kind, items in prov.get("accepted_mismatch", {}).items()]
+    differs = list(dict.fromkeys(accepted + [str(w.message) for w in seen
+                                             if issubclass(w.category, GridMismatchWarning)]))
     records = sorted((r for r in records if r["position"] < n), key=lambda r: r["position"])
     figs = [f"map_{r['map']:05d}.png" for r in records[:figures]]
     if any(not (out / f).exists() for f in figs):

@@ -33,7 +33,6 @@ import numpy as np
 
 from xnlos_core.app.plot.animation import SNAPSHOT_DIR, snapshot_path, write_sequence_gif
 from xnlos_core.config import PipelineConfig
-from xnlos_core.errors import ConfigError
 from xnlos_core.app.plot.figures import split_outlines
 from xnlos_core.app.plot.frame_snapshot import FrameSnapshot
 from xnlos_core.io import (append_jsonl, atomic_write_text, json_default, read_keyed_jsonl, strict_json_text,
@@ -63,12 +62,7 @@ def run_to_dir(config: PipelineConfig, out: str | Path, *, source: str = "<confi
                 what="results", clear=[res_path.name, GIF, f"{SNAPSHOT_DIR}/frame_*.npz", "frame_*.png", STATE_FILE, STAMP],
                 state=prov["state_sha256"])
     if old is not None:
-        done = read_results(res_path)
-        beyond = sorted(k for k in done if k >= n) if "forward_model" in pipe.stages else []
-        if beyond:
-            raise ConfigError(f"{out}: holds frames up to {max(done)} of this configuration, more than the "
-                              f"{n} asked for (run.frames / --frames); ask for at least {max(done) + 1} frames to "
-                              "use it (more extend it), or give --overwrite to start again")
+        done = read_results(res_path, n if "forward_model" in pipe.stages else None)
         # Make the repairs durable (torn last line, repeated lines dropped) before appending.
         write_jsonl(res_path, done.values())
         resumed = old.get("resumed", 0)
@@ -217,7 +211,8 @@ def read_results(path: str | Path, n: int | None = None) -> dict[int, dict]:
 
     def check(v):
         ok = isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n
-        return None if ok else f"a frame index in 0 … {n - 1} (run.frames = {n})"
+        return None if ok else (f"a frame index in 0 … {n - 1} (run.frames = {n}; a run that holds more frames is "
+                                f"used by asking for at least as many, and extended by asking for more)")
 
     return read_keyed_jsonl(path, "frame", check=check)
 
