@@ -9,6 +9,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from xnlos_core.app.cli import main
@@ -74,15 +75,20 @@ def test_generated_plugin_passes_the_kit_and_runs_in_a_pipeline(kind, generated,
     config = parse_pipeline(pipeline_table(kind), f"kit_{kind}")
     results = list(Pipeline(config, registry=manager.registry).run())
     assert len(results) == config.run.frames
+    gt = results[-1].frame.ground_truth
     if kind == "detector":
         assert all(len(r.detections) > 0 for r in results)
-    elif kind == "wall_estimator":
-        assert results[0].walls and results[0].walls[0].model == "line"
-    elif kind == "reconstructor":
-        # the corner scene's hidden car is seen via the wall: the template puts it behind the corner
-        assert len(results[0].hidden) > 0 and (results[0].hidden.source_index >= 0).all()
-    else:
-        assert all(r.tracks is not None for r in results) and len(results[-1].tracks) > 0
+    elif kind == "wall_estimator":  # one line through all LOS points: along one of the scene's walls
+        (wall,) = results[0].walls
+        assert any(abs(float(wall.normal @ w.normal)) > np.cos(np.radians(5)) and abs(wall.offset - w.offset) < 1.5
+                   for w in gt.walls), (wall.normal, wall.offset)
+    elif kind == "reconstructor":  # the hidden car, mirrored across the wall its echo bounced off
+        hidden = results[0].hidden
+        d = np.linalg.norm(hidden.mean[:, None] - gt.hidden_points[None], axis=-1).min(axis=1)
+        assert len(hidden) > 0 and d.max() < 0.5, d
+    else:  # tracks on the hidden car
+        tracks = results[-1].tracks
+        assert len(tracks) > 0 and np.linalg.norm(tracks.position - gt.hidden_points.mean(axis=0), axis=1).max() < 4.0
 
 
 def test_generated_packages_own_tests_pass_under_pytest(generated, tmp_path):

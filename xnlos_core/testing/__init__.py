@@ -13,12 +13,13 @@ naming the broken contract; :func:`check_component` returns a report of every ch
 Also the inputs the checks use (:func:`synthetic_frame`, :func:`small_radar`, :func:`kit_transient`)
 and :func:`small_pipeline_table`, a fast pipeline config to try a new component end to end.
 """
-from .checks import (CHECKS, check_backend, check_detector, check_forward_model, check_frame_state, check_nlos_solver,
-                     check_params, check_reconstructor, check_scene_generator, check_tracker, check_transient_model,
-                     check_wall_estimator, passed, record_steps)
-from .frames import KIT_HIDDEN, KIT_WALL, kit_transient, small_pipeline_table, small_radar, synthetic_frame
-from .kit import (Check, CheckReport, CheckResult, ComponentSpec, check_component, checks_for,
-                  parametrize_with_checks, resolve)
+# the reference page lists the names in this order
+from .kit import (check_component, parametrize_with_checks, CheckReport, CheckResult, Check, ComponentSpec,  # noqa: I001
+                  checks_for, resolve)
+from .checks import (CHECKS, check_params, check_detector, check_wall_estimator, check_reconstructor, check_tracker,
+                     check_forward_model, check_backend, check_scene_generator, check_nlos_solver,
+                     check_transient_model, check_frame_state, passed, record_steps)
+from .frames import small_pipeline_table, small_radar, synthetic_frame, kit_transient, KIT_WALL, KIT_HIDDEN
 
 __all__ = [
     "check_component", "parametrize_with_checks", "CheckReport", "CheckResult", "Check", "ComponentSpec",
