@@ -144,7 +144,7 @@ def test_check_component_takes_a_class_or_a_plugin_module_and_reports_each_check
     contract = by_class.results[2]
     assert "finds a 35 dB target within 2 m" in contract.steps and "the same detections twice" in contract.steps
     text = str(by_class).splitlines()
-    assert text[0] == "detector:_Peaks(min_power=2.0): 3 check(s) passed"
+    assert text[0] == "detector:_Peaks(min_power=2.0): 3 checks passed"
     assert text[2].startswith("  PASSED params: a strict Params model")
     assert capsys.readouterr().out == ""  # quiet unless asked
 

@@ -130,7 +130,7 @@ class CheckReport:
         lines: list[str] = []
         for comp in dict.fromkeys(r.component for r in self.results):
             mine = [r for r in self.results if r.component == comp]
-            lines.append(f"{comp}: {len(mine)} check(s) passed")
+            lines.append(f"{comp}: {len(mine)} check{'s' if len(mine) != 1 else ''} passed")
             lines += [f"  {r}" for r in mine]
         return "\n".join(lines) or "no checks run"
 
