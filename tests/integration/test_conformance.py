@@ -1,5 +1,7 @@
 """Every registered plugin passes the conformance kit a third-party author would run; the kit takes a
 registered name, a class or a plugin module, reports each check, and runs as parametrised pytest tests."""
+import subprocess
+import sys
 import types
 
 import numpy as np
@@ -221,3 +223,9 @@ class _Still(Tracker):
 def test_the_kit_as_pytest_tests(component, check):
     result = check(component)
     assert result.component == component.id and result.steps
+
+
+def test_the_kit_imports_pytest_only_where_its_marks_are_asked_for():
+    code = ("import sys, xnlos_core.testing as kit; assert 'pytest' not in sys.modules; "
+            "kit.parametrize_with_checks([]); assert 'pytest' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=120)
