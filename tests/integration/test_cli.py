@@ -24,6 +24,18 @@ def test_plugins_json_lists_kind_name_provider_params(capsys):
     assert "nlos_cfar" in capsys.readouterr().out
 
 
+def test_plugins_kind_filters_the_listing(capsys):
+    assert main(["plugins", "--kind", "tracker", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows and {r["kind"] for r in rows} == {"tracker"}
+    assert main(["plugins", "--kind", "tracker", "--kind", "wall_estimator"]) == 0
+    heads = [line.split()[0] for line in capsys.readouterr().out.splitlines() if not line.startswith(" ")]
+    assert set(heads) == {"tracker", "wall_estimator"} and heads.index("wall_estimator") < heads.index("tracker")
+    with pytest.raises(SystemExit) as exc:
+        main(["plugins", "--kind", "trackers"])
+    assert exc.value.code == 2 and "invalid choice: 'trackers'" in capsys.readouterr().err
+
+
 def test_every_forward_model_parameter_is_described_and_printed(capsys):
     from xnlos_core.registry import get_registry
 

@@ -53,6 +53,7 @@ COMMANDS = {
     "train": (["train", "{config}"], "train", "--out"),
     "simulate": (["simulate", "{config}", "--max-maps", "1"], "simulate", "--out"),
     "emulate": (["emulate", "--config", "{config}", "--frames", "1"], "pipeline", "--record"),
+    "new-plugin": (["new-plugin", "detector", "my_detector"], None, "--out"),
 }
 SHIPPED = {"pipeline": CONFIGS / "pipelines" / "corner.toml", "train": CONFIGS / "training" / "tiny.toml",
            "simulate": CONFIGS / "datasets" / "smoke.toml", "crossmodal": CONFIGS / "ablations" / "crossmodal.toml"}

@@ -1,11 +1,18 @@
-"""Every registered plugin passes the conformance kit a third-party author would run."""
+"""Every registered plugin passes the conformance kit a third-party author would run; the kit takes a
+registered name, a class or a plugin module, reports each check, and runs as parametrised pytest tests."""
+import subprocess
+import sys
+import types
+
 import numpy as np
 import pytest
+from pydantic import BaseModel, ConfigDict, Field
 
-from xnlos_core import Backend, Detector, Detections, InputError
+from xnlos_core import UNCLASSIFIED, Backend, Detector, Detections, InputError, PluginError, Tracker, Tracks, hookimpl
 from xnlos_core.io import save_frame
 from xnlos_core.registry import get_registry
-from xnlos_core.testing import check_backend, check_component, check_detector, small_radar, synthetic_frame
+from xnlos_core.testing import (check_backend, check_component, check_detector, parametrize_with_checks, small_radar,
+                                synthetic_frame)
 from xnlos_core.types import Frame, RAMap
 
 pytestmark = pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchWarning")  # toy maps, not the models' grid
@@ -97,3 +104,128 @@ def test_kit_demands_the_max_frames_check():
         check_backend(Unchecked([synthetic_frame()]))
     with pytest.raises(InputError, match=r"_ListBackend.frames: max_frames must be None or an integer ≥ 0, got 1.5"):
         list(_ListBackend([]).frames(1.5))
+
+
+class _Peaks(Detector):
+    """The strongest cell of the map, class-agnostic (a minimal detector for the kit's own tests)."""
+
+    classifies = False
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        min_power: float = Field(1.0, gt=0, description="weakest peak power reported [-]")
+
+    def detect(self, frame):
+        self.check_frame(frame)
+        power = frame.ra_map.power
+        i, j = np.unravel_index(np.argmax(power), power.shape)
+        if power[i, j] < self.params.min_power:
+            return Detections.empty()
+        ra = frame.ra_map
+        return Detections([ra.range_axis[i]], [ra.azimuth_axis[j]], [UNCLASSIFIED], [1.0])
+
+
+def _plugin_module(*components):
+    """A plugin module registering (kind, name, class) components through the hook."""
+    module = types.ModuleType("kit_test_plugin")
+
+    @hookimpl
+    def xnlos_register_components(registry):
+        for kind, name, cls in components:
+            registry.add(kind, name, cls)
+
+    module.xnlos_register_components = xnlos_register_components
+    return module
+
+
+def test_check_component_takes_a_class_or_a_plugin_module_and_reports_each_check(capsys):
+    by_class = check_component("detector", _Peaks, {"min_power": 2.0})
+    assert by_class.passed == ["detector:_Peaks(min_power=2.0)::is a Detector", "detector:_Peaks(min_power=2.0)::params",
+                               "detector:_Peaks(min_power=2.0)::detector contract"]
+    assert check_component(_Peaks, {"min_power": 2.0}).passed == by_class.passed  # the kind from the class
+    contract = by_class.results[2]
+    assert "finds a 35 dB target within 2 m" in contract.steps and "the same detections twice" in contract.steps
+    text = str(by_class).splitlines()
+    assert text[0] == "detector:_Peaks(min_power=2.0): 3 checks passed"
+    assert text[2].startswith("  PASSED params: a strict Params model")
+    assert capsys.readouterr().out == ""  # quiet unless asked
+
+    report = check_component(_plugin_module(("detector", "peaks", _Peaks)), verbose=True)
+    assert [r.component for r in report] == ["detector:peaks"] * 3
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] == f"detector:peaks ({__name__}._Peaks)" and printed[1:] == [f"  {r}" for r in report]
+
+
+def test_check_component_names_what_is_broken():
+    class NotADetector(Tracker):
+        def update(self, points, timestamp):
+            raise AssertionError("never called")
+
+    with pytest.raises(AssertionError, match="NotADetector: is not a xnlos_core.Detector subclass"):
+        check_component("detector", NotADetector)
+
+    class Loose(_Peaks):
+        class Params(BaseModel):
+            min_power: float = 1.0
+
+    with pytest.raises(AssertionError, match="Loose: Params must set model_config = ConfigDict"):
+        check_component(Loose)
+
+    class Listy(_Peaks):
+        def detect(self, frame):
+            return []
+
+    with pytest.raises(AssertionError, match="Listy: detect\\(\\) returned list, not Detections"):
+        check_component(Listy)
+    with pytest.raises(AssertionError, match="kit_test_plugin: xnlos_register_components registered no component"):
+        check_component(_plugin_module())
+    with pytest.raises(TypeError, match="a plugin module"):
+        check_component(42)
+    with pytest.raises(PluginError, match="did you mean 'cfar'"):
+        check_component("detector", "cfra")
+
+
+def test_parametrize_with_checks_makes_one_test_per_component_and_check():
+    mark = parametrize_with_checks([("detector", _Peaks), ("detector", "cfar", {"pfa": 1e-4}),
+                                    _plugin_module(("detector", "peaks", _Peaks), ("tracker", "kit_nearest", _Still))])
+    argnames, pairs = mark.args
+    ids = mark.kwargs["ids"]
+    assert argnames == "component, check" and len(pairs) == len(ids) == 12
+    assert ids[:4] == ["detector:_Peaks-is_a_Detector", "detector:_Peaks-params", "detector:_Peaks-detector_contract",
+                       "detector:cfar(pfa=0.0001)-is_a_Detector"]
+    assert ids[-1] == "tracker:kit_nearest-tracker_contract"
+    for component, check in pairs[:3] + pairs[-3:]:  # each pair runs on its own, a fresh instance each
+        assert check(component).check == check.name
+    component, check = pairs[-1]
+    with pytest.raises(AssertionError, match="_Still: one moving point produced track ids"):
+        _Still.jumpy = True
+        try:
+            check(component)
+        finally:
+            _Still.jumpy = False
+
+
+class _Still(Tracker):
+    """One track per frame for each point, ids counting up when ``jumpy`` (a broken tracker)."""
+
+    jumpy = False
+
+    def reset(self):
+        self.n = 0
+
+    def update(self, points, timestamp):
+        self.n += 1
+        ids = np.arange(len(points)) + (self.n if self.jumpy else 0)
+        return Tracks(ids, points.mean, np.zeros_like(points.mean), points.mean, timestamp)
+
+
+@parametrize_with_checks([("detector", _Peaks, {"min_power": 2.0}), _plugin_module(("tracker", "kit_still", _Still))])
+def test_the_kit_as_pytest_tests(component, check):
+    result = check(component)
+    assert result.component == component.id and result.steps
+
+
+def test_the_kit_imports_pytest_only_where_its_marks_are_asked_for():
+    code = ("import sys, xnlos_core.testing as kit; assert 'pytest' not in sys.modules; "
+            "kit.parametrize_with_checks([]); assert 'pytest' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=120)

@@ -2,9 +2,10 @@
 order, in one namespace per page, in a temporary working directory holding a copy of the project's
 configs/ (so a page reads as if run from a checkout); and the site builds with ``mkdocs build --strict``.
 
-A fenced block preceded by ``<!-- file: NAME -->`` is also written to NAME in that directory before the
-page's blocks run (e.g. the TOML a recipe reads). Blocks fenced ```py are shown, not run (a plugin
-package's layout that cannot run on its own)."""
+A fenced block preceded by ``<!-- file: NAME -->`` is also written to NAME (a relative path, e.g.
+``mypkg/__init__.py``) in that directory before the page's blocks run (e.g. the TOML a recipe reads, or a
+plugin module the page imports: the directory is on ``sys.path`` while the page runs). Blocks fenced
+```py are shown, not run (a file that cannot run on its own)."""
 from __future__ import annotations
 
 import importlib.util
@@ -23,7 +24,7 @@ DOCS = ROOT / "docs"
 PAGES = sorted(p.relative_to(ROOT).as_posix() for p in DOCS.rglob("*.md")) + ["README.md"]
 
 FENCE = re.compile(r"^```(?P<lang>[\w+-]*)[^\n]*\n(?P<body>.*?)^```[ \t]*$", re.M | re.S)
-FILE_MARK = re.compile(r"<!--\s*file:\s*(?P<name>[\w.-]+)\s*-->\s*\n```")
+FILE_MARK = re.compile(r"<!--\s*file:\s*(?P<name>[\w.-]+(?:/[\w.-]+)*)\s*-->\s*\n```")
 
 
 def blocks(text: str) -> list[tuple[int, str, str]]:
@@ -59,8 +60,10 @@ def test_page_examples_run(page, tmp_path, monkeypatch):
     code = python_blocks(page)
     shutil.copytree(ROOT / "configs", tmp_path / "configs")
     for name, content in files(text).items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text(content, encoding="utf-8")
     monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setenv("MPLBACKEND", "Agg")
     namespace = {"__name__": "__docs__"}
     try:
@@ -73,6 +76,9 @@ def test_page_examples_run(page, tmp_path, monkeypatch):
     finally:
         if "matplotlib.pyplot" in sys.modules:
             sys.modules["matplotlib.pyplot"].close("all")
+        for name, module in list(sys.modules.items()):  # the page's own modules are forgotten with its directory
+            if Path(getattr(module, "__file__", None) or "/").is_relative_to(tmp_path):
+                del sys.modules[name]
 
 
 def test_readme_links_point_at_files_that_exist():

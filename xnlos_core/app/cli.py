@@ -15,6 +15,7 @@ from pathlib import Path
 from xnlos_core import __version__
 from xnlos_core.errors import ConfigError, PluginError, XnlosError, XnlosWarning
 from xnlos_core.files import ROOTS_ENV, os_reason
+from xnlos_core.interfaces import KINDS
 
 DEMO_CONFIG = Path(__file__).resolve().parents[1] / "defaults" / "demo.toml"  # xnlos_core/defaults
 OWN_MODULES = r"(xnlos_core|sims|plugins|estimators|hardware)(\.|$)"  # warnings that -q keeps
@@ -138,7 +139,7 @@ def _cmd_check(args) -> int:
 def _cmd_plugins(args) -> int:
     from xnlos_core.registry import get_registry
 
-    comps = get_registry().components()
+    comps = [c for c in get_registry().components() if not args.kind or c.kind in args.kind]
     rows = [{"kind": c.kind, "name": c.name, "provider": c.provider, "description": c.description,
              "parameters": c.parameters()} for c in comps]
     if args.json:
@@ -221,7 +222,13 @@ def build_parser(manager=None) -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plugins", help="list registered plugins: kind, name, distribution, parameters")
     pl.add_argument("--json", action="store_true")
+    pl.add_argument("--kind", action="append", choices=KINDS, metavar="KIND",
+                    help=f"only plugins of this kind (repeatable): {', '.join(KINDS)}")
     pl.set_defaults(func=_cmd_plugins)
+
+    from xnlos_core.app.new_plugin import add_command as add_new_plugin
+
+    add_new_plugin(sub)
 
     from xnlos_core.app.crossmodal.study import add_command as add_crossmodal
 

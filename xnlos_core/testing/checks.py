@@ -1,75 +1,48 @@
-"""Conformance kit: checks a plugin author runs against a new component (cf. sklearn's
-``check_estimator``). Each ``check_*`` raises AssertionError naming the broken contract.
+"""The conformance checks, one per kind (``check_<kind>``, :data:`CHECKS`), and :func:`check_params`.
 
-    from xnlos_core.testing import check_component
-    check_component("detector", "my_detector")            # via the registry
-    check_detector(MyDetector())                           # or on an instance
+Each takes a component instance and raises AssertionError naming the broken contract; each part of a
+check that held is recorded with :func:`passed`, so that :func:`~xnlos_core.testing.check_component`
+can say what was checked.
 """
 from __future__ import annotations
 
-import copy
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, InputError, InsufficientDataError
-from .frame_record import wall_record
-from .geometry import cartesian_to_polar, line_from_points, mirror_reflect
-from .interfaces import (BASES, Backend, Detector, ForwardModel, NLOSSolver, Reconstructor, SceneGenerator,
-                         Tracker, WallEstimator)
-from .radar import RadarConfig
-from .types import (LOS, MNLOS, Detections, Frame, GroundTruth, HiddenPoints, RAMap, Tracks,
-                    WallPosterior, WallSegment)
+from ..errors import ConfigError, InputError, InsufficientDataError
+from ..frame_record import wall_record
+from ..geometry import line_from_points, mirror_reflect
+from ..interfaces import (BASES, Backend, Detector, ForwardModel, NLOSSolver, Reconstructor, SceneGenerator,
+                          Tracker, WallEstimator)
+from ..radar import RadarConfig
+from ..types import LOS, MNLOS, Detections, Frame, HiddenPoints, RAMap, Tracks, WallPosterior
+from .frames import KIT_WALL, kit_transient, small_radar, synthetic_frame
 
-KIT_WALL = WallSegment(np.array([15.0, 10.0]), np.array([35.0, -10.0]), "kit_wall")
-KIT_HIDDEN = np.array([[22.0, -14.0]])
-
-
-def small_radar(**overrides) -> RadarConfig:
-    """A small, fast radar (60 m, 61 azimuth bins) for conformance checks."""
-    kw = dict(n_samples=256, max_range=60.0, n_azimuth_bins=61)
-    kw.update(overrides)
-    return RadarConfig(**kw)
+_STEPS: ContextVar[list[str] | None] = ContextVar("xnlos_check_steps", default=None)
 
 
-def small_pipeline_table(**overrides) -> dict[str, Any]:
-    """A fast pipeline config table (the parsed-TOML dict ``parse_pipeline`` takes) on the built-in
-    corner scene: 256 samples to 60 m, 121 azimuth bins (1°), one frame, no figure, seed 5, stages
-    image → nlos_cfar → lsq → mirror. Each keyword replaces one top-level key (deep-copied), e.g.
-    ``small_pipeline_table(detector={"name": "my_detector"})`` runs a new detector end to end."""
-    table: dict[str, Any] = {
-        "name": "small", "seed": 5, "radar": {"n_samples": 256, "max_range": 60.0, "n_azimuth_bins": 121},
-        "scene": {"builtin": "corner"}, "forward_model": {"name": "image"}, "detector": {"name": "nlos_cfar"},
-        "wall_estimator": {"name": "lsq"}, "reconstructor": {"name": "mirror"},
-        "run": {"frames": 1, "figure": False},
-    }
-    table.update(copy.deepcopy(overrides))
-    return table
+def passed(step: str) -> None:
+    """Record that one part of a check held (listed in :func:`~xnlos_core.testing.check_component`'s
+    report); outside :func:`record_steps` nothing is recorded."""
+    steps = _STEPS.get()
+    if steps is not None:
+        steps.append(step)
 
 
-def synthetic_frame(radar: RadarConfig | None = None, seed: int = 0, snr_db: float = 35.0) -> Frame:
-    """A frame with unit-power complex noise, LOS peaks along ``KIT_WALL`` and one mNLOS peak.
-
-    Peaks are separable Gaussians one resolution cell wide (range ΔR, azimuth 2/N_virtual rad);
-    the mNLOS peak is the mirror image of ``KIT_HIDDEN`` across the wall. Ground truth included.
-    """
-    radar = radar or small_radar()
-    rng = np.random.default_rng(seed)
-    r_ax, a_ax = radar.range_axis, radar.azimuth_axis
-    los = KIT_WALL.start + np.linspace(0.15, 0.7, 6)[:, None] * (KIT_WALL.end - KIT_WALL.start)
-    virt = mirror_reflect(KIT_HIDDEN, KIT_WALL.normal, KIT_WALL.offset)
-    pts = np.concatenate([los, virt])
-    rr, aa = cartesian_to_polar(pts)
-    amp = 10 ** (snr_db / 20)
-    sig_r, sig_a = radar.range_resolution, 2.0 / (radar.n_channels)
-    data = (rng.standard_normal((len(r_ax), len(a_ax))) + 1j * rng.standard_normal((len(r_ax), len(a_ax)))) / math.sqrt(2)
-    for r, a in zip(rr, aa):
-        if r <= r_ax[-1] and abs(a) <= a_ax[-1]:
-            blob = np.exp(-0.5 * ((r_ax[:, None] - r) / sig_r) ** 2 - 0.5 * ((a_ax[None, :] - a) / sig_a) ** 2)
-            data += amp * blob * np.exp(2j * np.pi * rng.random())
-    gt = GroundTruth(los, virt, KIT_HIDDEN, np.zeros(1, int), ("kit_object",), (KIT_WALL,))
-    return Frame(RAMap.from_radar(data.astype(np.complex64), radar), 0.0, gt, 0)
+@contextmanager
+def record_steps() -> Iterator[list[str]]:
+    """Collect the parts that :func:`passed` records inside the block, in order, into the list it yields."""
+    steps: list[str] = []
+    token = _STEPS.set(steps)
+    try:
+        yield steps
+    finally:
+        _STEPS.reset(token)
 
 
 def _assert(cond: bool, who: Any, msg: str) -> None:
@@ -83,14 +56,17 @@ def check_params(plugin) -> None:
     _assert(hasattr(cls, "Params"), plugin, "has no Params model")
     _assert(cls.Params.model_config.get("extra") == "forbid", plugin,
             "Params must set model_config = ConfigDict(extra='forbid') so misspelt keys fail")
+    passed("a strict Params model (extra='forbid')")
     clone = cls(cls.Params(**plugin.get_params()))
     _assert(clone.get_params() == plugin.get_params(), plugin, "get_params() does not round-trip")
+    passed("get_params() round-trips into an equal clone")
     try:
         cls({**plugin.get_params(), "__no_such_key__": 1})
     except ConfigError:
         pass
     else:
         raise AssertionError(f"{cls.__name__}: an unknown parameter key was accepted")
+    passed("an unknown key is a ConfigError")
 
 
 def _same(a: Detections, b: Detections) -> bool:
@@ -107,13 +83,16 @@ def check_detector(detector: Detector, radar: RadarConfig | None = None) -> None
     det = detector.detect(frame)
     _assert(isinstance(det, Detections), detector, f"detect() returned {type(det).__name__}, not Detections")
     _assert(np.array_equal(before, frame.ra_map.data), detector, "detect() modified the RA map in place")
+    passed("returns Detections, the RA map untouched")
     ra = frame.ra_map
     if len(det):
         _assert(det.range.min() >= ra.range_axis[0] - 1e-9 and det.range.max() <= ra.range_axis[-1] + 1e-9,
                 detector, "detections outside the map's range axis")
         _assert(np.abs(det.azimuth).max() <= np.abs(ra.azimuth_axis).max() + 1e-9, detector,
                 "detections outside the map's azimuth axis")
+    passed("detections inside the map's axes")
     _assert(_same(det, detector.detect(frame)), detector, "two calls on the same frame differ")
+    passed("the same detections twice")
     gt = frame.ground_truth
     truth = np.concatenate([gt.los_points, gt.mnlos_points])
     if len(det):
@@ -122,12 +101,14 @@ def check_detector(detector: Detector, radar: RadarConfig | None = None) -> None
     else:
         hit = 0
     _assert(hit > 0, detector, "no detection within 2 m of any 35 dB synthetic target")
+    passed("finds a 35 dB target within 2 m")
     odd = small_radar(n_samples=128, max_range=30.0, n_azimuth_bins=33)
     det2 = detector.detect(synthetic_frame(odd, seed=1))
     _assert(isinstance(det2, Detections), detector, "failed on a 121×33 map")
     zero = Frame(RAMap.from_radar(np.zeros((odd.n_range_bins, odd.n_azimuth_bins), np.complex64), odd))
     det3 = detector.detect(zero)
     _assert(isinstance(det3, Detections), detector, "failed on an all-zero map")
+    passed("copes with a 121×33 map and an all-zero map")
 
 
 def _line_detections(points: np.ndarray, label: int) -> Detections:
@@ -151,12 +132,14 @@ def check_wall_estimator(estimator: WallEstimator) -> None:
     walls = estimator.estimate(Detections.concat(det, mn))
     _assert(isinstance(walls, list) and walls and all(isinstance(w, WallPosterior) for w in walls), estimator,
             "estimate() must return a non-empty list of WallPosterior")
+    passed("returns a list of WallPosterior")
     w = walls[0]
     n_true, b_true = KIT_WALL.normal, KIT_WALL.offset
     if w.model == "line":
         ang = math.degrees(math.acos(min(1.0, abs(float(w.normal @ n_true)))))
         _assert(ang < 2.0 and abs(w.offset - b_true) < 0.3, estimator,
                 f"wall off by {ang:.2f}° / {abs(w.offset - b_true):.2f} m (allowed 2°, 0.3 m)")
+        passed(f"the wall within 2° and 0.3 m ({ang:.2f}°, {abs(w.offset - b_true):.2f} m), mNLOS rows ignored")
     for few in (Detections.empty(), _line_detections(pts[:1], LOS), mn):
         estimator.reset()
         try:
@@ -165,6 +148,7 @@ def check_wall_estimator(estimator: WallEstimator) -> None:
             continue
         raise AssertionError(f"{type(estimator).__name__}: {len(few)} detections with < 2 LOS did not raise "
                              "InsufficientDataError")
+    passed("InsufficientDataError below 2 LOS points")
     estimator.reset()
     if estimator.carries_state:
         frames = [Detections.concat(_line_detections(pts[k::3] + rng.normal(0, 0.05, pts[k::3].shape), LOS), mn)
@@ -188,12 +172,14 @@ def check_frame_state(stage, step, n: int = 6) -> list:
             state = json.dumps(stage.state())
     stage.reset()
     _assert(json.dumps(step(0)) == outs[0], stage, "after reset() frame 0 gave another output than at first")
+    passed("reset() forgets earlier frames")
     stage.reset()
     if state is not None:
         stage.load_state(json.loads(state))
         for k in range(3, n):
             _assert(json.dumps(step(k)) == outs[k], stage,
                     f"after load_state(state()) frame {k} gave another output than the uninterrupted run")
+        passed("load_state(state()) resumes the uninterrupted outputs")
         stage.reset()
     return [json.loads(o) for o in outs]
 
@@ -213,16 +199,20 @@ def check_reconstructor(reconstructor: Reconstructor, atol: float = 0.5) -> None
     _assert(isinstance(out, HiddenPoints), reconstructor, "reconstruct() must return HiddenPoints")
     _assert(len(out) == 3 and set(out.source_index.tolist()) == {4, 5, 6}, reconstructor,
             f"expected 3 points from detections 4, 5, 6; got sources {out.source_index.tolist()}")
+    passed("one hidden point per mNLOS detection, indexed by it")
     err = np.linalg.norm(out.mean - hidden[out.source_index - 4], axis=1).max()
     _assert(err < atol, reconstructor, f"hidden points off by up to {err:.3f} m (allowed {atol})")
+    passed(f"mirrored across the wall within {atol} m (off by {err:.3f} m)")
     _assert(np.all(np.linalg.eigvalsh(out.cov) > -1e-9), reconstructor, "covariances are not PSD")
+    passed("PSD covariances")
     none = reconstructor.reconstruct(a, [wall])
     _assert(len(none) == 0, reconstructor, "LOS-only detections must give no hidden points")
+    passed("no hidden points from LOS rows")
 
 
 def check_forward_model(model: ForwardModel, scene=None, radar: RadarConfig | None = None) -> None:
     """Returns a Frame of the radar's shape with ground truth; same seed → same map."""
-    from .scene import load_scene
+    from ..scene import load_scene
 
     _assert(isinstance(model, ForwardModel), model, "is not a xnlos_core.ForwardModel")
     scene = scene or load_scene({"builtin": "corner"}, "conformance")
@@ -233,8 +223,10 @@ def check_forward_model(model: ForwardModel, scene=None, radar: RadarConfig | No
             f"RA map shape {f1.ra_map.shape} ≠ radar grid {(radar.n_range_bins, radar.n_azimuth_bins)}")
     _assert(f1.ground_truth is not None, model, "simulated frames must carry ground truth")
     _assert(f1.timestamp == 0.5 and f1.index == 2, model, "timestamp/index not passed through")
+    passed("a Frame on the radar's grid with ground truth, timestamp and index")
     f2 = model.simulate(scene, radar, np.random.default_rng(3), timestamp=0.5, index=2)
     _assert(np.array_equal(f1.ra_map.data, f2.ra_map.data), model, "same seed gave different RA maps")
+    passed("the same seed gives the same RA map")
 
 
 def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
@@ -256,12 +248,14 @@ def check_backend(backend: Backend, radar: RadarConfig | None = None) -> None:
                 f"grid {grid} (n_range_bins × n_azimuth_bins)")
     ts = [f.timestamp for f in frames]
     _assert(ts == sorted(ts), backend, "frames out of time order")
+    passed("frames(2) yields 1–2 Frames on their radar's grid, in time order")
     try:
         list(backend.frames(-1))
     except InputError:
         pass
     else:
         raise AssertionError(f"{type(backend).__name__}: frames(-1) did not raise InputError")
+    passed("frames(-1) is an InputError")
 
 
 def check_tracker(tracker: Tracker) -> None:
@@ -279,6 +273,7 @@ def check_tracker(tracker: Tracker) -> None:
     outs = check_frame_state(tracker, step, 6)
     ids = {i for out in outs for i in out["track_id"]}
     _assert(len(ids) == 1, tracker, f"one moving point produced track ids {sorted(ids)}")
+    passed("one track id for one point moving at constant velocity")
 
 
 def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:
@@ -286,7 +281,7 @@ def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:
     RNGs (numpy's and ``random``'s) are neither drawn from nor changed (so nothing else can feed it)."""
     import random
 
-    from .scene import Scene
+    from ..scene import Scene
 
     _assert(isinstance(generator, SceneGenerator), generator, "is not a xnlos_core.SceneGenerator")
     np_state, py_state = np.random.get_state(), random.getstate()
@@ -294,34 +289,19 @@ def check_scene_generator(generator: SceneGenerator, seed: int = 3) -> None:
     _assert(isinstance(first, Scene), generator, f"generate() must return a Scene, got {type(first).__name__}")
     _assert(_same_state(np_state, np.random.get_state()) and py_state == random.getstate(), generator,
             "generate() drew from a global RNG; draw from numpy.random.default_rng(seed) only")
+    passed("a Scene, no global RNG touched")
     again = generator.generate(seed)
     _assert(again.model_dump(mode="json") == first.model_dump(mode="json"), generator,
             f"seed {seed} gave two different scenes")
-
-
-def kit_transient(points, n: int = 16, n_bins: int = 128, wall: float = 1.0, max_depth: float = 1.0):
-    """A confocal TransientVolume (n_bins, n, n) of hidden points (x, y, z) [m] (z > 0 the depth):
-    scan point (x_j, y_i) counts 1/r⁴ at round-trip bin rint(2r/(c·Δt)), r = √((x − x_j)² + (y − y_i)² + z²);
-    Δt chosen so the bins reach depth ``max_depth`` [m]."""
-    from .transient import SPEED_OF_LIGHT, TransientVolume
-
-    bw = 2 * max_depth / SPEED_OF_LIGHT / n_bins
-    x = (np.arange(n) - (n - 1) / 2) * (wall / n)
-    data = np.zeros((n_bins, n, n))
-    for px, py, pz in points:
-        r = np.sqrt((x[None, :] - px) ** 2 + (x[:, None] - py) ** 2 + pz ** 2)
-        k = np.rint(2 * r / SPEED_OF_LIGHT / bw).astype(int)
-        i, j = np.nonzero(k < n_bins)
-        np.add.at(data, (k[i, j], i, j), r[i, j] ** -4.0)
-    return TransientVolume(data, bw, wall, wall)
+    passed("the same seed gives the same scene")
 
 
 def check_nlos_solver(solver: NLOSSolver) -> None:
     """Reconstructs a hidden point within one depth bin and one scan cell of where it is, returns an
     NLOSVolume on the input's grid (depth z_k = c·t_k/2), the same twice, and refuses a volume without
     counts with InputError."""
-    from .nlos_volume import NLOSVolume
-    from .transient import TransientVolume
+    from ..nlos_volume import NLOSVolume
+    from ..transient import TransientVolume
 
     _assert(isinstance(solver, NLOSSolver), solver, "is not a xnlos_core.interfaces.NLOSSolver")
     vol = kit_transient([(0.125, -0.0625, 0.5)])
@@ -333,6 +313,7 @@ def check_nlos_solver(solver: NLOSSolver) -> None:
     _assert(abs(z - 0.5) <= dz + 1e-9 and abs(y + 0.0625) <= cell + 1e-9 and abs(x - 0.125) <= cell + 1e-9, solver,
             f"a point at (z, y, x) = (0.5, -0.0625, 0.125) m came back at ({z:.4f}, {y:.4f}, {x:.4f}) m "
             f"(tolerance one bin {dz:.4f} m, one cell {cell:.4f} m)")
+    passed("a hidden point within one depth bin and one scan cell")
     _assert(np.array_equal(solver.reconstruct(vol).albedo, out.albedo), solver, "two runs on one volume differ")
     try:
         solver.reconstruct(TransientVolume(np.zeros(vol.shape), vol.bin_width, 1.0, 1.0))
@@ -340,14 +321,15 @@ def check_nlos_solver(solver: NLOSSolver) -> None:
         pass
     else:
         _assert(False, solver, "an all-zero volume must raise InputError")
+    passed("the same volume twice; an all-zero volume is an InputError")
 
 
 def check_transient_model(model) -> None:
     """Scans a scene with one box in front of its relay wall: a TransientVolume with counts, the same
     for one seed, hidden-surface truth points (P, 3) with z > 0 (in front of the wall)."""
-    from .interfaces import TransientModel
-    from .scene import ObjectSpec, Scene, WallSpec
-    from .transient import TransientVolume
+    from ..interfaces import TransientModel
+    from ..scene import ObjectSpec, Scene, WallSpec
+    from ..transient import TransientVolume
 
     _assert(isinstance(model, TransientModel), model, "is not a xnlos_core.interfaces.TransientModel")
     scene = Scene(name="kit", walls=[WallSpec(name="relay", start=(5.0, 5.0), end=(5.0, -5.0))],
@@ -355,9 +337,11 @@ def check_transient_model(model) -> None:
     vol = model.simulate(scene, 3)
     _assert(isinstance(vol, TransientVolume), model, f"simulate() must return a TransientVolume, got {type(vol).__name__}")
     _assert(np.array_equal(model.simulate(scene, 3).data, vol.data), model, "two scans with one seed differ")
+    passed("a TransientVolume, the same for one seed")
     pts = np.asarray(model.truth(scene))
     _assert(pts.ndim == 2 and pts.shape[1] == 3 and len(pts) > 0, model, f"truth() must be (P, 3), got {pts.shape}")
     _assert(bool(np.all(pts[:, 2] > 0)), model, "truth points of an object in front of the wall must have z > 0")
+    passed("truth points (P, 3) in front of the wall")
 
 
 def _same_state(a, b) -> bool:
@@ -366,14 +350,3 @@ def _same_state(a, b) -> bool:
 
 # kind → its check, named check_<kind> after the kinds of xnlos_core.interfaces.BASES.
 CHECKS = {kind: globals()[f"check_{kind}"] for kind in BASES}
-
-
-def check_component(kind: str, name: str, params: dict | None = None, registry=None) -> None:
-    """Create ``name`` of ``kind`` from the registry and run its kind's checks and check_params."""
-    from .registry import get_registry
-
-    registry = registry or get_registry()
-    plugin = registry.create(kind, name, params or {}, source=f"check_component({kind!r}, {name!r})")
-    _assert(isinstance(plugin, BASES[kind]), plugin, f"is not a {BASES[kind].__name__}")
-    check_params(plugin)
-    CHECKS[kind](plugin)
