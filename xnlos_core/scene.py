@@ -325,13 +325,17 @@ def builtin_scenes() -> list[str]:
 FAMILY_KEYS = ("family", "seed", "overrides")
 
 
-def generated_scene(table: dict, source: str, base_dir: str | Path, registry=None) -> Scene:
+def generated_scene(table: dict, source: str, base_dir: str | Path, registry=None,
+                    root_dir: str | Path | None = None) -> Scene:
     """The scene of ``[scene] family = NAME``: the registered scene generator ``NAME`` (kind
     ``scene_generator``, e.g. ``t_junction``) with ``overrides`` (its ``Params``, validated and named
     ``scene.overrides.KEY`` in errors) draws one scene from ``seed`` (default 0).
     ``registry``: where the generator is looked up (:class:`xnlos_core.registry.Registry`, e.g.
-    the pipeline's); required."""
+    the pipeline's); required. Path parameters of the generator (:data:`xnlos_core.param_paths.ConfigPath`,
+    e.g. the ``osm`` generator's ``map``) are relative to ``base_dir`` and bounded by the config roots
+    of ``root_dir`` (default ``base_dir``)."""
     from .errors import ConfigError, PluginError
+    from .param_paths import PathContext
     from .validation import validate_model
 
     extra = sorted(set(table) - set(FAMILY_KEYS))
@@ -353,7 +357,9 @@ def generated_scene(table: dict, source: str, base_dir: str | Path, registry=Non
     except PluginError as exc:
         raise ConfigError(f"{source}: [scene.family] {exc}") from None
     model = comp.params_model
-    params = validate_model(model, overrides, source=source, prefix="scene.overrides") if model else None
+    # path parameters (ConfigPath, e.g. a map file) are relative to the config that names them
+    context = PathContext(base_dir, root_dir).validation_context()
+    params = validate_model(model, overrides, source=source, prefix="scene.overrides", context=context) if model else None
     generator = comp.factory(params) if model else comp.factory()
     scene = generator.generate(seed)
     return scene.model_copy(update={"base_dir": str(base_dir),
@@ -386,7 +392,7 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: s
     if "base_dir" in table:  # where meshes are looked up follows from where the scene is written
         raise ConfigError(f"{source}: [scene.base_dir] is set by the loader (the scene file's folder); remove it")
     if "family" in table:
-        scene, src = generated_scene(table, source, base_dir, registry), source
+        scene, src = generated_scene(table, source, base_dir, registry, root_dir), source
     elif "builtin" in table:
         name = table.pop("builtin")
         if not (isinstance(name, str) and BUILTIN_NAME.fullmatch(name) and name in builtin_scenes()):
