@@ -35,6 +35,7 @@ from .motion import MAX_SPEED, ConstantVelocity, MotionState, Trajectory
 from .types import WallSegment
 
 MAX_COORD = 10_000.0  # m: a scene is metres to kilometres around the radar
+MAX_UNDECLARED_EXTENT = 1_000.0  # m: a mesh without a declared unit larger than this is refused as probably mm or cm
 MAX_SCATTERERS = 1_000_000  # per wall or object outline (length / spacing): bounds the forward models' arrays
 # Finite and bounded: 1e308 overflows the image model's squares, 2**31 m walls allocate 64 GiB of scatterers.
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
@@ -261,6 +262,11 @@ class MeshSpec(BaseModel):
     Electromagnetics as for walls: ``material`` for every face, or per-part ``materials``
     (mesh part / material tag name → ITU-R P.2040 material) with ``material`` as the default for
     untagged parts, or the constants ``reflectivity`` / ``backscatter_db``.
+
+    Units: the file's coordinates are in ``unit`` (``"m"``, ``"cm"``, ``"mm"``), then multiplied by
+    ``scale``. Without ``unit`` they are metres, and a mesh whose extent (× scale) exceeds
+    :data:`MAX_UNDECLARED_EXTENT` (a car 4500 units long, a building 20 000) is refused as probably
+    millimetres or centimetres; declare ``unit = "m"`` for a mesh that truly is that large.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -275,6 +281,17 @@ class MeshSpec(BaseModel):
     translation: tuple[Coord, Coord, Coord] = (0.0, 0.0, 0.0)
     yaw: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="rotation about z [rad]")
     scale: float = Field(1.0, gt=0, le=1e4)
+    unit: Literal["m", "cm", "mm"] | None = Field(
+        None, description="length unit of the file's coordinates (STL, OBJ, PLY carry none); None: metres, and a "
+                          "mesh larger than MAX_UNDECLARED_EXTENT is refused as probably millimetres")
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # without a declared unit the dump (scene digests, dataset shards) stays what it was before the key existed
+        out = handler(self)
+        if isinstance(out, dict) and self.unit is None:
+            out.pop("unit", None)
+        return out
 
     @model_validator(mode="after")
     def _em(self):

@@ -14,7 +14,7 @@ reflectivity and backscatter). A tag that cannot be read falls back to the defau
 
 Each footprint edge (outer ring and courtyards) becomes one vertical :class:`~xnlos_core.scene.WallSpec`
 of the building's height and material; :func:`building_meshes` extrudes the footprints to closed
-trimesh prisms (shapely polygons, ``trimesh.creation.extrude_polygon``) in the same frame [m].
+trimesh prisms (:func:`prism`) in the same frame [m].
 """
 from __future__ import annotations
 
@@ -171,10 +171,9 @@ def walls_of(buildings, *, roughness: float = 0.0, spacing: float = 0.25, relay:
 
 def building_meshes(buildings) -> list[tuple["trimesh.Trimesh", str | None, str]]:  # noqa: F821
     """[(mesh, material, building id)]: each footprint extruded from the ground (z = 0) to its
-    height, a closed trimesh in the ego frame [m]; an invalid (self-crossing) outline is repaired
-    with shapely's ``make_valid`` first and its largest polygon extruded."""
+    height, a closed trimesh in the ego frame [m] (:func:`prism`); an invalid (self-crossing) outline
+    is repaired with shapely's ``make_valid`` first and its largest polygon extruded."""
     import shapely
-    import trimesh
     from shapely import Polygon
 
     out = []
@@ -186,5 +185,31 @@ def building_meshes(buildings) -> list[tuple["trimesh.Trimesh", str | None, str]
             if not parts:
                 continue
             poly = max(parts, key=lambda g: g.area)
-        out.append((trimesh.creation.extrude_polygon(poly, b.height), b.material, b.id))
+        out.append((prism(poly, b.height), b.material, b.id))
     return out
+
+
+def prism(poly, height: float) -> "trimesh.Trimesh":  # noqa: F821
+    """The shapely polygon ``poly`` (x, y [m], holes allowed) extruded from z = 0 to ``height`` [m]: a
+    closed trimesh with outward normals. Caps from shapely's constrained Delaunay triangulation (no
+    vertices added), sides one quad (two triangles) per ring edge."""
+    import shapely
+    import trimesh
+
+    poly = shapely.orient_polygons(poly)  # exterior counter-clockwise, holes clockwise
+    tris = np.array([np.asarray(t.exterior.coords)[:3] for t in shapely.constrained_delaunay_triangles(poly).geoms])
+    cross = ((tris[:, 1, 0] - tris[:, 0, 0]) * (tris[:, 2, 1] - tris[:, 0, 1])
+             - (tris[:, 1, 1] - tris[:, 0, 1]) * (tris[:, 2, 0] - tris[:, 0, 0]))
+    tris[cross < 0] = tris[cross < 0][:, ::-1]  # every cap triangle counter-clockwise seen from above
+    rings = [np.asarray(r.coords) for r in (poly.exterior, *poly.interiors)]
+    a = np.concatenate([r[:-1] for r in rings])
+    b = np.concatenate([r[1:] for r in rings])
+    z0, z1 = np.zeros((len(a), 1)), np.full((len(a), 1), height)
+    a0, b0, a1, b1 = np.hstack([a, z0]), np.hstack([b, z0]), np.hstack([a, z1]), np.hstack([b, z1])
+    top = np.concatenate([tris, np.full((len(tris), 3, 1), height)], axis=2)
+    bottom = np.concatenate([tris[:, ::-1], np.zeros((len(tris), 3, 1))], axis=2)
+    sides = np.concatenate([np.stack([a0, b0, b1], axis=1), np.stack([a0, b1, a1], axis=1)])
+    tri = np.concatenate([top, bottom, sides])
+    mesh = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3), process=False)
+    mesh.merge_vertices()
+    return mesh
