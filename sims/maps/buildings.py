@@ -25,11 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from xnlos_core.errors import InputError, XnlosWarning
+from xnlos_core.errors import InputError
 from xnlos_core.scene import MAX_COORD, WallSpec
 
 from .frame import LocalFrame
-from .osm import Footprint
+from .model import MapTagWarning
 
 FOOT = 0.3048  # m
 MAX_HEIGHT = 500.0  # m, WallSpec.height's bound
@@ -44,11 +44,6 @@ OSM_MATERIALS: dict[str, str] = {
 }
 
 _LENGTH = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(m|ft|')?\s*$")
-
-
-class MapTagWarning(XnlosWarning):
-    """A map tag could not be used (a height that is no number, an unknown material, an open way);
-    the default took its place."""
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,8 @@ from xnlos_core.scene import ObjectSpec, Scene
 from ..generators.params import KINDS
 from .buildings import Building, building_meshes, buildings_from_footprints, walls_of
 from .frame import LocalFrame
-from .osm import MapData, read_map
+from .model import MapData
+from .reader import read_map
 
 
 class RadarSite(BaseModel):

@@ -12,7 +12,7 @@ import numpy as np
 
 from xnlos_core.errors import InputError
 
-from .osm import Footprint, MapData, Street
+from .model import Footprint, MapData, Street
 
 
 def _ring(coords, what: str, source: str) -> np.ndarray:

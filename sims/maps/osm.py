@@ -1,11 +1,9 @@
-"""Map files → building footprints and street ways, in WGS84 longitude/latitude [deg].
+"""OpenStreetMap XML → building footprints and street ways, in WGS84 longitude/latitude [deg].
 
-:func:`read_map` reads OpenStreetMap XML (``.osm``, ``.xml``) or GeoJSON (``.geojson``, ``.json``,
-:mod:`.geojson`). Untrusted files are read as data only: at most :data:`MAX_MAP_BYTES`, regular
-files only (:func:`xnlos_core.files.read_file_bytes`); an XML document with a DOCTYPE or ENTITY
-declaration is refused before parsing (no entity expansion, no external resources), so a file
-cannot make the parser fetch anything or blow up memory. Every refusal is an
-:class:`xnlos_core.errors.InputError` naming the file.
+Untrusted data is read as data only (the file's size is bounded by :func:`sims.maps.reader.read_map`):
+an XML document with a DOCTYPE or ENTITY declaration is refused before parsing (no entity
+expansion, no external resources), so a file cannot make the parser fetch anything or blow up
+memory. Every refusal is an :class:`xnlos_core.errors.InputError` naming the file.
 
 OSM XML: ``<node id lat lon>``; a building is a closed ``<way>`` (first node = last, ≥ 3 distinct
 nodes) tagged ``building=*`` (not ``building=no``), or a ``<relation>`` tagged ``type=multipolygon``
@@ -13,7 +11,7 @@ and ``building=*`` whose closed ``outer`` member ways are footprints (its closed
 courtyards of the outer that holds them). Ways tagged ``highway=*`` are kept as streets (road users
 placed by lane). Elements marked ``visible="false"`` or ``action="delete"`` are left out; a building
 way that is not closed or names a node the file lacks (cut at the download's edge) is skipped with a
-:class:`~sims.maps.buildings.MapTagWarning`.
+:class:`~sims.maps.model.MapTagWarning`.
 """
 from __future__ import annotations
 
@@ -21,65 +19,14 @@ import math
 import re
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from xnlos_core.errors import ConfigError, InputError
-from xnlos_core.files import read_file_bytes
+from xnlos_core.errors import InputError
 
-MAX_MAP_BYTES = 64 * 1024 * 1024  # a city district's extract; larger files are refused unread
-OSM_SUFFIXES = (".osm", ".xml")
-GEOJSON_SUFFIXES = (".geojson", ".json")
+from .model import Footprint, MapData, MapTagWarning, Street
+
 _DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
-
-
-@dataclass(frozen=True)
-class Footprint:
-    """One building outline: ``outer`` (N, 2) longitude, latitude [deg], a closed ring (first point =
-    last), ``holes`` the closed inner rings, ``tags`` the map's key → value, ``id`` e.g. ``"way/12"``."""
-
-    id: str
-    outer: np.ndarray
-    tags: dict[str, str] = field(default_factory=dict)
-    holes: tuple[np.ndarray, ...] = ()
-
-
-@dataclass(frozen=True)
-class Street:
-    """A street centre line: ``points`` (N, 2) longitude, latitude [deg] in the way's node order."""
-
-    id: str
-    points: np.ndarray
-    tags: dict[str, str] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class MapData:
-    """What a map file holds: building footprints and streets (by id, e.g. ``"way/7"`` or ``"7"``)."""
-
-    source: str
-    footprints: tuple[Footprint, ...]
-    streets: dict[str, Street] = field(default_factory=dict)
-
-
-def read_map(path: str | Path) -> MapData:
-    """The footprints and streets of the map file ``path`` (format from its suffix, module doc)."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in OSM_SUFFIXES + GEOJSON_SUFFIXES:
-        raise InputError(f"map file {path}: unknown type {suffix or '(none)'!r}; expected OpenStreetMap XML "
-                         f"({', '.join(OSM_SUFFIXES)}) or GeoJSON ({', '.join(GEOJSON_SUFFIXES)})")
-    try:
-        data = read_file_bytes(path, what=f"map file {path}", max_bytes=MAX_MAP_BYTES)
-    except ConfigError as exc:
-        raise InputError(str(exc)) from None
-    if suffix in GEOJSON_SUFFIXES:
-        from .geojson import parse_geojson
-
-        return parse_geojson(data, str(path))
-    return parse_osm(data, str(path))
 
 
 def _root(data: bytes, source: str) -> ET.Element:
@@ -127,8 +74,6 @@ def _nodes(root: ET.Element, source: str) -> dict[str, tuple[float, float]]:
 
 def _ring(refs: list[str], nodes: dict, what: str, source: str) -> np.ndarray | None:
     """(N, 2) closed ring of the node refs, or None (with a warning) when it cannot be one."""
-    from .buildings import MapTagWarning
-
     missing = [r for r in refs if r not in nodes]
     if missing:
         warnings.warn(f"map file {source}: {what} names {len(missing)} node(s) the file lacks (e.g. {missing[0]}; "

@@ -161,9 +161,9 @@ def test_malformed_or_hostile_xml_is_refused_naming_the_file(tmp_path, content, 
 
 
 def test_oversized_and_unknown_map_files_are_refused_unread(tmp_path, monkeypatch):
-    import sims.maps.osm as osm
+    import sims.maps.reader as reader
 
-    monkeypatch.setattr(osm, "MAX_MAP_BYTES", 100)
+    monkeypatch.setattr(reader, "MAX_MAP_BYTES", 100)
     (tmp_path / "big.osm").write_bytes(b"<osm>" + b" " * 200 + b"</osm>")
     with pytest.raises(InputError, match=r"map file .*big.osm is 211 bytes; at most 100 are read"):
         read_map(tmp_path / "big.osm")
