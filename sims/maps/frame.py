@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from pyproj import CRS, Transformer
 
 from xnlos_core.errors import InputError
 
@@ -30,10 +29,12 @@ class LocalFrame:
     lat: float
     lon: float
     heading: float = 0.0
-    _forward: Transformer = field(init=False, repr=False, compare=False)
-    _inverse: Transformer = field(init=False, repr=False, compare=False)
+    _forward: object = field(init=False, repr=False, compare=False)  # pyproj Transformers
+    _inverse: object = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
+        from pyproj import CRS, Transformer  # imported where used: registering the generator stays light
+
         if not (math.isfinite(self.lat) and -89.0 <= self.lat <= 89.0):
             raise InputError(f"radar latitude must be finite and within ±89°, got {self.lat!r}")
         if not (math.isfinite(self.lon) and -180.0 <= self.lon <= 180.0):
