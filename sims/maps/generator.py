@@ -107,7 +107,8 @@ class Params(BaseModel):
     model_config = ConfigDict(extra="forbid")
     map: ConfigPath = Field(..., min_length=1, description="OpenStreetMap XML (.osm) or GeoJSON map file"
                                                           + RELATIVE_TO_CONFIG)
-    radar: RadarSite
+    radar: RadarSite = Field(..., description="{lat, lon} [deg, WGS84] of the radar and the compass heading "
+                                                 "of its boresight [deg clockwise from north]")
     name: str | None = Field(None, description="scene name (default: the map file's stem)")
     default_height: float = Field(10.0, gt=0, le=500, description="height of buildings without height or "
                                                                   "building:levels tags [m]")
