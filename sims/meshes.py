@@ -31,11 +31,12 @@ import trimesh
 
 from xnlos_core.errors import ConfigError, InputError
 from xnlos_core.files import read_file_bytes
-from xnlos_core.scene import MAX_COORD, MeshSpec, Scene
+from xnlos_core.scene import MAX_COORD, MAX_UNDECLARED_EXTENT, MeshSpec, Scene
 
 from .generators import geometry as g
 
 SUPPORTED = {".obj": "obj", ".stl": "stl", ".ply": "ply", ".glb": "glb", ".gltf": "gltf"}
+UNIT_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}  # metres per file unit (MeshSpec.unit)
 RADAR_HEIGHT = 1.0  # m, default mounting height of the radar above ground for the 3-D checks
 
 
@@ -130,10 +131,10 @@ def _read(path: str, mtime_ns: int, size: int) -> tuple[tuple[str, str, trimesh.
 
 
 def _placement(spec: MeshSpec) -> np.ndarray:
-    """(4, 4) homogeneous transform: scale, then yaw about z, then translation."""
+    """(4, 4) homogeneous transform: the unit (file units → m) and scale, then yaw about z, then translation."""
     c, s = math.cos(spec.yaw), math.sin(spec.yaw)
     m = np.eye(4)
-    m[:3, :3] = spec.scale * np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    m[:3, :3] = UNIT_M[spec.unit or "m"] * spec.scale * np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     m[:3, 3] = spec.translation
     return m
 
@@ -233,6 +234,7 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
                  for k in unknown]
         raise InputError(f"mesh {spec.name!r} ({path}): materials names part(s) {', '.join(hints)} that the file "
                          f"does not have; its parts: {', '.join(tags)}{_obj_hint(path, tags)}")
+    check_units(spec, path, [m for _, _, m in parts])
     placement = _placement(spec)
     placed = []
     for tag, _, mesh in parts:
@@ -251,6 +253,25 @@ def load_user_mesh(spec: MeshSpec, base_dir: str | Path = ".", *,
                              "closed surfaces to tell inside from outside. Close the holes (e.g. "
                              "trimesh.repair.fill_holes) or load with require_watertight=False")
     return [(m, _material(spec, tag, path, tags), tag) for (tag, _, _), m in zip(parts, placed)]
+
+
+def check_units(spec: MeshSpec, path: Path, meshes: list[trimesh.Trimesh]) -> None:
+    """InputError when ``spec`` declares no ``unit`` and the mesh (all parts, × scale) is larger than
+    MAX_UNDECLARED_EXTENT [m] on some axis: STL, OBJ and PLY carry no unit, and such a mesh is far more
+    likely millimetres (a 4.5 m car written as 4500) or centimetres than a kilometre-sized object.
+    The message gives its size read as m, cm and mm."""
+    if spec.unit is not None:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = np.concatenate([np.asarray(m.vertices, dtype=np.float64) for m in meshes])
+        extent = float(np.max(np.ptp(v, axis=0))) * spec.scale if len(v) else 0.0
+    if not math.isfinite(extent) or not MAX_UNDECLARED_EXTENT < extent <= 1000 * MAX_COORD:
+        return  # absurd or non-finite vertices (no unit explains them) are refused, by name, in check_coordinates
+    raise InputError(f"mesh {spec.name!r} ({path}) is {extent:.6g} units across (× scale {spec.scale:g}); read as "
+                     f"metres that is {extent / 1000:.3g} km, as centimetres {extent / 100:.4g} m, as millimetres "
+                     f"{extent / 1000:.4g} m. The file looks like millimetres or centimetres (STL, OBJ and PLY carry no "
+                     f"unit): declare unit = \"mm\" or unit = \"cm\" in the mesh's table, or unit = \"m\" if it truly is "
+                     f"larger than {MAX_UNDECLARED_EXTENT:g} m")
 
 
 def check_coordinates(spec: MeshSpec, path: Path, tag: str, raw: trimesh.Trimesh, placed: trimesh.Trimesh) -> None:

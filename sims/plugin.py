@@ -1,4 +1,4 @@
-"""Registers the built-in forward models, scene generators, the ``dataset`` backend and the ``spad``
+"""Registers the built-in forward models, scene generators (the families and ``osm``, a scene from a map file), the ``dataset`` backend and the ``spad``
 transient model (entry point
 ``xnlos-sims`` of group ``xnlos.plugins``)."""
 from xnlos_core import hookimpl
@@ -11,6 +11,7 @@ def xnlos_register_components(registry):
     from .dataset.backend import DatasetBackend
     from .generators.components import COMPONENTS
     from .image import ImageForwardModel
+    from .maps.generator import OsmSceneGenerator
     from .raytrace.model import RaytraceForwardModel
     from .spad.model import SpadTransientModel
 
@@ -18,6 +19,7 @@ def xnlos_register_components(registry):
     registry.add("forward_model", "raytrace", RaytraceForwardModel)
     for name, component in COMPONENTS.items():
         registry.add("scene_generator", name, component)
+    registry.add("scene_generator", "osm", OsmSceneGenerator)
     registry.add("backend", "dataset", DatasetBackend)
     registry.add("transient_model", "spad", SpadTransientModel)
 

@@ -35,6 +35,7 @@ from .motion import MAX_SPEED, ConstantVelocity, MotionState, Trajectory
 from .types import WallSegment
 
 MAX_COORD = 10_000.0  # m: a scene is metres to kilometres around the radar
+MAX_UNDECLARED_EXTENT = 1_000.0  # m: a mesh without a declared unit larger than this is refused as probably mm or cm
 MAX_SCATTERERS = 1_000_000  # per wall or object outline (length / spacing): bounds the forward models' arrays
 # Finite and bounded: 1e308 overflows the image model's squares, 2**31 m walls allocate 64 GiB of scatterers.
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
@@ -261,6 +262,11 @@ class MeshSpec(BaseModel):
     Electromagnetics as for walls: ``material`` for every face, or per-part ``materials``
     (mesh part / material tag name → ITU-R P.2040 material) with ``material`` as the default for
     untagged parts, or the constants ``reflectivity`` / ``backscatter_db``.
+
+    Units: the file's coordinates are in ``unit`` (``"m"``, ``"cm"``, ``"mm"``), then multiplied by
+    ``scale``. Without ``unit`` they are metres, and a mesh whose extent (× scale) exceeds
+    :data:`MAX_UNDECLARED_EXTENT` (a car 4500 units long, a building 20 000) is refused as probably
+    millimetres or centimetres; declare ``unit = "m"`` for a mesh that truly is that large.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -275,6 +281,17 @@ class MeshSpec(BaseModel):
     translation: tuple[Coord, Coord, Coord] = (0.0, 0.0, 0.0)
     yaw: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="rotation about z [rad]")
     scale: float = Field(1.0, gt=0, le=1e4)
+    unit: Literal["m", "cm", "mm"] | None = Field(
+        None, description="length unit of the file's coordinates (STL, OBJ, PLY carry none); None: metres, and a "
+                          "mesh larger than MAX_UNDECLARED_EXTENT is refused as probably millimetres")
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # without a declared unit the dump (scene digests, dataset shards) stays what it was before the key existed
+        out = handler(self)
+        if isinstance(out, dict) and self.unit is None:
+            out.pop("unit", None)
+        return out
 
     @model_validator(mode="after")
     def _em(self):
@@ -325,13 +342,17 @@ def builtin_scenes() -> list[str]:
 FAMILY_KEYS = ("family", "seed", "overrides")
 
 
-def generated_scene(table: dict, source: str, base_dir: str | Path, registry=None) -> Scene:
+def generated_scene(table: dict, source: str, base_dir: str | Path, registry=None,
+                    root_dir: str | Path | None = None) -> Scene:
     """The scene of ``[scene] family = NAME``: the registered scene generator ``NAME`` (kind
     ``scene_generator``, e.g. ``t_junction``) with ``overrides`` (its ``Params``, validated and named
     ``scene.overrides.KEY`` in errors) draws one scene from ``seed`` (default 0).
     ``registry``: where the generator is looked up (:class:`xnlos_core.registry.Registry`, e.g.
-    the pipeline's); required."""
+    the pipeline's); required. Path parameters of the generator (:data:`xnlos_core.param_paths.ConfigPath`,
+    e.g. the ``osm`` generator's ``map``) are relative to ``base_dir`` and bounded by the config roots
+    of ``root_dir`` (default ``base_dir``)."""
     from .errors import ConfigError, PluginError
+    from .param_paths import PathContext
     from .validation import validate_model
 
     extra = sorted(set(table) - set(FAMILY_KEYS))
@@ -353,7 +374,9 @@ def generated_scene(table: dict, source: str, base_dir: str | Path, registry=Non
     except PluginError as exc:
         raise ConfigError(f"{source}: [scene.family] {exc}") from None
     model = comp.params_model
-    params = validate_model(model, overrides, source=source, prefix="scene.overrides") if model else None
+    # path parameters (ConfigPath, e.g. a map file) are relative to the config that names them
+    context = PathContext(base_dir, root_dir).validation_context()
+    params = validate_model(model, overrides, source=source, prefix="scene.overrides", context=context) if model else None
     generator = comp.factory(params) if model else comp.factory()
     scene = generator.generate(seed)
     return scene.model_copy(update={"base_dir": str(base_dir),
@@ -386,7 +409,7 @@ def load_scene(table: dict, source: str, base_dir: str | Path = ".", root_dir: s
     if "base_dir" in table:  # where meshes are looked up follows from where the scene is written
         raise ConfigError(f"{source}: [scene.base_dir] is set by the loader (the scene file's folder); remove it")
     if "family" in table:
-        scene, src = generated_scene(table, source, base_dir, registry), source
+        scene, src = generated_scene(table, source, base_dir, registry, root_dir), source
     elif "builtin" in table:
         name = table.pop("builtin")
         if not (isinstance(name, str) and BUILTIN_NAME.fullmatch(name) and name in builtin_scenes()):

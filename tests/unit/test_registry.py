@@ -74,7 +74,7 @@ def test_disable_autoload_and_allow_list(monkeypatch):
 
     sims_only = PluginManager().registry
     assert sims_only.names("forward_model") == ["image", "raytrace"]
-    assert sims_only.names("scene_generator") == sorted(FAMILIES)
+    assert sims_only.names("scene_generator") == sorted([*FAMILIES, "osm"])  # the families and the map importer
     assert {c.kind for c in sims_only.components()} == {"forward_model", "scene_generator", "backend", "transient_model"}
     assert sims_only.names("backend") == ["dataset"]  # the dataset backend lives with the dataset
     assert sims_only.names("transient_model") == ["spad"]  # the SPAD simulator of the cross-modality study
