@@ -268,21 +268,28 @@ def summarise(cfg: StudyConfig, results: dict[str, dict[float, list]]) -> dict:
         table[r] = {"distances": ds, "detection_f1": det, "reconstruction_f1": rec,
                     "max_range_detection": cs.max_range(ds, det, cfg.threshold),
                     "max_range_reconstruction": cs.max_range(ds, rec, cfg.threshold)}
-    ratio = None
+    # A ratio only from two measured ranges: a range at the sweep's farthest distance (still in range) or
+    # below its nearest (never in range) is a bound of the sweep, not a measurement, and a ratio of
+    # bounds is no number (range_ratio_note says which bound was reached instead).
+    ratio, note = None, None
     ref, base = cfg.reference, cfg.baseline
     if ref in table and base in table:
-        a, b = table[ref]["max_range_reconstruction"], table[base]["max_range_reconstruction"]
-        lo = min(cfg.distances)
-        top = max(cfg.distances)
-        if a is not None and b is not None:  # in range at the farthest distance: a lower bound
-            ratio = {"value": a / b, "bound": "≥" if a == top else "="}
-        elif a is not None:  # the baseline never reached F1 ≥ threshold: its range is below the first distance
-            ratio = {"value": a / lo, "bound": "≥" if a == top else ">"}
-        elif b is not None:
-            ratio = {"value": lo / b, "bound": "<"}
+        lo, top = min(cfg.distances), max(cfg.distances)
+        bounds = []
+        for label in (ref, base):
+            r = table[label]["max_range_reconstruction"]
+            if r is None:
+                bounds.append(f"{label} never reaches F1 ≥ {cfg.threshold:g} (its range is below {lo:g} m)")
+            elif r == top:
+                bounds.append(f"{label} still reconstructs at the farthest distance (its range is above {top:g} m)")
+        if bounds:
+            note = "no range ratio: the sweep's bound was reached: " + "; ".join(bounds)
+        else:
+            ratio = {"value": table[ref]["max_range_reconstruction"] / table[base]["max_range_reconstruction"],
+                     "bound": "="}
     return {"name": cfg.name, "digest": cfg.digest(), "seeds": cfg.seeds, "gate_m": cfg.gate,
             "tolerance_m": cfg.tolerance, "threshold": cfg.threshold, "rows": table,
-            "reference": ref, "baseline": base, "range_ratio": ratio}
+            "reference": ref, "baseline": base, "range_ratio": ratio, "range_ratio_note": note}
 
 
 def render_markdown(cfg: StudyConfig, res: dict, source: str) -> str:
@@ -306,8 +313,9 @@ def render_markdown(cfg: StudyConfig, res: dict, source: str) -> str:
         if t["max_range_reconstruction"] == top:
             lines.append(f"{r} still reconstructs at the farthest distance ({top:g} m): its range is a lower bound.")
     if ratio is not None:
-        bound = "" if ratio["bound"] == "=" else f"{ratio['bound']} "
-        lines.append(f"Reconstruction range ratio {res['reference']} / {res['baseline']}: {bound}{ratio['value']:.1f}")
+        lines.append(f"Reconstruction range ratio {res['reference']} / {res['baseline']}: {ratio['value']:.1f}")
+    elif res.get("range_ratio_note"):
+        lines.append(res["range_ratio_note"][0].upper() + res["range_ratio_note"][1:] + ".")
     return "\n".join(lines) + "\n"
 
 
