@@ -50,7 +50,7 @@ def test_builtin_packages_add_their_commands():
 
 def test_without_plugins_only_the_application_commands_remain():
     cmds = _commands(build_parser(PluginManager(autoload=False)))
-    assert cmds == {"run", "demo", "sweep", "eval", "check", "plugins", "crossmodal"}
+    assert cmds == {"run", "demo", "sweep", "eval", "check", "plugins", "crossmodal", "new-plugin"}
 
 
 def test_a_plugin_adds_a_command_and_main_runs_it(manager):

@@ -3,6 +3,7 @@ registered name, a class or a plugin module, reports each check, and runs as par
 import subprocess
 import sys
 import types
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +20,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::xnlos_core.errors.GridMismatchW
 
 REG = get_registry()
 CASES = [(c.kind, c.name) for c in REG.components() if c.provider.startswith("xnlos ")]
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("kind,name", CASES, ids=[f"{k}:{n}" for k, n in CASES])
@@ -38,6 +41,9 @@ def test_builtin_conforms(kind, name, tmp_path, request):
         params = {"recording": str(make_adc_recording(tmp_path / "adc"))}
     if (kind, name) == ("backend", "dataset"):
         params = {"path": str(request.getfixturevalue("small_dataset")), "split": "all"}
+    if (kind, name) == ("scene_generator", "osm"):
+        params = {"map": str(ROOT / "configs" / "maps" / "intersection.osm"),
+                  "radar": {"lat": 41.393, "lon": 2.161, "heading": 44.0}}
     check_component(kind, name, params)
 
 
