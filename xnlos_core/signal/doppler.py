@@ -184,6 +184,54 @@ def _shift_modulation(n: int) -> np.ndarray:
     return np.exp(-2j * np.pi * m * ((n - n // 2) % n) / n)
 
 
+FOLD_SNR = 20.0  # 13 dB: the Doppler bin's best beam over its noise floor above which its fold is tested
+FOLD_MARGIN = 1.1  # a velocity outside the unambiguous span must beam this much higher than the one inside
+REFINE_SNR = 10.0  # 10 dB: a cell's peak-bin power over its noise floor above which its velocity is refined
+REFINE_HALF = 4  # the refinement's likelihood takes 2·4 + 1 unwindowed Doppler bins around the peak
+NEWTON_STEPS = 4
+
+
+def _fold_hypotheses(radar: RadarConfig, folds: int) -> tuple[np.ndarray, np.ndarray]:
+    """(kappas (F,), hyps (n_chirps, max(F, 2))) int64 for :func:`doppler_ra_maps`' fold test.
+
+    Doppler bin k (velocity v_k, ascending, v_0 = −v_max) stands for every v_k + 2κ·v_max; the test
+    considers the κ whose velocity lies within ±(2·folds + 1)·v_max (bin 0, at −v_max, also gets
+    κ = folds + 1, so the span is symmetric: at folds = 0 it decides between −v_max and +v_max, the
+    unambiguous span's edge), ordered by |velocity| (κ = 0 first) and dropping a κ whose phase
+    exp(−j2π·κ·i/N_tx) on every TX slot i equals an earlier one's (κ ≡ κ' mod N_tx: the array cannot
+    tell them apart). hyps[k] lists the indices into kappas, −1 padded; one hypothesis: no test."""
+    d, n_tdm, vmax = radar.n_chirps, radar.n_tdm, radar.max_unambiguous_velocity
+    per_bin = []
+    for v in radar.velocity_axis:
+        ks = [kk for kk in range(-folds - 1, folds + 2)
+              if abs(v + 2 * kk * vmax) <= (2 * folds + 1) * vmax * (1 + 1e-12)]
+        ks.sort(key=lambda kk: (round(abs(v + 2 * kk * vmax) / vmax, 9), kk != 0))
+        kept, seen = [], set()
+        for kk in ks:
+            if kk % n_tdm not in seen:
+                seen.add(kk % n_tdm)
+                kept.append(kk)
+        per_bin.append(kept)
+    kappas = np.array(sorted({kk for ks in per_bin for kk in ks}), dtype=np.int64)
+    hyps = np.full((d, max(2, max(len(ks) for ks in per_bin))), -1, dtype=np.int64)
+    for k, ks in enumerate(per_bin):
+        hyps[k, :len(ks)] = [int(np.searchsorted(kappas, kk)) for kk in ks]
+    return kappas, hyps
+
+
+def _window_lobes(w: np.ndarray) -> tuple[float, int]:
+    """(peak sidelobe power relative to the main lobe, main-lobe half width in bins, ≥ 1) of the window
+    ``w``'s spectrum, from a 64× zero-padded FFT."""
+    pad = 64
+    spec = np.abs(np.fft.rfft(w, pad * len(w))) ** 2
+    spec /= spec[0]
+    rising = np.flatnonzero(np.diff(spec) > 0)
+    if len(rising) == 0:  # no sidelobes resolved (n ≤ 2)
+        return 0.0, 1
+    first_null = int(rising[0])
+    return float(spec[first_null:].max()), max(1, int(np.floor(first_null / pad + 1e-9)))
+
+
 @dataclass(frozen=True)
 class _DopplerPlan:
     """Everything :func:`doppler_ra_maps` needs that depends only on (radar, window), computed once.
@@ -195,8 +243,9 @@ class _DopplerPlan:
     azimuths the kernel computes and their mirrors (:func:`~xnlos_core.signal.kernels.azimuth_pairs`);
     wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
     N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]; velocity_axis (n_chirps,) [m/s] and
-    consts (6,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
-    for a cube that needs no rescaling). Arrays read-only (shared by calls).
+    consts (13,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
+    for a cube that needs no rescaling); slot (n_channels,) int64: each channel's TX slot; kappas,
+    hyps: :func:`_fold_hypotheses`. Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
@@ -211,12 +260,32 @@ class _DopplerPlan:
     wb: np.ndarray
     velocity_axis: np.ndarray
     consts: np.ndarray
+    slot: np.ndarray
+    kappas: np.ndarray
+    hyps: np.ndarray
+    priors: np.ndarray
     enbw: float
     sigma_cell: float
 
 
+def crlb_velocity(radar: RadarConfig, eta) -> np.ndarray:
+    """Cramér–Rao bound σ_v [m/s] of the radial velocity of one complex tone in complex white Gaussian noise.
+
+    eta: per-chirp SNR η = |a|²/σ² of the slow-time samples (linear, any shape). With N = n_chirps
+    samples every T_s = n_tdm·T_c [s] (``radar.chirp_loop_time``), the frequency bound is (Rife &
+    Boorstyn 1974, complex samples, amplitude and phase unknown)
+
+        var(f̂_D) ≥ 6 / ((2π)²·η·N·(N² − 1)·T_s²)   [Hz²]                                  (V1)
+
+    and v = λ₀·f_D/2 (λ₀ = ``radar.doppler_wavelength``) gives σ_v = λ₀/(4π·T_s)·√(6/(η·N·(N² − 1))).
+    (A real tone's bound has 12 in place of 6: its η counts the power of one of two conjugate lines.)"""
+    d = radar.n_chirps
+    return radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(
+        6.0 / (np.asarray(eta, dtype=np.float64) * d * (d**2 - 1.0)))
+
+
 @functools.lru_cache(maxsize=16)
-def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
+def _doppler_plan(radar: RadarConfig, window: str, folds: int = 1) -> _DopplerPlan:
     from xnlos_core.signal.kernels import azimuth_pairs  # numba: imported with the first Doppler map, not at startup
 
     d = radar.n_chirps
@@ -228,7 +297,12 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
     w32 = weights[:, ipos].astype(np.complex64)
     enbw = d * float((w**2).sum() / w.sum() ** 2)
     sigma_cell = chirp_noise_power(radar) / processing_gain(radar)
-    crb = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(12.0 / (d * (d**2 - 1.0)))
+    crb = float(crlb_velocity(radar, 1.0))
+    psl, lobe = _window_lobes(w)
+    kappas, hyps = _fold_hypotheses(radar, folds)
+    vmax = radar.max_unambiguous_velocity
+    outside = np.abs(radar.velocity_axis[:, None] + 2 * vmax * kappas[hyps]) > vmax * (1 + 1e-9)
+    priors = np.where(outside & (hyps >= 0), 1.0 / FOLD_MARGIN, 1.0)
     arrays = dict(taper=(mod * (w / w.sum())).astype(np.complex128), boxcar=(mod / d).astype(np.complex128),
                   comp_r=np.ascontiguousarray(comp.real), comp_i=np.ascontiguousarray(comp.imag),
                   wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag),
@@ -237,7 +311,10 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
                   wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])),
                   velocity_axis=np.array(radar.velocity_axis, dtype=np.float64),
                   consts=np.array([1.0 / enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
-                                   radar.max_unambiguous_velocity, sigma_cell, crb]))
+                                   radar.max_unambiguous_velocity, sigma_cell, crb, FOLD_SNR, REFINE_SNR,
+                                   2.0 * psl, lobe, min(REFINE_HALF, (d - 1) // 2), radar.n_tdm, NEWTON_STEPS]),
+                  slot=np.repeat(np.arange(radar.n_tdm, dtype=np.int64), radar.n_channels // radar.n_tdm),
+                  kappas=kappas, hyps=hyps, priors=priors)
     for a in arrays.values():
         a.flags.writeable = False
     return _DopplerPlan(**arrays, enbw=enbw, sigma_cell=sigma_cell)
@@ -326,7 +403,8 @@ def measured_cell_noise(spectrum: np.ndarray, radar: RadarConfig, window: str = 
 
 
 def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
-                    workers: int | None = None, noise: Literal["model", "measured"] = "model") -> DopplerRAMaps:
+                    workers: int | None = None, noise: Literal["model", "measured"] = "model",
+                    folds: int = 1) -> DopplerRAMaps:
     """Chirp-sequence cube → :class:`DopplerRAMaps`: :func:`range_doppler`, then beamforming per Doppler bin.
 
     Velocity per cell: the strongest bin k of the windowed spectrum, refined by Candan's
@@ -371,7 +449,10 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     from xnlos_core.signal import kernels as kernels  # numba: imported with the first Doppler map, not at startup
 
     threads = max(1, workers or 1)
-    plan = _doppler_plan(radar, window)
+    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or not 0 <= folds <= 8:
+        raise InputError(f"doppler_ra_maps: folds must be an integer from 0 to 8 (velocity folds tested each side "
+                         f"of the unambiguous span), got {folds!r}")
+    plan = _doppler_plan(radar, window, int(folds))
     work, spec = _work_buffers(radar)
     prof, scale = _range_profiles32(cube, radar, remove_static, threads, work)  # (r, d, k) complex64, scale·cube
     r, d, k = prof.shape
@@ -390,8 +471,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
         kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
-                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, plan.velocity_axis, consts,
-                    power, peak_power, v, v_std)
+                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, plan.velocity_axis, consts, plan.slot,
+                    plan.kappas, plan.hyps, plan.priors, power, peak_power, v, v_std)
     if scale != 1.0:  # back to the cube's own units
         power /= scale2
         peak_power /= scale2
