@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 _LOCK = threading.Lock()
+REACH = 0.3  # [bins] the refinement's farthest move from the three-bin estimate
 MIRROR_RTOL = 1e-12  # mirrored weights taken as conjugates when they differ by less (float32 beams: 6e-8)
 
 if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
@@ -270,7 +271,7 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
     bin m that is a local maximum of rowsum (d,) = Σ_θ|b|² above the window's sidelobes of the range
     bin's strongest bin, and whose best beam max_θ|b|² is above the fold threshold, each hypothesis κ
     of hyps[m] is beamformed over the whole azimuth grid; the highest beam times the hypothesis' prior
-    wins (κ = 0 unless another is higher by more than 1e-9, relatively); it holds for the bins of that
+    wins (κ = 0 unless another is higher by more than 1e-5, relatively); it holds for the bins of that
     peak's main lobe (κ ± 1 across the spectrum's wrap). fold (d,) and known (d,) are written; returns
     whether any fold is not 0."""
     d = rowsum.shape[0]
@@ -306,7 +307,7 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
                 break
             _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappas[f], n_tdm, beam)
             val = beam.max() * priors[m, h]
-            if val > best_val * (1.0 + 1e-9):
+            if val > best_val * (1.0 + 1e-5):  # beyond single-precision rounding of the beams
                 best_val = val
                 best = kappas[f]
         for o in range(-d_h, d_h + 1):
@@ -359,7 +360,8 @@ def _velocity(spec_r, spec_i, comp_r, comp_i, wt_r, wt_i, slot, peak, fold, know
     f_D + κ/T_s, is beamformed at the azimuth in double precision. Candan's
     δ = tan(π/N)/(π/N)·Re[(X₋ − X₊) / (2X₀ − X₋ − X₊)], clipped to ±½, starts; above the refinement
     threshold, Newton steps on the likelihood F(δ) (:func:`_ml_objective`, derivatives by central
-    differences) give δ and σ_δ² = σ_cell/(N·(−F''(δ))); else σ_v = crb/√max(power/σ_cell − 1, 1e-12).
+    differences) give δ and σ_δ² = σ_cell/(N·(−F''(δ))) when they end at a maximum within :data:`REACH`
+    of the start; else the three-bin δ and σ_v = crb/√max(power/σ_cell − 1, 1e-12).
     v = v_k + δ·Δv + 2κ·v_max, folded into [−v_max, v_max) where no fold test was made."""
     d, k = spec_r.shape
     candan, dv, vmax, sigma_cell, crb = consts[1], consts[2], consts[3], consts[4], consts[5]
@@ -467,7 +469,7 @@ def _velocity(spec_r, spec_i, comp_r, comp_i, wt_r, wt_i, slot, peak, fold, know
                 x += step
                 if abs(step) < 1e-9:
                     break
-            if abs(x) <= 1.0:
+            if abs(x - delta) <= REACH:  # farther: another tone's lobe; the three-bin estimate stays
                 fm_ = _ml_objective(xr, xi, x - h, d, alt, co, so)
                 f0 = _ml_objective(xr, xi, x, d, alt, co, so)
                 fp = _ml_objective(xr, xi, x + h, d, alt, co, so)
