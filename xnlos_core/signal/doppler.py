@@ -104,7 +104,8 @@ def tdm_compensation(radar: RadarConfig) -> np.ndarray:
     TX i fires i·T_c after TX 0, so a mover's echo on TX i's virtual channels carries the extra
     phase 2π·f_D·i·T_c, which would steer the beam off. It is removed with each bin's centre
     f_D; a target off the bin centre keeps ≤ π·i/(N·N_tx) rad (0.04 rad by default), and a
-    folded (ambiguous) target gets the wrong correction, so its azimuth is biased.
+    folded (ambiguous) target gets the wrong correction, so its azimuth is biased unless
+    :func:`doppler_ra_maps`' fold test chooses another κ (an extra exp(−j2π·κ·i/N_tx) per TX slot).
     """
     i_tx = np.repeat(np.arange(radar.n_tdm), radar.n_channels // radar.n_tdm)
     return np.exp(-2j * np.pi * np.outer(radar.doppler_axis * radar.chirp_interval, i_tx))
@@ -407,17 +408,34 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
                     folds: int = 1) -> DopplerRAMaps:
     """Chirp-sequence cube → :class:`DopplerRAMaps`: :func:`range_doppler`, then beamforming per Doppler bin.
 
-    Velocity per cell: the strongest bin k of the windowed spectrum, refined by Candan's
-    three-bin estimator on the unwindowed spectrum (TDM-compensated with bin k's f_D for all three
-    bins), δ = tan(π/N)/(π/N)·Re[(X_{k−1} − X_{k+1}) / (2X_k − X_{k−1} − X_{k+1})],
-    v̂ = λ₀/2·(f_k + δ/(N·T_s)), folded into [−v_max, v_max).
+    Velocity per cell: the strongest bin k of the windowed spectrum; on the unwindowed spectrum,
+    TDM-compensated with bin k's f_D (and its fold, below) and beamformed at the cell's azimuth, Candan's
+    three-bin estimate δ = tan(π/N)/(π/N)·Re[(X_{k−1} − X_{k+1}) / (2X_k − X_{k−1} − X_{k+1})] starts.
+    Where the cell's peak bin is :data:`REFINE_SNR` (10 dB) over its noise floor (``peak_noise_floor``),
+    Newton steps maximise the likelihood of one complex tone given the 2L + 1 = 9 unwindowed bins
+    around k: with Z̃_o = X_{k+o}·exp(jπ·o·(N − 1)/N) and the real kernel R(x) = sin(πx)/sin(πx/N),
 
-    velocity_std: the Cramér–Rao bound of a single tone's frequency in white noise (closed form,
-    Rife & Boorstyn), σ_v = λ₀/(4π·T_s)·√(12 / (η·N·(N² − 1))), with η the cell's per-chirp SNR
-    estimated as power/σ_cell² − 1 (σ_cell² = chirp noise / G_p, floored at 1e-12). It holds for
-    one mover per cell above the estimator's threshold (η·N ≳ 10 dB); below it, errors are larger.
-    The three-bin estimator is not efficient: its RMS error is ≈ 1.1–1.3·σ_v (measured over
-    seeds at η·N ≈ 23–32 dB, tests/unit/test_doppler.py), so σ_v is a lower bound.
+        ℓ(δ) = (N/σ_cell)·|Σ_o Z̃_o·R(δ − o)|² / Σ_o R(δ − o)²                                    (V2)
+
+    (the bins' noise is σ_cell/N each), and σ_δ² = 1/(−ℓ''(δ̂)) [bins²], σ_v = Δv·σ_δ: the observed
+    information of the same likelihood, so ±1.96σ covers 95 % on and off the grid. On all N bins ℓ'' is
+    (2π)²·η·N·(N² − 1)/6 per cycle² and σ_v the bound of :func:`crlb_velocity` (Eq. V1); the 9 bins keep
+    all but ≤ 7 % of that information on the grid and all of it half a bin off (RMSE 0.94–1.09× the
+    bound at 10–30 dB, benchmarks/doppler_velocity.md). A step that ends more than 0.3 bin from the
+    start (another tone's lobe) keeps the three-bin δ. Other cells: the three-bin δ, and σ_v the bound of
+    Eq. V1 at η = power/σ_cell − 1 (floored at 1e-12), which holds above the estimator's threshold
+    (η·N ≳ 10 dB). v̂ = λ₀/2·(f_k + δ/(N·T_s)) + 2κ·v_max.
+
+    Folds (TDM-MIMO): TX i fires i·T_c into each loop, so bin k stands for f_k + κ/T_s (v + 2κ·v_max) and
+    hypothesis κ compensates TX i's channels with exp(−j2π(f_k + κ/T_s)·i·T_c), an extra exp(−j2π·κ·i/N_tx)
+    that the array can see: only the right κ makes the virtual array's phases a plane wave. At each Doppler
+    bin that is a local maximum of the range bin's beam energy, within the window's sidelobe level of its
+    strongest bin and whose best beam is :data:`FOLD_SNR` (13 dB) over its floor, every κ of
+    :func:`_fold_hypotheses` (``folds``: κ within ±(2·folds + 1)·v_max; the −v_max bin also as +v_max) is
+    beamformed over all azimuths and the highest peak wins, a κ outside the span only when it beats the
+    one inside by :data:`FOLD_MARGIN` (10 %); the bins of that peak's main lobe take its κ, their beams are
+    recomputed, and their velocities are reported unfolded (elsewhere folded into [−v_max, v_max)). κ ≡ κ'
+    mod N_tx cannot be told apart (one TX: no test).
 
     Implementation (:mod:`xnlos_core.signal.kernels`, numba): the range and Doppler FFTs run in
     single precision (:func:`scipy.fft.fft`) and everything after them in compiled kernels, one range
@@ -434,6 +452,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
 
     workers: threads of the FFTs and of the kernels (None: one, the thread policy's choice for
     simulation workers); BLAS is held to one thread during the kernels.
+
+    folds: velocity folds tested on each side of the unambiguous span (0: only its edge; 0–8).
 
     noise: where σ_cell² comes from. "model": the radar's thermal noise (:func:`chirp_noise_power`),
     right for simulated cubes, whose amplitudes are in √W. "measured": the noise floor of the cube's

@@ -15,8 +15,10 @@ cache, one range bin per task over ``numba.prange``:
    Q = y_i·w_i, S = y_r·w_i, T = y_i·w_r (per Doppler bin and azimuth of one half of the grid)
        b(θ) = (P − Q) + j(S + T),        b(−θ) = (P + Q) + j(T − S),
    so the pair costs the multiply-adds of one azimuth (half of a full complex product);
-3. |b|², its sum over Doppler bins (float64), maximum and first argmax, then the three-bin velocity
-   estimate of :func:`~xnlos_core.signal.doppler.doppler_ra_maps` at the peak bin, in double precision.
+3. |b|², its sum over Doppler bins (float64), maximum and first argmax; the fold test at the strong
+   Doppler peaks (rare κ ≠ 0: those bins' beams again, the statistics anew); then the velocity of
+   :func:`~xnlos_core.signal.doppler.doppler_ra_maps` at the peak bin (three-bin estimate, and the
+   likelihood's Newton steps in strong cells), in double precision.
 
 When the grid is not mirror-symmetric or the mirrored weights are not conjugates (to
 :data:`MIRROR_RTOL`), every azimuth is computed on its own (:func:`azimuth_pairs`), so any array and
