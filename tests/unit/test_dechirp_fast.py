@@ -6,8 +6,9 @@ import pytest
 from scipy.signal import get_window
 
 from xnlos_core.signal.antenna import coupling_matrix, steering_vector
-from xnlos_core.signal.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, chirp_start_times,
-                                doppler_ra_maps, tdm_compensation)
+from xnlos_core.signal.doppler import (REFINE_HALF, REFINE_SNR, add_chirp_noise, chirp_noise_power,
+                                       chirp_sequence_cube, chirp_start_times, crlb_velocity, doppler_ra_maps,
+                                       tdm_compensation)
 from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
 from xnlos_core.signal.chain import beam_weights, dechirp, decouple, processing_gain, range_fft, sample_times
 
@@ -78,8 +79,9 @@ def test_range_fft_equals_numpy_fft():
 
 
 def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
-    """doppler_ra_maps as first written, in double precision throughout (the first version
-    beamformed in single precision): returns power, peak_power, peak bin, velocity, velocity_std."""
+    """doppler_ra_maps in double precision throughout, without the fold test (these cubes' movers are
+    inside the unambiguous span): returns power, peak_power, peak bin, velocity, velocity_std and the
+    refined cells."""
     n, d, k = cube.shape
     prof = decouple(range_fft(cube.reshape(n, d * k), radar).reshape(-1, k), radar).reshape(-1, d, k)
     if remove_static:
@@ -107,14 +109,51 @@ def ref_doppler_ra_maps(cube, radar, window="hann", remove_static=False):
     delta = np.where(np.abs(den) > 0, np.real((xm - xp) / np.where(np.abs(den) > 0, den, 1.0)), 0.0)
     delta = np.clip(np.tan(np.pi / d) / (np.pi / d) * delta, -0.5, 0.5)
     vmax = radar.max_unambiguous_velocity
-    v = np.mod(radar.velocity_axis[peak] + delta * radar.velocity_resolution + vmax, 2 * vmax) - vmax
-    eta = np.maximum(power / (chirp_noise_power(radar) / processing_gain(radar)) - 1.0, 1e-12)
-    v_std = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(12.0 / (eta * d * (d**2 - 1.0)))
-    return power, peak_power, peak, v, v_std
+    sigma_cell = chirp_noise_power(radar) / processing_gain(radar)
+    eta = np.maximum(power / sigma_cell - 1.0, 1e-12)
+    v_std = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(6.0 / (eta * d * (d**2 - 1.0)))
+    # refinement where the peak bin is REFINE_SNR over its floor: the tone's likelihood on 2L + 1 unwindowed
+    # bins, max_u |Σ_q Z_q·D(u − q)|² / Σ_q |D(u − q)|², D(x) = Σ_m exp(−j2πxm/N) (closed form), searched on
+    # a grid of 1e-3 bins ±0.3 bins about the three-bin start, then a parabola through the best three
+    ml = peak_power >= REFINE_SNR * sigma_cell * enbw / d
+    half = min(REFINE_HALF, (d - 1) // 2)
+    ri, ai = np.nonzero(ml)
+    pk = peak[ri, ai]
+    offs = np.arange(-half, half + 1)
+    x = np.stack([np.einsum("nk,nk->n", rd_r[ri, (pk + o) % d] * comp[pk], weights[:, ai].T) for o in offs], 1)
+    q = (pk - d // 2)[:, None] + offs[None, :]  # unwrapped frequency index of each bin [bins]
+
+    def dk(u):  # (n, G) → (n, G, 2L+1) D(u − q)
+        y = u[:, :, None] - q[:, None, :]
+        small = np.abs(np.sin(np.pi * y / d)) < 1e-12
+        ratio = np.sin(np.pi * y) / np.where(small, 1.0, np.sin(np.pi * y / d))
+        return np.exp(-1j * np.pi * y * (d - 1) / d) * np.where(small, d, ratio)
+
+    def f(u):
+        k_ = dk(u)
+        return np.abs(np.einsum("nq,ngq->ng", x, k_)) ** 2 / np.sum(np.abs(k_) ** 2, axis=2)
+
+    start = (pk - d // 2) + delta[ri, ai]
+    grid = start[:, None] + np.arange(-0.3, 0.3 + 1e-9, 1e-3)[None, :]
+    vals = f(grid)
+    best = np.argmax(vals, axis=1)
+    inside = (best > 0) & (best < grid.shape[1] - 1)  # at the edge: another tone's lobe, the three-bin value stays
+    j = np.clip(best, 1, grid.shape[1] - 2)
+    rows = np.arange(len(j))
+    y0, y1, y2 = vals[rows, j - 1], vals[rows, j], vals[rows, j + 1]
+    u = grid[rows, j] + 0.5e-3 * (y0 - y2) / (y0 - 2 * y1 + y2)
+    h = 1e-3
+    curv = (f((u + h)[:, None]) - 2 * f(u[:, None]) + f((u - h)[:, None]))[:, 0] / h**2
+    v = radar.velocity_axis[peak] + delta * radar.velocity_resolution
+    ok = inside & (curv < 0)
+    v[ri[ok], ai[ok]] = u[ok] * radar.velocity_resolution
+    v = np.mod(v + vmax, 2 * vmax) - vmax
+    v_std[ri[ok], ai[ok]] = radar.velocity_resolution * np.sqrt(sigma_cell / (d * -curv[ok]))
+    return power, peak_power, peak, v, v_std, ml
 
 
 def _check_maps(new, radar, ref):
-    power, peak_power, peak, v, v_std = ref
+    power, peak_power, peak, v, v_std, ml = ref
     # doppler_ra_maps runs in single precision (range and Doppler FFTs, beams), this reference in double:
     # within 1e-6 of each map's maximum (measured 2.4e-7), and cell by cell within 1e-3 (measured 3.4e-4,
     # in a noise cell 95 dB below the maximum; the first, partly double-precision version was 3.3e-5 off)
@@ -123,17 +162,26 @@ def _check_maps(new, radar, ref):
         assert np.allclose(fast, exact, rtol=1e-3, atol=0)
     # the strongest Doppler bin: a cell whose two best bins are within single-precision rounding may
     # pick either (none did in these cubes, ≤ 0.1 % allowed); everywhere else the velocity agrees
+    # (≤ 0.1 % allowed); a cell with the leakage of two movers (range sidelobes) has a likelihood with
+    # several maxima, where Newton steps and this grid search may settle on different ones (≤ 1 % in all)
     dv = np.abs(new.velocity - v)
-    assert (dv > 1e-3).mean() <= 1e-3
+    assert (dv > 1e-3).mean() <= 1e-2
     assert np.median(dv) < 1e-4  # m/s; the bins are 0.57 m/s (default) and 2.2 m/s (SMALL) wide
-    # σ_v is a closed form of the cell's power, ∝ 1/√(power/σ² − 1): ill-conditioned where power ≈ σ²,
-    # so compared where the per-chirp SNR η ≥ 1 and checked as that closed form of new.power elsewhere
-    eta = power / new.noise_floor - 1.0
-    assert np.allclose(new.velocity_std[eta >= 1], v_std[eta >= 1], rtol=1e-3, atol=0)
+    # refined cells (the likelihood's σ): the same cells but a few at the threshold
     d = radar.n_chirps
-    closed = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(
-        12.0 / (np.maximum(new.power / new.noise_floor - 1.0, 1e-12) * d * (d**2 - 1.0)))
-    assert np.allclose(new.velocity_std, closed, rtol=1e-12)
+    refined = new.peak_power >= REFINE_SNR * new.peak_noise_floor
+    assert (refined != ml).mean() <= 1e-3
+    both = refined & ml & (dv <= 1e-3)
+    assert (refined & ml).sum() - both.sum() <= 1e-2 * dv.size
+    # (single-precision spectra: the curvature of a flat likelihood at 10 dB differs by ≤ 1.3e-3 measured)
+    assert np.allclose(new.velocity_std[both], v_std[both], rtol=5e-3, atol=0)
+    # elsewhere σ_v is a closed form of the cell's power, ∝ 1/√(power/σ² − 1): ill-conditioned where
+    # power ≈ σ², so compared where the per-chirp SNR η ≥ 1 and checked as that closed form of new.power
+    eta = power / new.noise_floor - 1.0
+    rest = ~refined & ~ml
+    assert np.allclose(new.velocity_std[rest & (eta >= 1)], v_std[rest & (eta >= 1)], rtol=1e-3, atol=0)
+    closed = crlb_velocity(radar, np.maximum(new.power / new.noise_floor - 1.0, 1e-12))
+    assert np.allclose(new.velocity_std[~refined], closed[~refined], rtol=1e-12)
 
 
 def test_doppler_ra_maps_equal_the_reference_at_the_default_size():

@@ -67,3 +67,31 @@ def test_errors_name_the_input():
         prediction_errors(np.zeros((1, 2, 2)), np.zeros((1, 2, 2)), [0.5, 1.0])
     with pytest.raises(InputError, match="truth"):
         interval_coverage(np.zeros((2, 2)), np.ones(2), np.zeros((3, 2)))
+
+
+def test_pooled_motp_is_motmetrics_overall_motp_with_an_id_switch():
+    # Sequence A: one object, 4 frames, distances 0.2, 0.4, 0.6, 0.8 m, the hypothesis id changing 5 → 6 at
+    # frame 2 (a SWITCH event, whose distance counts); sequence B: one match at 0.1 m. motmetrics:
+    # MOTP = Σd / (matches + switches): A (0.2 + 0.4 + 0.6 + 0.8) / (3 + 1) = 0.5, pooled 2.1 / 5 = 0.42 m.
+    # Weighting by matches only (3 + 1) would give (0.5·3 + 0.1) / 4 = 0.4 m.
+    import motmetrics as mm
+
+    from xnlos_core.app.sequence_eval import RANGE_BINS, pool
+    from xnlos_core.app.tracking_metrics import mot_matches
+
+    seqs = [(frames([[1]] * 4, [[0.0]] * 4), frames([[5], [5], [6], [6]], [[0.2], [0.4], [0.6], [0.8]])),
+            (frames([[1]], [[0.0]]), frames([[9]], [[0.1]]))]
+    accs, recs = [], []
+    for truth, hyp in seqs:
+        acc = mm.MOTAccumulator(auto_id=True)
+        for (oid, opos), (hid, hpos) in zip(truth, hyp):
+            acc.update(list(oid), list(hid), np.linalg.norm(opos[:, None] - hpos[None], axis=-1))
+        accs.append(acc)
+        m, _ = mot_matches(truth, hyp, threshold=1.0)
+        recs.append({"frames": len(truth), "mot": m, "velocity": [0.0, 0], "forecasts": [], "arrivals": [],
+                     "radial": {b[2]: [0.0, 0] for b in RANGE_BINS}})
+    want = mm.metrics.create().compute_many(accs, metrics=["motp"], generate_overall=True).loc["OVERALL", "motp"]
+    assert recs[0]["mot"]["num_switches"] == 1 and recs[0]["mot"]["num_matches"] == 3
+    assert recs[0]["mot"]["motp"] == pytest.approx(0.5) and recs[0]["mot"]["motp_sum"] == pytest.approx(2.0)
+    assert want == pytest.approx(0.42)
+    assert pool(recs)["motp"] == pytest.approx(want, rel=1e-12)

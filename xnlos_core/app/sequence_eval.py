@@ -287,10 +287,14 @@ def pool(seqs: list[dict]) -> dict[str, Any]:
                         "rmse_without_gross": math.sqrt(sse_in / n_in) if n_in else None,
                         "gross_share": (n_split - n_in) / n_split if n_split else None}
     errors = tot["num_misses"] + tot["num_false_positives"] + tot["num_switches"]
+    # motmetrics' motp_m: each sequence's MOTP weighted by its detections (matches + switches); from the
+    # per-sequence MOTP, so records whose motp_sum counted matches only pool the same way
+    motp_num = sum((s["mot"].get("motp") or 0.0) * ((s["mot"].get("num_matches") or 0.0)
+                                                     + (s["mot"].get("num_switches") or 0.0)) for s in seqs)
     return {
         "sequences": len(seqs), "frames": int(sum(s["frames"] for s in seqs)),
         "mota": None if tot["num_objects"] == 0 else 1.0 - errors / tot["num_objects"],
-        "motp": _ratio(tot["motp_sum"], tot["num_matches"]),
+        "motp": _ratio(motp_num, tot["num_matches"] + tot["num_switches"]),
         "idf1": _ratio(2 * tot["idtp"], 2 * tot["idtp"] + tot["idfp"] + tot["idfn"]),
         "counts": {k: int(v) for k, v in tot.items() if k != "motp_sum"},
         "velocity_rmse": math.sqrt(vel[0] / vel[1]) if vel[1] else None,

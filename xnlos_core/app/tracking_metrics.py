@@ -34,7 +34,8 @@ def mot_metrics(truth: Sequence[Frame], hypotheses: Sequence[Frame], threshold: 
     """CLEAR-MOT and identity metrics of ``hypotheses`` against ``truth`` (same number of frames).
 
     Returns mota = 1 − (misses + false positives + id switches) / truth objects, motp [m] = mean
-    distance of the matched pairs (lower is better; NaN without matches), idf1 = 2 IDTP / (truth +
+    distance of the matched pairs, switches included (motmetrics: Σd / (num_matches + num_switches),
+    a SWITCH being a match whose id changed; lower is better; NaN without matches), idf1 = 2 IDTP / (truth +
     hypothesis objects) with the best global one-to-one id mapping, and the counts num_switches,
     num_misses, num_false_positives, num_matches. Pairs farther apart than ``threshold`` [m] never match.
     """
@@ -53,7 +54,9 @@ def mot_matches(truth: Sequence[Frame], hypotheses: Sequence[Frame],
 
     Returns (metrics, matches): metrics has mota, motp, idf1 and the counts of :data:`POOLED`
     (num_objects: truth objects over all frames; idtp / idfp / idfn of the IDF1 mapping) and
-    ``motp_sum`` [m], the summed distance of the matches; matches[k] lists the (truth id, hypothesis
+    ``motp_sum`` [m], the summed distance of the matches, switches included (motp × (num_matches +
+    num_switches), so that pooled MOTP = Σ motp_sum / Σ (num_matches + num_switches) as motmetrics'
+    ``motp_m`` pools it); matches[k] lists the (truth id, hypothesis
     id) pairs matched in frame k (a MATCH or SWITCH event of motmetrics).
     """
     if not (np.isfinite(threshold) and threshold > 0):
@@ -70,10 +73,11 @@ def mot_matches(truth: Sequence[Frame], hypotheses: Sequence[Frame],
     names = ["mota", "motp", "idf1", *POOLED]
     row = mm.metrics.create().compute(acc, metrics=names, return_dataframe=False)
     out = {n: float(row[n]) for n in names}
-    out["motp_sum"] = 0.0 if out["num_matches"] == 0 else out["motp"] * out["num_matches"]
     matches: list[list[tuple[int, int]]] = [[] for _ in truth]
     ev = acc.mot_events
-    for (frame, _), e in ev[ev.Type.isin(["MATCH", "SWITCH"])].iterrows():
+    matched = ev[ev.Type.isin(["MATCH", "SWITCH"])]
+    out["motp_sum"] = float(matched.D.sum())  # motmetrics' motp numerator: MATCH and SWITCH distances
+    for (frame, _), e in matched.iterrows():
         matches[int(frame)].append((int(e.OId), int(e.HId)))
     return out, matches
 

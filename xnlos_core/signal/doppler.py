@@ -104,7 +104,8 @@ def tdm_compensation(radar: RadarConfig) -> np.ndarray:
     TX i fires i·T_c after TX 0, so a mover's echo on TX i's virtual channels carries the extra
     phase 2π·f_D·i·T_c, which would steer the beam off. It is removed with each bin's centre
     f_D; a target off the bin centre keeps ≤ π·i/(N·N_tx) rad (0.04 rad by default), and a
-    folded (ambiguous) target gets the wrong correction, so its azimuth is biased.
+    folded (ambiguous) target gets the wrong correction, so its azimuth is biased unless
+    :func:`doppler_ra_maps`' fold test chooses another κ (an extra exp(−j2π·κ·i/N_tx) per TX slot).
     """
     i_tx = np.repeat(np.arange(radar.n_tdm), radar.n_channels // radar.n_tdm)
     return np.exp(-2j * np.pi * np.outer(radar.doppler_axis * radar.chirp_interval, i_tx))
@@ -184,6 +185,54 @@ def _shift_modulation(n: int) -> np.ndarray:
     return np.exp(-2j * np.pi * m * ((n - n // 2) % n) / n)
 
 
+FOLD_SNR = 20.0  # 13 dB: the Doppler bin's best beam over its noise floor above which its fold is tested
+FOLD_MARGIN = 1.1  # a velocity outside the unambiguous span must beam this much higher than the one inside
+REFINE_SNR = 10.0  # 10 dB: a cell's peak-bin power over its noise floor above which its velocity is refined
+REFINE_HALF = 4  # the refinement's likelihood takes 2·4 + 1 unwindowed Doppler bins around the peak
+NEWTON_STEPS = 4
+
+
+def _fold_hypotheses(radar: RadarConfig, folds: int) -> tuple[np.ndarray, np.ndarray]:
+    """(kappas (F,), hyps (n_chirps, max(F, 2))) int64 for :func:`doppler_ra_maps`' fold test.
+
+    Doppler bin k (velocity v_k, ascending, v_0 = −v_max) stands for every v_k + 2κ·v_max; the test
+    considers the κ whose velocity lies within ±(2·folds + 1)·v_max (bin 0, at −v_max, also gets
+    κ = folds + 1, so the span is symmetric: at folds = 0 it decides between −v_max and +v_max, the
+    unambiguous span's edge), ordered by |velocity| (κ = 0 first) and dropping a κ whose phase
+    exp(−j2π·κ·i/N_tx) on every TX slot i equals an earlier one's (κ ≡ κ' mod N_tx: the array cannot
+    tell them apart). hyps[k] lists the indices into kappas, −1 padded; one hypothesis: no test."""
+    d, n_tdm, vmax = radar.n_chirps, radar.n_tdm, radar.max_unambiguous_velocity
+    per_bin = []
+    for v in radar.velocity_axis:
+        ks = [kk for kk in range(-folds - 1, folds + 2)
+              if abs(v + 2 * kk * vmax) <= (2 * folds + 1) * vmax * (1 + 1e-12)]
+        ks.sort(key=lambda kk: (round(abs(v + 2 * kk * vmax) / vmax, 9), kk != 0))
+        kept, seen = [], set()
+        for kk in ks:
+            if kk % n_tdm not in seen:
+                seen.add(kk % n_tdm)
+                kept.append(kk)
+        per_bin.append(kept)
+    kappas = np.array(sorted({kk for ks in per_bin for kk in ks}), dtype=np.int64)
+    hyps = np.full((d, max(2, max(len(ks) for ks in per_bin))), -1, dtype=np.int64)
+    for k, ks in enumerate(per_bin):
+        hyps[k, :len(ks)] = [int(np.searchsorted(kappas, kk)) for kk in ks]
+    return kappas, hyps
+
+
+def _window_lobes(w: np.ndarray) -> tuple[float, int]:
+    """(peak sidelobe power relative to the main lobe, main-lobe half width in bins, ≥ 1) of the window
+    ``w``'s spectrum, from a 64× zero-padded FFT."""
+    pad = 64
+    spec = np.abs(np.fft.rfft(w, pad * len(w))) ** 2
+    spec /= spec[0]
+    rising = np.flatnonzero(np.diff(spec) > 0)
+    if len(rising) == 0:  # no sidelobes resolved (n ≤ 2)
+        return 0.0, 1
+    first_null = int(rising[0])
+    return float(spec[first_null:].max()), max(1, int(np.floor(first_null / pad + 1e-9)))
+
+
 @dataclass(frozen=True)
 class _DopplerPlan:
     """Everything :func:`doppler_ra_maps` needs that depends only on (radar, window), computed once.
@@ -195,8 +244,9 @@ class _DopplerPlan:
     azimuths the kernel computes and their mirrors (:func:`~xnlos_core.signal.kernels.azimuth_pairs`);
     wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
     N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]; velocity_axis (n_chirps,) [m/s] and
-    consts (6,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
-    for a cube that needs no rescaling). Arrays read-only (shared by calls).
+    consts (13,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
+    for a cube that needs no rescaling); slot (n_channels,) int64: each channel's TX slot; kappas,
+    hyps: :func:`_fold_hypotheses`. Arrays read-only (shared by calls).
     """
 
     taper: np.ndarray
@@ -211,12 +261,32 @@ class _DopplerPlan:
     wb: np.ndarray
     velocity_axis: np.ndarray
     consts: np.ndarray
+    slot: np.ndarray
+    kappas: np.ndarray
+    hyps: np.ndarray
+    priors: np.ndarray
     enbw: float
     sigma_cell: float
 
 
+def crlb_velocity(radar: RadarConfig, eta) -> np.ndarray:
+    """Cramér–Rao bound σ_v [m/s] of the radial velocity of one complex tone in complex white Gaussian noise.
+
+    eta: per-chirp SNR η = |a|²/σ² of the slow-time samples (linear, any shape). With N = n_chirps
+    samples every T_s = n_tdm·T_c [s] (``radar.chirp_loop_time``), the frequency bound is (Rife &
+    Boorstyn 1974, complex samples, amplitude and phase unknown)
+
+        var(f̂_D) ≥ 6 / ((2π)²·η·N·(N² − 1)·T_s²)   [Hz²]                                  (V1)
+
+    and v = λ₀·f_D/2 (λ₀ = ``radar.doppler_wavelength``) gives σ_v = λ₀/(4π·T_s)·√(6/(η·N·(N² − 1))).
+    (A real tone's bound has 12 in place of 6: its η counts the power of one of two conjugate lines.)"""
+    d = radar.n_chirps
+    return radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(
+        6.0 / (np.asarray(eta, dtype=np.float64) * d * (d**2 - 1.0)))
+
+
 @functools.lru_cache(maxsize=16)
-def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
+def _doppler_plan(radar: RadarConfig, window: str, folds: int = 1) -> _DopplerPlan:
     from xnlos_core.signal.kernels import azimuth_pairs  # numba: imported with the first Doppler map, not at startup
 
     d = radar.n_chirps
@@ -228,7 +298,12 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
     w32 = weights[:, ipos].astype(np.complex64)
     enbw = d * float((w**2).sum() / w.sum() ** 2)
     sigma_cell = chirp_noise_power(radar) / processing_gain(radar)
-    crb = radar.doppler_wavelength / (4 * np.pi * radar.chirp_loop_time) * np.sqrt(12.0 / (d * (d**2 - 1.0)))
+    crb = float(crlb_velocity(radar, 1.0))
+    psl, lobe = _window_lobes(w)
+    kappas, hyps = _fold_hypotheses(radar, folds)
+    vmax = radar.max_unambiguous_velocity
+    outside = np.abs(radar.velocity_axis[:, None] + 2 * vmax * kappas[hyps]) > vmax * (1 + 1e-9)
+    priors = np.where(outside & (hyps >= 0), 1.0 / FOLD_MARGIN, 1.0)
     arrays = dict(taper=(mod * (w / w.sum())).astype(np.complex128), boxcar=(mod / d).astype(np.complex128),
                   comp_r=np.ascontiguousarray(comp.real), comp_i=np.ascontiguousarray(comp.imag),
                   wt_r=np.ascontiguousarray(weights.T.real), wt_i=np.ascontiguousarray(weights.T.imag),
@@ -237,7 +312,10 @@ def _doppler_plan(radar: RadarConfig, window: str) -> _DopplerPlan:
                   wb=np.ascontiguousarray(np.hstack([w32.imag, w32.real])),
                   velocity_axis=np.array(radar.velocity_axis, dtype=np.float64),
                   consts=np.array([1.0 / enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
-                                   radar.max_unambiguous_velocity, sigma_cell, crb]))
+                                   radar.max_unambiguous_velocity, sigma_cell, crb, FOLD_SNR, REFINE_SNR,
+                                   2.0 * psl, lobe, min(REFINE_HALF, (d - 1) // 2), radar.n_tdm, NEWTON_STEPS]),
+                  slot=np.repeat(np.arange(radar.n_tdm, dtype=np.int64), radar.n_channels // radar.n_tdm),
+                  kappas=kappas, hyps=hyps, priors=priors)
     for a in arrays.values():
         a.flags.writeable = False
     return _DopplerPlan(**arrays, enbw=enbw, sigma_cell=sigma_cell)
@@ -326,20 +404,38 @@ def measured_cell_noise(spectrum: np.ndarray, radar: RadarConfig, window: str = 
 
 
 def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_static: bool = False,
-                    workers: int | None = None, noise: Literal["model", "measured"] = "model") -> DopplerRAMaps:
+                    workers: int | None = None, noise: Literal["model", "measured"] = "model",
+                    folds: int = 1) -> DopplerRAMaps:
     """Chirp-sequence cube → :class:`DopplerRAMaps`: :func:`range_doppler`, then beamforming per Doppler bin.
 
-    Velocity per cell: the strongest bin k of the windowed spectrum, refined by Candan's
-    three-bin estimator on the unwindowed spectrum (TDM-compensated with bin k's f_D for all three
-    bins), δ = tan(π/N)/(π/N)·Re[(X_{k−1} − X_{k+1}) / (2X_k − X_{k−1} − X_{k+1})],
-    v̂ = λ₀/2·(f_k + δ/(N·T_s)), folded into [−v_max, v_max).
+    Velocity per cell: the strongest bin k of the windowed spectrum; on the unwindowed spectrum,
+    TDM-compensated with bin k's f_D (and its fold, below) and beamformed at the cell's azimuth, Candan's
+    three-bin estimate δ = tan(π/N)/(π/N)·Re[(X_{k−1} − X_{k+1}) / (2X_k − X_{k−1} − X_{k+1})] starts.
+    Where the cell's peak bin is :data:`REFINE_SNR` (10 dB) over its noise floor (``peak_noise_floor``),
+    Newton steps maximise the likelihood of one complex tone given the 2L + 1 = 9 unwindowed bins
+    around k: with Z̃_o = X_{k+o}·exp(jπ·o·(N − 1)/N) and the real kernel R(x) = sin(πx)/sin(πx/N),
 
-    velocity_std: the Cramér–Rao bound of a single tone's frequency in white noise (closed form,
-    Rife & Boorstyn), σ_v = λ₀/(4π·T_s)·√(12 / (η·N·(N² − 1))), with η the cell's per-chirp SNR
-    estimated as power/σ_cell² − 1 (σ_cell² = chirp noise / G_p, floored at 1e-12). It holds for
-    one mover per cell above the estimator's threshold (η·N ≳ 10 dB); below it, errors are larger.
-    The three-bin estimator is not efficient: its RMS error is ≈ 1.1–1.3·σ_v (measured over
-    seeds at η·N ≈ 23–32 dB, tests/unit/test_doppler.py), so σ_v is a lower bound.
+        ℓ(δ) = (N/σ_cell)·|Σ_o Z̃_o·R(δ − o)|² / Σ_o R(δ − o)²                                    (V2)
+
+    (the bins' noise is σ_cell/N each), and σ_δ² = 1/(−ℓ''(δ̂)) [bins²], σ_v = Δv·σ_δ: the observed
+    information of the same likelihood, so ±1.96σ covers 95 % on and off the grid. On all N bins ℓ'' is
+    (2π)²·η·N·(N² − 1)/6 per cycle² and σ_v the bound of :func:`crlb_velocity` (Eq. V1); the 9 bins keep
+    all but ≤ 7 % of that information on the grid and all of it half a bin off (RMSE 0.94–1.09× the
+    bound at 10–30 dB, benchmarks/doppler_velocity.md). A step that ends more than 0.3 bin from the
+    start (another tone's lobe) keeps the three-bin δ. Other cells: the three-bin δ, and σ_v the bound of
+    Eq. V1 at η = power/σ_cell − 1 (floored at 1e-12), which holds above the estimator's threshold
+    (η·N ≳ 10 dB). v̂ = λ₀/2·(f_k + δ/(N·T_s)) + 2κ·v_max.
+
+    Folds (TDM-MIMO): TX i fires i·T_c into each loop, so bin k stands for f_k + κ/T_s (v + 2κ·v_max) and
+    hypothesis κ compensates TX i's channels with exp(−j2π(f_k + κ/T_s)·i·T_c), an extra exp(−j2π·κ·i/N_tx)
+    that the array can see: only the right κ makes the virtual array's phases a plane wave. At each Doppler
+    bin that is a local maximum of the range bin's beam energy, within the window's sidelobe level of its
+    strongest bin and whose best beam is :data:`FOLD_SNR` (13 dB) over its floor, every κ of
+    :func:`_fold_hypotheses` (``folds``: κ within ±(2·folds + 1)·v_max; the −v_max bin also as +v_max) is
+    beamformed over all azimuths and the highest peak wins, a κ outside the span only when it beats the
+    one inside by :data:`FOLD_MARGIN` (10 %); the bins of that peak's main lobe take its κ, their beams are
+    recomputed, and their velocities are reported unfolded (elsewhere folded into [−v_max, v_max)). κ ≡ κ'
+    mod N_tx cannot be told apart (one TX: no test).
 
     Implementation (:mod:`xnlos_core.signal.kernels`, numba): the range and Doppler FFTs run in
     single precision (:func:`scipy.fft.fft`) and everything after them in compiled kernels, one range
@@ -357,6 +453,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     workers: threads of the FFTs and of the kernels (None: one, the thread policy's choice for
     simulation workers); BLAS is held to one thread during the kernels.
 
+    folds: velocity folds tested on each side of the unambiguous span (0: only its edge; 0–8).
+
     noise: where σ_cell² comes from. "model": the radar's thermal noise (:func:`chirp_noise_power`),
     right for simulated cubes, whose amplitudes are in √W. "measured": the noise floor of the cube's
     own range–Doppler spectrum (:func:`measured_cell_noise`), for recorded data, whose amplitude
@@ -371,7 +469,10 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     from xnlos_core.signal import kernels as kernels  # numba: imported with the first Doppler map, not at startup
 
     threads = max(1, workers or 1)
-    plan = _doppler_plan(radar, window)
+    if isinstance(folds, bool) or not isinstance(folds, (int, np.integer)) or not 0 <= folds <= 8:
+        raise InputError(f"doppler_ra_maps: folds must be an integer from 0 to 8 (velocity folds tested each side "
+                         f"of the unambiguous span), got {folds!r}")
+    plan = _doppler_plan(radar, window, int(folds))
     work, spec = _work_buffers(radar)
     prof, scale = _range_profiles32(cube, radar, remove_static, threads, work)  # (r, d, k) complex64, scale·cube
     r, d, k = prof.shape
@@ -390,8 +491,8 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     power, peak_power, v, v_std = (np.empty((r, n_az)) for _ in range(4))
     with blas_limit(1):  # one small product per range bin and numba thread: BLAS threads would only compete
         kernels.run(kernels.beam_maps, threads, spec[0], spec[1], plan.comp_r, plan.comp_i, plan.wa, plan.wb,
-                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, plan.velocity_axis, consts,
-                    power, peak_power, v, v_std)
+                    plan.ipos, plan.ineg, plan.wt_r, plan.wt_i, plan.velocity_axis, consts, plan.slot,
+                    plan.kappas, plan.hyps, plan.priors, power, peak_power, v, v_std)
     if scale != 1.0:  # back to the cube's own units
         power /= scale2
         peak_power /= scale2

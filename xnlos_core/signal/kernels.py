@@ -15,8 +15,10 @@ cache, one range bin per task over ``numba.prange``:
    Q = y_i·w_i, S = y_r·w_i, T = y_i·w_r (per Doppler bin and azimuth of one half of the grid)
        b(θ) = (P − Q) + j(S + T),        b(−θ) = (P + Q) + j(T − S),
    so the pair costs the multiply-adds of one azimuth (half of a full complex product);
-3. |b|², its sum over Doppler bins (float64), maximum and first argmax, then the three-bin velocity
-   estimate of :func:`~xnlos_core.signal.doppler.doppler_ra_maps` at the peak bin, in double precision.
+3. |b|², its sum over Doppler bins (float64), maximum and first argmax; the fold test at the strong
+   Doppler peaks (rare κ ≠ 0: those bins' beams again, the statistics anew); then the velocity of
+   :func:`~xnlos_core.signal.doppler.doppler_ra_maps` at the peak bin (three-bin estimate, and the
+   likelihood's Newton steps in strong cells), in double precision.
 
 When the grid is not mirror-symmetric or the mirrored weights are not conjugates (to
 :data:`MIRROR_RTOL`), every azimuth is computed on its own (:func:`azimuth_pairs`), so any array and
@@ -37,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 _LOCK = threading.Lock()
+REACH = 0.3  # [bins] the refinement's farthest move from the three-bin estimate
 MIRROR_RTOL = 1e-12  # mirrored weights taken as conjugates when they differ by less (float32 beams: 6e-8)
 
 if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
@@ -85,16 +88,21 @@ def doppler_tapers(prof, taper, boxcar, out):  # pragma: no cover - compiled
 
 
 @njit(parallel=True, cache=True, fastmath={"reassoc", "contract"})
-def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, velocity_axis, consts,
-              power, peak_power, velocity, velocity_std):  # pragma: no cover - compiled
+def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, velocity_axis, consts, slot,
+              kappas, hyps, priors, power, peak_power, velocity, velocity_std):  # pragma: no cover - compiled
     """The maps of :func:`xnlos_core.signal.doppler.doppler_ra_maps`, one range bin per task.
 
     spec_w, spec_u (r, d, k) complex64: windowed and unwindowed Doppler spectra (bins ascending);
     comp_r, comp_i (d, k) float64: TDM compensation (real, imaginary); wa = [w_r | w_i], wb = [w_i | w_r]
     (k, 2H) float32: the weights of the H computed azimuths; ipos (H,), ineg (H,) int64: the map
     column of each computed azimuth and of its mirror (−1: none); wt_r, wt_i (A, k) float64: all
-    weights by azimuth, for the velocity; velocity_axis (d,) [m/s]; consts (6,) float64: 1/ENBW,
-    tan(π/N)/(π/N), Δv [m/s], v_max [m/s], σ_cell [W], λ₀/(4π·T_s)·√(12/(N(N²−1))) [m/s].
+    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (13,)
+    float64 (:func:`xnlos_core.signal.doppler._doppler_plan`): 1/ENBW, tan(π/N)/(π/N), Δv [m/s],
+    v_max [m/s], σ_cell [W], λ₀/(4π·T_s)·√(6/(N(N²−1))) [m/s], the fold test's and the refinement's
+    SNR thresholds (peak-bin power over its noise floor), the window's relative sidelobe cut, its main
+    lobe's half width [bins], the refinement's half span L [bins], n_tdm, Newton steps; slot (k,) int64:
+    each channel's TX slot i; kappas (F,) int64: fold hypotheses κ; hyps (d, F) int64: the indices into
+    kappas tested per Doppler bin (−1: none), the first κ = 0.
     Written, each (r, A) float64: power Σ_d|b|²/ENBW [W], peak_power max_d|b|² [W], velocity [m/s],
     velocity_std [m/s].
 
@@ -115,22 +123,57 @@ def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, ve
         ps = np.dot(yr, wa)  # (d, 2H): P | S
         qt = np.dot(yi, wb)  # (d, 2H): Q | T
         peak = np.empty(n_az, np.int64)
-        _doppler_stats(ps, qt, ipos, ineg, consts[0], power[i], peak_power[i], peak)
+        rowsum = np.empty(d)
+        _pair_stats(ps, qt, ipos, ineg, consts[0], power[i], peak_power[i], peak, rowsum)
+        fold = np.zeros(d, np.int64)
+        known = np.zeros(d, np.bool_)
+        if _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsum, fold, known):
+            # a Doppler bin's fold is not κ = 0 (rare): its beams again with its κ, the statistics anew
+            pw = np.empty((d, n_az), np.float32)
+            _beam_powers(ps, qt, ipos, ineg, pw)
+            beam = np.empty(n_az)
+            for m in range(d):
+                if fold[m] != 0:
+                    _fold_beams(yr, yi, m, wt_r, wt_i, slot, fold[m], int(consts[11]), beam)
+                    for a in range(n_az):
+                        pw[m, a] = np.float32(beam[a])
+            _doppler_stats(pw, consts[0], power[i], peak_power[i], peak)
         ur = np.empty((d, k))  # the unwindowed spectrum split once: contiguous float64 rows vectorise
         ui = np.empty((d, k))
         for m in range(d):
             for c in range(k):
                 ur[m, c] = spec_u[i, m, c].real
                 ui[m, c] = spec_u[i, m, c].imag
-        _velocity(ur, ui, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power[i],
-                  velocity[i], velocity_std[i])
+        _velocity(ur, ui, comp_r, comp_i, wt_r, wt_i, slot, peak, fold, known, velocity_axis, consts, power[i],
+                  peak_power[i], velocity[i], velocity_std[i])
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _doppler_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak):  # pragma: no cover - compiled
-    """One range bin of :func:`beam_maps`: b(θ) = (P − Q) + j(S + T) for the computed azimuths and
-    b(−θ) = (P + Q) + j(T − S) for their mirrors, from ps = [P | S], qt = [Q | T] (d, 2H) float32;
-    Σ|b|²·inv_enbw (summed in float64), max|b|² and its first argmax per azimuth, into the (A,) rows."""
+def _beam_powers(ps, qt, ipos, ineg, pw):  # pragma: no cover - compiled
+    """|b|² (d, A) float32 of one range bin: b(θ) = (P − Q) + j(S + T) for the computed azimuths and
+    b(−θ) = (P + Q) + j(T − S) for their mirrors, from ps = [P | S], qt = [Q | T] (d, 2H) float32."""
+    d = ps.shape[0]
+    h = ps.shape[1] // 2
+    for m in range(d):
+        for j in range(h):
+            p_ = ps[m, j]
+            s_ = ps[m, h + j]
+            q_ = qt[m, j]
+            t_ = qt[m, h + j]
+            a1 = p_ - q_
+            b1 = s_ + t_
+            pw[m, ipos[j]] = a1 * a1 + b1 * b1
+            if ineg[j] >= 0:
+                a2 = p_ + q_
+                b2 = t_ - s_
+                pw[m, ineg[j]] = a2 * a2 + b2 * b2
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _pair_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak, rowsum):  # pragma: no cover - compiled
+    """:func:`_doppler_stats` straight from ps = [P | S], qt = [Q | T] (d, 2H) float32 (the beams of
+    :func:`_beam_powers` formed on the fly, no (d, A) array), plus rowsum (d,): Σ_θ|b|² per Doppler bin
+    (a sum, not a maximum, so that the loop vectorises; it bounds max_θ|b|² from above)."""
     d = ps.shape[0]
     h = ps.shape[1] // 2
     sp = np.zeros(h)
@@ -139,8 +182,11 @@ def _doppler_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak):  # pr
     mn = np.full(h, -1.0, np.float32)
     ap = np.zeros(h, np.float32)  # argmax as float32 (exact below 2^24): float-only selects vectorise
     an = np.zeros(h, np.float32)
+    paired = ineg.max() >= 0
     for m in range(d):
         fm = np.float32(m)
+        rm = 0.0
+        rn = 0.0
         for j in range(h):
             p_ = ps[m, j]
             s_ = ps[m, h + j]
@@ -160,6 +206,10 @@ def _doppler_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak):  # pr
             ap[j] = fm if g1 else ap[j]
             mn[j] = pw2 if g2 else mn[j]
             an[j] = fm if g2 else an[j]
+            rm += pw1
+            rn += pw2
+        # an unpaired grid (ineg all −1) has no mirrored beams (a paired one's −1, broadside, counts twice)
+        rowsum[m] = rm + rn if paired else rm
     for j in range(h):
         col = ipos[j]
         power[col] = sp[j] * inv_enbw
@@ -173,47 +223,268 @@ def _doppler_stats(ps, qt, ipos, ineg, inv_enbw, power, peak_power, peak):  # pr
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _velocity(spec_r, spec_i, comp_r, comp_i, wt_r, wt_i, peak, velocity_axis, consts, power,
-              velocity, velocity_std):  # pragma: no cover - compiled
+def _doppler_stats(pw, inv_enbw, power, peak_power, peak):  # pragma: no cover - compiled
+    """Σ_d|b|²·inv_enbw (summed in float64), max|b|² and its first argmax per azimuth, into the (A,) rows."""
+    d, n_az = pw.shape
+    sp = np.zeros(n_az)
+    mp = np.full(n_az, -1.0, np.float32)
+    ap = np.zeros(n_az, np.float32)  # argmax as float32 (exact below 2^24): float-only selects vectorise
+    for m in range(d):
+        fm = np.float32(m)
+        for j in range(n_az):
+            p_ = pw[m, j]
+            sp[j] += p_
+            g = p_ > mp[j]
+            mp[j] = p_ if g else mp[j]
+            ap[j] = fm if g else ap[j]
+    for j in range(n_az):
+        power[j] = sp[j] * inv_enbw
+        peak_power[j] = mp[j]
+        peak[j] = np.int64(ap[j])
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, out):  # pragma: no cover - compiled
+    """|b|² (A,) float64 of Doppler bin m's compensated windowed spectrum (yr, yi (d, k) float32) beamformed
+    with the fold hypothesis κ: each channel times exp(−j2π·κ·i/N_tx), i its TX slot."""
+    n_az, k = wt_r.shape
+    gr = np.empty(k)
+    gi = np.empty(k)
+    for c in range(k):
+        ph = -2.0 * np.pi * kappa * slot[c] / n_tdm
+        cr = np.cos(ph)
+        ci = np.sin(ph)
+        zr = np.float64(yr[m, c])
+        zi = np.float64(yi[m, c])
+        gr[c] = zr * cr - zi * ci
+        gi[c] = zr * ci + zi * cr
+    for a in range(n_az):
+        br = 0.0
+        bi = 0.0
+        for c in range(k):
+            br += gr[c] * wt_r[a, c] - gi[c] * wt_i[a, c]
+            bi += gr[c] * wt_i[a, c] + gi[c] * wt_r[a, c]
+        out[a] = br * br + bi * bi
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsum, fold, known):  # pragma: no cover
+    """The fold test of one range bin (:func:`xnlos_core.signal.doppler.doppler_ra_maps`): at each Doppler
+    bin m that is a local maximum of rowsum (d,) = Σ_θ|b|² above the window's sidelobes of the range
+    bin's strongest bin, and whose best beam max_θ|b|² is above the fold threshold, each hypothesis κ
+    of hyps[m] is beamformed over the whole azimuth grid; the highest beam times the hypothesis' prior
+    wins (κ = 0 unless another is higher by more than 1e-5, relatively); it holds for the bins of that
+    peak's main lobe (κ ± 1 across the spectrum's wrap). fold (d,) and known (d,) are written; returns
+    whether any fold is not 0."""
+    d = rowsum.shape[0]
+    n_az = wt_r.shape[0]
+    n_tdm = int(consts[11])
+    d_h = int(consts[9])
+    thr = consts[6] * consts[4] / (consts[0] * d)  # the fold threshold on max_θ|b|² [W]: × σ_cell·ENBW/N
+    top = rowsum.max()
+    cut = max(thr, consts[8] * top)
+    cand = np.empty(d, np.int64)
+    n = 0
+    for m in range(d):
+        lo = rowsum[(m + d - 1) % d]
+        hi = rowsum[(m + 1) % d]
+        if rowsum[m] >= cut and rowsum[m] >= lo and rowsum[m] > hi and hyps[m, 1] >= 0:
+            cand[n] = m
+            n += 1
+    if n == 0:
+        return False
+    cand = cand[:n]
+    cand = cand[np.argsort(rowsum[cand])]  # ascending: the strongest peak's lobe is assigned last
+    beam = np.empty(n_az)
+    for t in range(n):
+        m = cand[t]
+        _fold_beams(yr, yi, m, wt_r, wt_i, slot, 0, n_tdm, beam)
+        best = 0
+        best_val = beam.max() * priors[m, 0]
+        if best_val < thr * priors[m, 0]:
+            continue
+        for h in range(1, hyps.shape[1]):
+            f = hyps[m, h]
+            if f < 0:
+                break
+            _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappas[f], n_tdm, beam)
+            val = beam.max() * priors[m, h]
+            if val > best_val * (1.0 + 1e-5):  # beyond single-precision rounding of the beams
+                best_val = val
+                best = kappas[f]
+        for o in range(-d_h, d_h + 1):
+            mm = m + o
+            adj = 0
+            if mm < 0:
+                mm += d
+                adj = -1
+            elif mm >= d:
+                mm -= d
+                adj = 1
+            fold[mm] = best + adj
+            known[mm] = True
+    for m in range(d):
+        if fold[m] != 0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _ml_objective(zr, zi, delta, n, alt, co, so):  # pragma: no cover - compiled
+    """F(δ) = |Σ_o Z̃_o R(δ − o)|² / Σ_o R(δ − o)², o = −L … L (zr, zi (2L+1,)): the concentrated
+    likelihood of one tone at δ bins from the centre bin given 2L+1 unwindowed bins (×σ²/N), with
+    R(x) = sin(πx)/sin(πx/N) (N at x = 0), the real periodic sinc. sin(π(δ − o)) = (−1)^o·sin(πδ) and
+    sin(π(δ − o)/N) from sin, cos(πδ/N) and the tables alt = (−1)^o, co = cos(πo/N), so = sin(πo/N):
+    three trigonometric calls per evaluation."""
+    half = (zr.shape[0] - 1) // 2
+    s1 = np.sin(np.pi * delta)
+    sd = np.sin(np.pi * delta / n)
+    cd = np.cos(np.pi * delta / n)
+    sr = 0.0
+    si = 0.0
+    g = 0.0
+    for j in range(zr.shape[0]):
+        den = sd * co[j] - cd * so[j]
+        x = delta - (j - half)
+        rr = float(n) if abs(x) < 1e-12 else alt[j] * s1 / den
+        sr += zr[j] * rr
+        si += zi[j] * rr
+        g += rr * rr
+    return (sr * sr + si * si) / g
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _velocity(spec_r, spec_i, comp_r, comp_i, wt_r, wt_i, slot, peak, fold, known, velocity_axis, consts, power,
+              peak_power, velocity, velocity_std):  # pragma: no cover - compiled
     """One range bin of :func:`beam_maps`: velocity and its σ per azimuth (formulas in
     :func:`xnlos_core.signal.doppler.doppler_ra_maps`). The unwindowed spectrum (spec_r, spec_i: real and
-    imaginary parts, (d, k) float64) at the peak bin and its two neighbours, all three compensated
-    with the peak bin's f_D, is beamformed at the azimuth in double precision; Candan's
-    δ = tan(π/N)/(π/N)·Re[(X₋ − X₊) / (2X₀ − X₋ − X₊)], clipped to ±½, gives v = v_k + δ·Δv folded
-    into [−v_max, v_max); σ_v = crb/√max(power/σ_cell − 1, 1e-12)."""
+    imaginary parts, (d, k) float64) at 2L+1 bins around the peak bin, all compensated with the peak bin's
+    f_D + κ/T_s, is beamformed at the azimuth in double precision. Candan's
+    δ = tan(π/N)/(π/N)·Re[(X₋ − X₊) / (2X₀ − X₋ − X₊)], clipped to ±½, starts; above the refinement
+    threshold, Newton steps on the likelihood F(δ) (:func:`_ml_objective`, derivatives by central
+    differences) give δ and σ_δ² = σ_cell/(N·(−F''(δ))) when they end at a maximum within :data:`REACH`
+    of the start; else the three-bin δ and σ_v = crb/√max(power/σ_cell − 1, 1e-12).
+    v = v_k + δ·Δv + 2κ·v_max, folded into [−v_max, v_max) where no fold test was made."""
     d, k = spec_r.shape
     candan, dv, vmax, sigma_cell, crb = consts[1], consts[2], consts[3], consts[4], consts[5]
+    refine = consts[7] * sigma_cell / (consts[0] * d)  # the refinement threshold on peak_power [W]
+    half = int(consts[10])
+    n_tdm = int(consts[11])
+    steps = int(consts[12])
+    nb = 2 * half + 1
+    alt = np.empty(nb)  # (−1)^o, cos(πo/N), sin(πo/N) of the likelihood's bins, and their phase factors
+    co = np.empty(nb)
+    so = np.empty(nb)
+    pr = np.empty(nb)
+    pi_ = np.empty(nb)
+    for j in range(nb):
+        o = j - half
+        alt[j] = 1.0 if o % 2 == 0 else -1.0
+        co[j] = np.cos(np.pi * o / d)
+        so[j] = np.sin(np.pi * o / d)
+        pr[j] = np.cos(np.pi * o * (d - 1) / d)
+        pi_[j] = np.sin(np.pi * o * (d - 1) / d)
+    xr = np.empty(nb)
+    xi = np.empty(nb)
+    wr = np.empty(k)
+    wi = np.empty(k)
     for col in range(peak.shape[0]):
         pk = peak[col]
-        lo = (pk + d - 1) % d
-        hi = (pk + 1) % d
-        xmr = 0.0
-        xmi = 0.0
-        x0r = 0.0
-        x0i = 0.0
-        xpr = 0.0
-        xpi = 0.0
-        for c in range(k):
-            wr = comp_r[pk, c] * wt_r[col, c] - comp_i[pk, c] * wt_i[col, c]
-            wi = comp_r[pk, c] * wt_i[col, c] + comp_i[pk, c] * wt_r[col, c]
-            ur = spec_r[lo, c]
-            ui = spec_i[lo, c]
-            xmr += ur * wr - ui * wi
-            xmi += ur * wi + ui * wr
-            ur = spec_r[pk, c]
-            ui = spec_i[pk, c]
-            x0r += ur * wr - ui * wi
-            x0i += ur * wi + ui * wr
-            ur = spec_r[hi, c]
-            ui = spec_i[hi, c]
-            xpr += ur * wr - ui * wi
-            xpi += ur * wi + ui * wr
+        kap = fold[pk]
+        if kap == 0:
+            for c in range(k):
+                wr[c] = comp_r[pk, c] * wt_r[col, c] - comp_i[pk, c] * wt_i[col, c]
+                wi[c] = comp_r[pk, c] * wt_i[col, c] + comp_i[pk, c] * wt_r[col, c]
+        else:
+            for c in range(k):
+                ph = -2.0 * np.pi * kap * slot[c] / n_tdm
+                fr = comp_r[pk, c] * np.cos(ph) - comp_i[pk, c] * np.sin(ph)
+                fi = comp_r[pk, c] * np.sin(ph) + comp_i[pk, c] * np.cos(ph)
+                wr[c] = fr * wt_r[col, c] - fi * wt_i[col, c]
+                wi[c] = fr * wt_i[col, c] + fi * wt_r[col, c]
+        ml = peak_power[col] >= refine
+        if ml:
+            for o in range(-half, half + 1):
+                b = (pk + o) % d
+                sr = 0.0
+                si = 0.0
+                for c in range(k):
+                    sr += spec_r[b, c] * wr[c] - spec_i[b, c] * wi[c]
+                    si += spec_r[b, c] * wi[c] + spec_i[b, c] * wr[c]
+                xr[o + half] = sr
+                xi[o + half] = si
+        else:  # the three bins in one pass over the channels
+            lo = (pk + d - 1) % d
+            hi = (pk + 1) % d
+            amr = 0.0
+            ami = 0.0
+            a0r = 0.0
+            a0i = 0.0
+            apr = 0.0
+            api = 0.0
+            for c in range(k):
+                ur = spec_r[lo, c]
+                ui = spec_i[lo, c]
+                amr += ur * wr[c] - ui * wi[c]
+                ami += ur * wi[c] + ui * wr[c]
+                ur = spec_r[pk, c]
+                ui = spec_i[pk, c]
+                a0r += ur * wr[c] - ui * wi[c]
+                a0i += ur * wi[c] + ui * wr[c]
+                ur = spec_r[hi, c]
+                ui = spec_i[hi, c]
+                apr += ur * wr[c] - ui * wi[c]
+                api += ur * wi[c] + ui * wr[c]
+            xr[half - 1] = amr
+            xi[half - 1] = ami
+            xr[half] = a0r
+            xi[half] = a0i
+            xr[half + 1] = apr
+            xi[half + 1] = api
+        xmr, xmi = xr[half - 1], xi[half - 1]
+        x0r, x0i = xr[half], xi[half]
+        xpr, xpi = xr[half + 1], xi[half + 1]
         den = complex(2.0 * x0r - xmr - xpr, 2.0 * x0i - xmi - xpi)
         delta = (complex(xmr - xpr, xmi - xpi) / den).real if abs(den) > 0 else 0.0
         delta = min(0.5, max(-0.5, candan * delta))
-        v = velocity_axis[pk] + delta * dv + vmax
-        velocity[col] = v - 2.0 * vmax * np.floor(v / (2.0 * vmax)) - vmax
-        velocity_std[col] = crb / np.sqrt(max(power[col] / sigma_cell - 1.0, 1e-12))
+        std = crb / np.sqrt(max(power[col] / sigma_cell - 1.0, 1e-12))
+        if ml:
+            # Z̃_o = X_o·exp(+jπ·o·(N−1)/N): the bins' common linear phase removed, so the tone's bins are
+            # α·R(δ − o) with one complex α (module doc of doppler_ra_maps, Eq. V2)
+            for j in range(nb):
+                a_ = xr[j]
+                b_ = xi[j]
+                xr[j] = a_ * pr[j] - b_ * pi_[j]
+                xi[j] = a_ * pi_[j] + b_ * pr[j]
+            h = 1e-3
+            x = delta
+            curv = 0.0
+            for _ in range(steps):
+                fm_ = _ml_objective(xr, xi, x - h, d, alt, co, so)
+                f0 = _ml_objective(xr, xi, x, d, alt, co, so)
+                fp = _ml_objective(xr, xi, x + h, d, alt, co, so)
+                curv = (fp - 2.0 * f0 + fm_) / (h * h)
+                if not curv < 0.0:
+                    break
+                step = -0.5 * (fp - fm_) / h / curv
+                step = min(0.25, max(-0.25, step))
+                x += step
+                if abs(step) < 1e-9:
+                    break
+            if abs(x - delta) <= REACH:  # farther: another tone's lobe; the three-bin estimate stays
+                fm_ = _ml_objective(xr, xi, x - h, d, alt, co, so)
+                f0 = _ml_objective(xr, xi, x, d, alt, co, so)
+                fp = _ml_objective(xr, xi, x + h, d, alt, co, so)
+                curv = (fp - 2.0 * f0 + fm_) / (h * h)
+                if curv < 0.0:
+                    delta = x
+                    std = dv * np.sqrt(sigma_cell / (d * -curv))
+        v = velocity_axis[pk] + delta * dv + 2.0 * vmax * kap
+        if not known[pk]:
+            v += vmax
+            v = v - 2.0 * vmax * np.floor(v / (2.0 * vmax)) - vmax
+        velocity[col] = v
+        velocity_std[col] = std
 
 
 def azimuth_pairs(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
