@@ -28,7 +28,10 @@ they stay two paths. Without a ground only DD remains (the elevation pattern and
 Two-ray nulls: with equal gains on both legs and Γ = −1, the carrier sum is
 (e^{−jkR_D} − e^{−jkR_G})², so the received power ∝ sin⁴(k (R_G − R_D)/2): zero where
 R_G − R_D = nλ (n = 1, 2, …), the same places as the one-way two-ray nulls, far from the radar at
-d_n ≈ 2 h_r h_t / (nλ) (:func:`null_ranges` solves the exact condition).
+d_n ≈ 2 h_r h_t / (nλ) (:func:`null_ranges` solves the exact condition). In an FMCW range bin
+the paths add with the phase of the middle of the sampled sweep, so λ is that of the sweep's
+mean frequency f_c + S·(N − 1)/(2 f_s) (:func:`sweep_wavelength`), not of its start f_c: at
+600 MHz over 10 GHz the nulls sit 3 % farther out than the start frequency predicts.
 
 Simplifications: the scatterer keeps its RCS for every combination (an isotropic point), the
 incidence angle on a vertical wall is taken in plan (the elevation's effect on it is second order),
@@ -43,7 +46,7 @@ import dataclasses
 import numpy as np
 
 from xnlos_core.errors import InputError
-from xnlos_core.radar import RadarConfig
+from xnlos_core.radar import SPEED_OF_LIGHT, RadarConfig
 from xnlos_core.signal.antenna import element_gain, transmit_gain
 
 from .fresnel import fresnel
@@ -91,6 +94,13 @@ def centre_height(obj, radar_height: float) -> float:
     return obj.centre_height if obj.centre_height is not None else min(radar_height, obj.height)
 
 
+def sweep_wavelength(radar: RadarConfig) -> float:
+    """Wavelength [m] at the mean frequency f_c + S·(N − 1)/(2 f_s) of the sampled chirp: the phase a
+    path has in its range bin (module doc)."""
+    f = radar.carrier_frequency + radar.chirp_slope * (radar.n_samples - 1) / (2 * radar.sample_rate)
+    return SPEED_OF_LIGHT / f
+
+
 def heights(paths: Paths, radar_height: float) -> np.ndarray:
     """(P,) scatterer heights [m]: :attr:`Paths.height`, NaN or None read as ``radar_height``."""
     if paths.height is None:
@@ -115,8 +125,8 @@ def twins(paths: Paths, radar: RadarConfig, radar_height: float, tilt: float = 0
     d = np.sqrt(np.maximum(r_d**2 - (h_t - h_r) ** 2, 0.0))
     eps_d = np.arctan2(h_t - h_r, d)
     th = paths.azimuth
-    g0 = element_gain(radar, th, -tilt)
-    ref = g0 * g0 * transmit_gain(radar, th, -tilt)  # what the 2-D model's power holds (ε = 0)
+    g0 = element_gain(radar, th, 0.0)
+    ref = g0 * g0 * transmit_gain(radar, th, 0.0)  # what the 2-D model's power holds (ε = 0, no tilt)
     base = paths.amp if paths.amp is not None else np.sqrt(paths.power).astype(np.complex128)
 
     def gains(eps):
@@ -141,7 +151,8 @@ def twins(paths: Paths, radar: RadarConfig, radar_height: float, tilt: float = 0
     elevation = np.concatenate([i[0] - tilt for _, i in blocks])
     source = np.tile(np.arange(n), len(blocks))
     amp = np.tile(base, len(blocks)) * factor
-    carrier = np.exp(2j * np.pi * np.mod((length - np.tile(paths.length, len(blocks))) / radar.wavelength, 1.0))
+    lam = sweep_wavelength(radar)
+    carrier = np.exp(2j * np.pi * np.mod((length - np.tile(paths.length, len(blocks))) / lam, 1.0))
     total = np.bincount(source, weights=(factor * carrier).real, minlength=n) \
         + 1j * np.bincount(source, weights=(factor * carrier).imag, minlength=n)
     out = dataclasses.replace(
