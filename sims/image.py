@@ -23,8 +23,10 @@ Components are added only when the scene or configuration asks for them (``Param
 
 Simplifications (deliberate, first-order model): only walls occlude (objects do not shadow
 walls or each other); one relay bounce on each side of an object (no wall–wall or multi-wall
-chains); the scene is 2-D (all paths in the horizontal plane, ε = 0) with wall height entering
-only the diffuse wall RCS.
+chains); paths are found in plan (vertical walls), an object's scattering centres at its
+``centre_height`` (default: the radar's height, capped at the object's) lengthen its direct paths,
+and the elevation pattern and ground twins enter when ``dimensions`` asks for them
+(:mod:`sims.ground`); wall height enters only the diffuse wall RCS.
 """
 from __future__ import annotations
 
@@ -41,6 +43,7 @@ from xnlos_core.types import Frame
 
 from . import diffuse_nlos
 from . import walls as wall_em
+from .ground import centre_height
 from .params import ForwardParams, components_needed
 from .motion_paths import mirror_velocity, object_velocity
 from .paths import LOS, MNLOS, OTHER, PathList, Paths
@@ -132,12 +135,15 @@ class ImageForwardModel(ForwardModel):
 
         vel = [object_velocity(o, timestamp) for o in scene.objects]
 
+        rise = [centre_height(o, p.radar_height) - p.radar_height for o in scene.objects]  # h_t − h_r [m]
+
         def emit(points, power, phase, kind, hidden=None, obj=-1, centre=-1, velocity=(0.0, 0.0)):
             r, th = cartesian_to_polar(points)
-            out.add(length=2 * r, azimuth=th, power=power, phase=phase, kind=kind,
+            dh = rise[obj] if obj >= 0 else 0.0
+            out.add(length=2 * slant(r, dh), azimuth=th, power=power, phase=phase, kind=kind,
                     order=kind,  # image paths: LOS direct, mNLOS one bounce
                     pos=points, hidden=points if hidden is None else hidden, obj=obj, centre=centre,
-                    velocity=velocity)
+                    velocity=velocity, height=p.radar_height + dh if obj >= 0 else np.nan)
 
         # --- LOS: diffuse wall returns, σ = σ⁰(ψ)·Δs·h per cell --------------------------------
         for i, (spec, seg, (pts, ds)) in enumerate(zip(planar, segs, walls)):
@@ -158,7 +164,8 @@ class ImageForwardModel(ForwardModel):
                 gain = _through_walls(planar, segs, radar, pts)
             vis = face & (gain > 0)
             r, th = cartesian_to_polar(pts[vis])
-            emit(pts[vis], received_power(radar, r, th, rcs[vis] * gain[vis]), obj_phase[j][vis], LOS, obj=j,
+            power = received_power(radar, slant(r, rise[j]), th, rcs[vis] * gain[vis])
+            emit(pts[vis], power, obj_phase[j][vis], LOS, obj=j,
                  centre=np.flatnonzero(vis), velocity=vel[j])
 
         # --- mNLOS: one specular bounce on each side of the object (Eq. 3, 5) ------------------
@@ -178,7 +185,7 @@ class ImageForwardModel(ForwardModel):
                     r, th = cartesian_to_polar(img[ok])
                     inc = np.arccos(np.clip(np.abs(w[ok] @ n) / np.linalg.norm(w[ok], axis=1), 0.0, 1.0))
                     alpha = wall_em.specular_alpha(spec, radar, inc, p.reflection)
-                    power = received_power(radar, r, th, rcs[ok], alpha)
+                    power = received_power(radar, slant(r, rise[j]), th, rcs[ok], alpha)
                     emit(img[ok], power, obj_phase[j][ok], MNLOS, hidden=pts[ok], obj=j, centre=np.flatnonzero(ok),
                          velocity=mirror_velocity(vel[j], n))  # the echo's Doppler is the virtual target's
 
@@ -233,6 +240,12 @@ def _diffuse_nlos(out: PathList, spec, seg, segs, i: int, radar: RadarConfig, ob
     out.add(length=w.length, azimuth=w.azimuth, power=w.power, phase=phase_a[w.ia] + obj_ph + phase_a[w.ib],
             kind=OTHER, order=1, pos=w.pos, hidden=w.hidden, obj=owner[o], centre=index[o],
             velocity=u * w.rate[:, None])
+
+
+def slant(r: np.ndarray, rise: float) -> np.ndarray:
+    """Direct one-way length √(r² + Δh²) [m] of horizontal length r [m] to a point Δh [m] above the
+    radar (r itself where Δh = 0, so 2-D scenes keep their lengths to the bit)."""
+    return r if rise == 0 else np.sqrt(np.asarray(r) ** 2 + rise**2)
 
 
 def _through_walls(planar, segs, radar: RadarConfig, pts: np.ndarray) -> np.ndarray:

@@ -7,7 +7,8 @@ speckle, the ground-truth SNR threshold, wall reflection and the optional compon
 """
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_serializer
 
@@ -64,6 +65,19 @@ class ForwardParams(BaseModel):
         20000, ge=1, le=10_000_000, description="at most this many diffuse NLOS paths per frame (the strongest "
                                                  "pairs; the power left out is in meta['components'])")
 
+    dimensions: Literal["auto", "2d", "3d"] = Field(
+        "auto", description="'2d': every path in the radar's horizontal plane, no ground; '3d': the elevation "
+                            "pattern at each path's elevation (radar_height, radar_tilt, scatterer heights) and "
+                            "the ground-reflected twins of every path when the scene has a ground "
+                            "(sims.ground); auto: 3d where those terms change some path's power by at least "
+                            "tolerance_db")
+    radar_height: float = Field(0.75, gt=0, le=100, description="antenna mounting height above ground [m]")
+    radar_tilt: float = Field(0.0, ge=-math.pi / 2, le=math.pi / 2,
+                              description="elevation of the antenna boresight [rad], positive up (3-D only)")
+
+    #: fields a subclass had before they moved here: always serialised (their old digests kept them)
+    dump_always: ClassVar[frozenset[str]] = frozenset()
+
     @model_serializer(mode="wrap")
     def _omit_late_defaults(self, handler):
         # fields that arrived after dataset digests existed are left out at their defaults, so those
@@ -71,14 +85,14 @@ class ForwardParams(BaseModel):
         data = handler(self)
         if isinstance(data, dict):
             for key, default in LATE_DEFAULTS.items():
-                if key in data and data[key] == default:
+                if key in data and data[key] == default and key not in self.dump_always:
                     del data[key]
         return data
 
 
 #: Parameters added after dataset digests existed, left out of serialised configs at these defaults.
 LATE_DEFAULTS = {"doppler": False, "diffuse_nlos": "auto", "diffuse_nlos_cell": 1.0, "diffuse_nlos_floor_db": -20.0,
-                 "diffuse_nlos_max_paths": 20000}
+                 "diffuse_nlos_max_paths": 20000, "dimensions": "auto", "radar_height": 0.75, "radar_tilt": 0.0}
 
 
 def components_needed(p: ForwardParams, scene, radar: RadarConfig) -> dict[str, str]:

@@ -33,7 +33,10 @@ class Paths:
     centre (P,) int: scattering-centre index within the object, −1 for wall cells and strips;
     velocity (P, 2) float [m/s] or None: horizontal velocity of the point ``pos`` (for a mirrored
     path the virtual scatterer's, (I − 2nnᵀ)v, :func:`sims.motion_paths.mirror_velocity`; for a
-    mixed path of raytrace only its range-rate component along ``pos``); None: all static.
+    mixed path of raytrace only its range-rate component along ``pos``); None: all static;
+    height (P,) float [m] or None: height above the ground of the scatterer whose direct path
+    ``length`` is (a vertical wall keeps it on every mirror leg); NaN or None: at the radar's
+    mounting height, in its horizontal plane (:mod:`sims.ground` adds the 3-D terms).
     """
 
     length: np.ndarray
@@ -48,6 +51,7 @@ class Paths:
     obj: np.ndarray
     centre: np.ndarray
     velocity: np.ndarray | None = None
+    height: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.length)
@@ -57,7 +61,7 @@ class Paths:
         return dataclasses.replace(self, phase=np.asarray(phase, dtype=np.float64))
 
 
-_SCALAR = ("length", "azimuth", "power", "amp", "phase", "kind", "order", "obj", "centre")
+_SCALAR = ("length", "azimuth", "power", "amp", "phase", "kind", "order", "obj", "centre", "height")
 _VECTOR = ("pos", "hidden", "velocity")
 _INT = ("kind", "order", "obj", "centre")
 
@@ -69,12 +73,12 @@ class PathList:
     cols: dict[str, list] = field(default_factory=lambda: {k: [] for k in (*_SCALAR, *_VECTOR)})
 
     def add(self, *, length, azimuth, power, kind, order, pos, hidden, obj, centre, amp=None, phase=0.0,
-            velocity=(0.0, 0.0)) -> None:
+            velocity=(0.0, 0.0), height=np.nan) -> None:
         """Append n paths: each column (n,) or a scalar broadcast to n, pos/hidden (n, 2), velocity
-        (n, 2) or (2,) broadcast [m/s] (default static). Give ``amp`` for every group or for none
-        (then :attr:`Paths.amp` is None)."""
+        (n, 2) or (2,) broadcast [m/s] (default static), height [m] (default NaN: at the radar's
+        height). Give ``amp`` for every group or for none (then :attr:`Paths.amp` is None)."""
         given = dict(length=length, azimuth=azimuth, power=power, amp=amp, phase=phase, kind=kind, order=order,
-                     obj=obj, centre=centre)
+                     obj=obj, centre=centre, height=height)
         if (amp is None) != (not self.cols["amp"]) and self.cols["length"]:
             raise ValueError("PathList.add: give amp for every group of paths or for none")
         n = len(np.atleast_1d(length))
@@ -98,6 +102,7 @@ class PathList:
         for k in _INT:
             out[k] = out[k].astype(np.int64)
         out["phase"] = out["phase"].astype(np.float64)
+        out["height"] = out["height"].astype(np.float64)
         if not self.cols["amp"]:
             out["amp"] = None
         return Paths(**out)

@@ -7,6 +7,8 @@ Given the paths a forward model found (:class:`sims.paths.Paths`), :func:`render
 3. dechirps every path with positive power into the ADC cube (:func:`xnlos_core.signal.chain.dechirp`),
    through the radar's coupling matrix only when the ``coupling`` component is on;
 4. adds receiver noise (``noise``), forms the RA map (coupling compensated as the radar says);
+   with 3-D propagation (``dimensions``, :mod:`sims.ground`) steps 1–4 run over each path's
+   direct and ground-reflected twins, at their arrival elevations;
    with ``doppler`` on, steps 3–4 run over the chirp sequence instead (:func:`render_doppler`);
 5. lists as ground truth the LOS and mNLOS paths inside the field of view and range whose RA-map
    SNR reaches ``min_snr_db`` (other multipath is clutter, not ground truth), with the owning
@@ -26,6 +28,7 @@ from sims.scene_truth import image_velocities, point_velocities
 from xnlos_core.signal.chain import add_noise, dechirp, ra_map_from_cube
 from xnlos_core.types import Frame, GroundTruth, RAMap
 
+from . import ground
 from .atmosphere import attenuation_db
 from .motion_paths import radial_velocity
 from .params import ForwardParams
@@ -49,31 +52,35 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
     ``params.doppler`` the chirp sequence (n_samples, n_chirps, n_channels) — and the Frame at
     ``timestamp`` [s] with its RA map, ground truth and meta.
     """
-    power, amp = paths.power, paths.amp
-    if amp is not None:
-        amp = amp * np.exp(1j * paths.phase)
-    if use["atmosphere"] == "on" and len(power):
-        conditions = scene.atmosphere.model_dump() if scene.atmosphere is not None else {}
-        att = 10 ** (-attenuation_db(radar.carrier_frequency, paths.length, **conditions) / 10)
-        power = power * att
-        if amp is not None:
-            amp = amp * np.sqrt(att)
+    on3d, why3d = ground.decide(params.dimensions, paths, radar, params.radar_height, params.radar_tilt,
+                                scene.ground, params.tolerance_db)
+    use = {**use, "dimensions": ("3d: " if on3d else "2d: ") + why3d}
+    syn, elevation = paths, None  # the paths synthesised: the 2-D ones, or their 3-D twins
+    if on3d:
+        tw = ground.twins(paths, radar, params.radar_height, params.radar_tilt, scene.ground)
+        syn, elevation = tw.paths, tw.elevation
+    power, amp = _attenuated(syn, scene, radar, use)
     live = power > 0  # paths behind the array have zero element gain
-    amp = np.sqrt(power[live]) * np.exp(1j * paths.phase[live]) if amp is None else amp[live]
+    amp = np.sqrt(power[live]) * np.exp(1j * syn.phase[live]) if amp is None else amp[live]
 
     radar_syn = radar
     if use["coupling"] != "on" and radar.has_coupling:
         radar_syn = radar.model_copy(update={"coupling_db": None, "coupling_file": None})
     doppler_meta = {}
     v_r = radial_velocity(paths.pos, _velocity(paths), paths.length)  # range rates [m/s]: the truth's too
+    v_syn = v_r[tw.source] if on3d else v_r
+    el = None if elevation is None else elevation[live]
     if params.doppler:
-        cube, ra, doppler_meta = render_doppler(radar_syn, radar, paths, live, amp, v_r, rng, params.noise)
+        cube, ra, doppler_meta = render_doppler(radar_syn, radar, syn, live, amp, v_syn, rng, params.noise, el)
     else:
-        cube = dechirp(radar_syn, paths.length[live], paths.azimuth[live], amp)
+        cube = dechirp(radar_syn, syn.length[live], syn.azimuth[live], amp, el)
         if params.noise:
             cube = add_noise(cube, radar_syn, rng)
         ra = ra_map_from_cube(cube, radar)
 
+    if on3d:  # the truth lists each scatterer once, with the power of its twins' carrier sum
+        power = _attenuated(paths, scene, radar, use)[0] * tw.gain
+        live = paths.power > 0
     snr = ra_snr_db(radar, cell_power(radar, paths, power) if cell_snr else power)
     seen = (live & (snr >= params.min_snr_db) & (np.abs(paths.azimuth) <= radar.field_of_view)
             & (paths.length / 2 <= radar.max_range))
@@ -95,7 +102,8 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
 
 
 def render_doppler(radar_syn: RadarConfig, radar: RadarConfig, paths: Paths, live: np.ndarray, amp: np.ndarray,
-                   v_r: np.ndarray, rng: np.random.Generator, noise: bool) -> tuple[np.ndarray, RAMap, dict]:
+                   v_r: np.ndarray, rng: np.random.Generator, noise: bool,
+                   elevation: np.ndarray | None = None) -> tuple[np.ndarray, RAMap, dict]:
     """Steps 3–4 with Doppler: chirp sequence of the ``live`` paths moving at range rate ``v_r`` (P,)
     [m/s] (:func:`xnlos_core.signal.doppler.chirp_sequence_cube`, synthesised with ``radar_syn``), per-chirp
     noise from ``rng`` when ``noise``, then :func:`xnlos_core.signal.doppler.doppler_ra_maps` with ``radar``.
@@ -105,15 +113,32 @@ def render_doppler(radar_syn: RadarConfig, radar: RadarConfig, paths: Paths, liv
     scalloping (≤ 1.42 dB) over a floor ENBW_d (1.76 dB) above the old one, where the coherent mean
     of the snapshot path loses ≈ 18 dB at 1.5 m/s and 28 dB at 5 m/s; ``power`` (Doppler-integrated)
     has no scalloping but sums the noise of every bin, a floor n_chirps (18 dB at 64) higher.
+    elevation: arrival elevations of the live paths [rad] (None: 0).
     Returns (cube (n_samples, n_chirps, n_channels) [√W], RAMap with velocity and velocity_std
     maps, meta: map name and its noise-only cell's expected power [W]).
     """
-    cube = chirp_sequence_cube(radar_syn, paths.length[live] / 2, paths.azimuth[live], amp, v_r[live])
+    cube = chirp_sequence_cube(radar_syn, paths.length[live] / 2, paths.azimuth[live], amp, v_r[live],
+                               elevation=elevation)
     if noise:
         cube = add_chirp_noise(cube, radar_syn, rng)
     maps = doppler_ra_maps(cube, radar)
     ra = dataclasses.replace(maps.ra_map("peak_power"), velocity=maps.velocity, velocity_std=maps.velocity_std)
     return cube, ra, {"map": "peak_power", "noise_floor": maps.peak_noise_floor}
+
+
+def _attenuated(paths: Paths, scene, radar: RadarConfig, use: dict[str, str]) -> tuple[np.ndarray, np.ndarray | None]:
+    """(power (P,) [W], complex amplitude (P,) [√W] with the random phase, or None) of ``paths`` after
+    the gaseous loss over each round trip when the ``atmosphere`` component is on (step 1–2)."""
+    power, amp = paths.power, paths.amp
+    if amp is not None:
+        amp = amp * np.exp(1j * paths.phase)
+    if use["atmosphere"] == "on" and len(power):
+        conditions = scene.atmosphere.model_dump() if scene.atmosphere is not None else {}
+        att = 10 ** (-attenuation_db(radar.carrier_frequency, paths.length, **conditions) / 10)
+        power = power * att
+        if amp is not None:
+            amp = amp * np.sqrt(att)
+    return power, amp
 
 
 def _velocity(paths: Paths) -> np.ndarray:

@@ -161,6 +161,9 @@ class ObjectSpec(BaseModel):
     kind: Literal["generic", "car", "bicycle", "pedestrian"] = Field(
         "generic", description="object class (ground truth label; sizes and RCS come from the fields)")
     height: float = Field(1.5, gt=0, le=50, description="height above ground [m] (3-D occlusion)")
+    centre_height: float | None = Field(
+        None, ge=0, le=50, description="height of the scattering centres above the ground [m] (3-D propagation); "
+                                       "None: the radar's mounting height, capped at the object's height")
     center: Vec2
     size: tuple[Size, Size] = Field((4.5, 1.8), description="(length, width) [m] for a box")
     heading: float = Field(0.0, ge=-2 * math.pi, le=2 * math.pi, description="[rad] from +x")
@@ -177,6 +180,8 @@ class ObjectSpec(BaseModel):
         out = handler(self)
         if isinstance(out, dict):
             out.pop("trajectory" if self.trajectory is None else "velocity", None)
+            if self.centre_height is None:
+                out.pop("centre_height", None)
         return out
 
     @model_validator(mode="after")
@@ -256,6 +261,28 @@ class AtmosphereSpec(BaseModel):
     water_density: float = Field(7.5, ge=0, le=50, description="water-vapour density [g/m³]")
 
 
+class GroundSpec(BaseModel):
+    """A flat ground plane z = 0 under the radar (3-D propagation: the ground-reflected twin of every path).
+
+    Its reflection is the Fresnel coefficient of an ITU-R P.2040 ``material`` at the grazing angle
+    (the radar's V polarisation is TM on the ground, H is TE), or the constant amplitude
+    coefficient ``reflection`` (−1: a perfect reflector, the grazing limit of every real ground).
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    material: str | None = Field(None, description="ITU-R P.2040 material of the ground (e.g. 'concrete', "
+                                                   "'medium_dry_ground')")
+    reflection: float | None = Field(None, ge=-1, le=1, description="constant amplitude reflection coefficient "
+                                                                    "Γ [-] instead of a material")
+
+    @model_validator(mode="after")
+    def _one(self):
+        if (self.material is None) == (self.reflection is None):
+            raise ValueError("ground: give a material (e.g. 'concrete') or a constant reflection coefficient "
+                             "(e.g. -1.0), exactly one")
+        return self
+
+
 class MeshSpec(BaseModel):
     """A static user mesh (OBJ, STL, PLY, GLB, …) placed in the scene, for mesh-based forward models.
 
@@ -315,8 +342,17 @@ class Scene(BaseModel):
     meshes: list[MeshSpec] = Field(default_factory=list)
     objects: list[ObjectSpec] = Field(default_factory=list)
     atmosphere: AtmosphereSpec | None = None
+    ground: GroundSpec | None = Field(None, description="ground plane (3-D propagation); None: no ground")
     base_dir: str = "."
     meta: dict = Field(default_factory=dict)
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        # without a ground the dump (scene digests, dataset shards) stays what it was before the key existed
+        out = handler(self)
+        if isinstance(out, dict) and self.ground is None:
+            out.pop("ground", None)
+        return out
 
     def planar_walls(self) -> list[WallSpec]:
         """Every wall as planar pieces (curved walls cut into facets), in order."""

@@ -29,6 +29,7 @@ from xnlos_core.types import Frame
 from sims import diffuse_nlos
 from sims import walls as wall_em
 from sims.motion_paths import mirror_velocity, object_velocity
+from sims.ground import centre_height
 from sims.params import ForwardParams, components_needed
 from sims.paths import OTHER, PathList
 from sims.propagation import received_power
@@ -48,11 +49,13 @@ class RaytraceParams(ForwardParams):
                                    "scatterer would fall this far below min_snr_db [dB]")
     mixed_paths: bool = Field(True, description="add mixed paths: out along one chain, back along another "
                                                "(bistatic)")
-    radar_height: float = Field(0.75, gt=0, le=100, description="antenna height above ground [m]")
+    radar_height: float = Field(0.75, gt=0, le=100, description="antenna mounting height above ground [m]")
     backend: Literal["auto", "embree", "triangle"] = Field(
         "auto", description="ray-casting backend: 'embree' (embreex), 'triangle' (trimesh, numpy + rtree) or "
                             "'auto' (embree when available)")
     transmission: Literal["off"] = Field("off", description="not modelled by the ray tracer (use 'image')")
+
+    dump_always = frozenset({"radar_height"})  # a raytrace field before it was shared
 
 
 class RaytraceForwardModel(ForwardModel):
@@ -95,7 +98,7 @@ class RaytraceForwardModel(ForwardModel):
                    keep_segments=keep_segments)
         self._object_paths(world, radar, origin, scene, centres, tr, paths, timestamp)
         if use["diffuse_nlos"] == "on":  # last: Trace.diffuse_cells rows are the last paths
-            z = [min(p.radar_height, o.height) for o in scene.objects]
+            z = [centre_height(o, p.radar_height) for o in scene.objects]
             c3 = [(np.column_stack([c[0], np.full(len(c[0]), zj)]), np.column_stack([c[1], np.zeros(len(c[1]))]),
                    c[2]) for c, zj in zip(centres, z)]
             vel = [np.append(object_velocity(o, timestamp), 0.0) for o in scene.objects]
@@ -107,7 +110,7 @@ class RaytraceForwardModel(ForwardModel):
                       timestamp: float) -> None:
         p = self.params
         chains = {(): None, **tr.chains}
-        points = [np.column_stack([pts2, np.full(len(pts2), min(p.radar_height, scene.objects[j].height))])
+        points = [np.column_stack([pts2, np.full(len(pts2), centre_height(scene.objects[j], p.radar_height))])
                   for j, (pts2, _, _) in enumerate(centres)]
         normals = [np.column_stack([nrm2, np.zeros(len(nrm2))]) for _, nrm2, _ in centres]
         # every centre through every chain, one cast per leg and chain length (not per object and chain)
@@ -133,7 +136,8 @@ class RaytraceForwardModel(ForwardModel):
                 amp = np.sqrt(P) * np.exp(2j * np.angle(alpha[ok]))
                 paths.add(length=2 * L[ok], azimuth=az[ok], amp=amp, power=P,
                           kind=np.where(len(planes) == 0, 0, np.where(len(planes) == 1, 1, 2)), order=len(planes),
-                          pos=virt[ok, :2], hidden=pts[ok, :2], obj=j, centre=np.flatnonzero(ok), velocity=vv[:2])
+                          pos=virt[ok, :2], hidden=pts[ok, :2], obj=j, centre=np.flatnonzero(ok), velocity=vv[:2],
+                          height=pts[ok, 2])
             if p.mixed_paths:
                 for a in range(len(found)):
                     for b in range(len(found)):
@@ -151,7 +155,7 @@ class RaytraceForwardModel(ForwardModel):
                         u = np.stack([np.cos(azb[both]), np.sin(azb[both])], axis=1)
                         paths.add(length=Lr, azimuth=azb[both], amp=amp, power=P, kind=OTHER, order=ka + kb,
                                   pos=u * (Lr / 2)[:, None], hidden=pts[both, :2], obj=j,
-                                  centre=np.flatnonzero(both),
+                                  centre=np.flatnonzero(both), height=pts[both, 2],
                                   velocity=u * ((ra[both] + rb[both]) / 2)[:, None])  # d(Lr/2)/dt along pos
 
     def _chain_alphas(self, world, radar, chains, images, sizes) -> dict:
