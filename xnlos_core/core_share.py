@@ -33,6 +33,9 @@ from collections.abc import Callable
 
 MIN_INTERVAL = 0.05  # s: a shorter interval holds too few clock ticks (USER_HZ, 100 per s) to measure
 RESTORE_AFTER = 3  # intervals in a row with more cores free before torch gets its threads back
+KEEP_MARGIN = 0.25  # [cores] the free cores are rounded up from (n − 1) + this: a thread is given up only
+# when other processes took more than 3/4 of a core, so background noise (the kernel's threads, a
+# hypervisor's steal time, a short job) does not cost a quiet machine its second thread
 
 
 def _ticks_per_second() -> int:
@@ -142,7 +145,7 @@ class TorchThreads:
             return min(current, wanted)
         # Others' load is measured on logical CPUs; the cores are physical (hyper-threads counted once).
         free = (len(self.share.cpus) - others) * self.cores / len(self.share.cpus)
-        fit = min(max(int(free + 0.5), 1), wanted)
+        fit = min(max(int(free + 1.0 - KEEP_MARGIN), 1), wanted)
         if fit < current:
             self.cap, self._ups = fit, 0
         elif fit > current:

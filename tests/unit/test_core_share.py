@@ -179,3 +179,15 @@ def test_pipeline_adapts_once_per_frame(monkeypatch):
         for frame in pipe.frames():
             pipe.process(frame)
         assert calls == [share, share]
+
+
+def test_background_noise_does_not_cost_a_thread():
+    # other processes at 0.6 of a core (the kernel's threads, steal time, a short job): both threads stay;
+    # at 0.9 of a core, one is given up
+    f = Fake()
+    gov = TorchThreads(2, f.share())
+    gov.update(2)
+    f.advance(0.2, others=0.6, own=1.4)
+    assert gov.update(2) == 2
+    f.advance(0.2, others=0.9, own=1.1)
+    assert gov.update(2) == 1
