@@ -207,8 +207,10 @@ def finite_json(obj):
     lists and tuples, so that ``json.dumps(..., allow_nan=False)`` writes strict JSON (RFC 8259 has
     no NaN or Infinity; Python's and JavaScript's strict parsers refuse them). None reads as "no
     finite value", e.g. a Chamfer distance with an empty side."""
-    if isinstance(obj, float | np.floating):
-        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.ndarray | np.generic):
+        obj = obj.tolist()
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
     if isinstance(obj, dict):
         return {k: finite_json(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
@@ -218,8 +220,8 @@ def finite_json(obj):
 
 def strict_json_text(obj, **kwargs) -> str:
     """``json.dumps`` of :func:`finite_json` (``obj``) with ``allow_nan=False`` (and ``kwargs``; numpy
-    scalars and arrays as numbers and lists, anything else as its str)."""
-    return json.dumps(finite_json(json.loads(json.dumps(obj, default=json_default))), allow_nan=False, **kwargs)
+    scalars and arrays as numbers and lists, any other type JSON lacks as its str)."""
+    return json.dumps(finite_json(obj), default=str, allow_nan=False, **kwargs)
 
 
 # GroundTruth fields a frame file holds only when the truth records them (gt_<name>)

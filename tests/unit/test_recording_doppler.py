@@ -2,7 +2,6 @@
 frame timestamps from a stated frame period, and a range axis that ends at max_range."""
 from __future__ import annotations
 
-import math
 import warnings
 
 import numpy as np
