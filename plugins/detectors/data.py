@@ -21,14 +21,14 @@ from xnlos_core.errors import ConfigError
 from xnlos_core.metrics import thin_to_resolution
 from xnlos_core.types import Frame, GroundTruth, RAMap
 
-from .features import ra_features
+from .features import RA_CHANNELS, map_features
 from .heatmaps import peak_cells
 from .train_config import DataConfig, GenerateConfig, scene_generators
 
 
 @dataclass
 class MapSet:
-    """N maps of one split: features (N, 3, H, W) float16, peak cells per map (P, 3), and for
+    """N maps of one split: features (N, C, H, W) float16 (C input channels, :mod:`.features`), peak cells per map (P, 3), and for
     evaluation the maps' axes (RAMap without data is not possible, so the RAMap itself is kept
     only when ``keep_maps``) and thinned ground truth."""
 
@@ -41,7 +41,8 @@ class MapSet:
         return len(self.peaks)
 
 
-def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool) -> MapSet:
+def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool,
+         channels: tuple[str, ...] = RA_CHANNELS) -> MapSet:
     from tqdm import tqdm
 
     feats, peaks, maps, truths = [], [], [], []
@@ -49,7 +50,7 @@ def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool) 
         if not isinstance(f, Frame) or f.ground_truth is None:
             raise ConfigError(f"{desc}: map {getattr(f, 'index', '?')} has no ground truth; training needs "
                               "simulated maps")
-        feats.append(ra_features(f.ra_map.data).astype(np.float16))
+        feats.append(map_features(f.ra_map, channels, name=f"{desc}: map {f.index}").astype(np.float16))
         peaks.append(peak_cells(f.ra_map, f.ground_truth))
         if keep_maps:
             maps.append(f.ra_map)
@@ -85,7 +86,11 @@ def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
 
 def load_split(cfg: DataConfig, seed: int, split: str, keep_maps: bool, limit: int | None,
                progress: bool = False, base_dir: str | Path = ".") -> MapSet:
-    """The maps of ``split`` ("train", "val", "test") for training or evaluation."""
+    """The maps of ``split`` ("train", "val", "test") for training or evaluation, as features of the
+    input channels that ``cfg.doppler`` selects (:meth:`TrainConfig.channels`)."""
+    from .features import DOPPLER_CHANNELS
+
+    channels = RA_CHANNELS + DOPPLER_CHANNELS if cfg.doppler else RA_CHANNELS
     if cfg.generate is not None:
         frames = _generated(cfg.generate, seed, split, Path(base_dir))
     else:
@@ -93,7 +98,7 @@ def load_split(cfg: DataConfig, seed: int, split: str, keep_maps: bool, limit: i
 
         name = {"train": cfg.train_split, "val": cfg.val_split}.get(split, split)
         frames = dataset_backend(cfg.dataset, name, base_dir).frames()
-    return _add(frames, keep_maps, limit, f"load {split}", progress)
+    return _add(frames, keep_maps, limit, f"load {split}", progress, channels)
 
 
 def dataset_record(cfg: DataConfig, base_dir: str | Path = ".") -> dict[str, Any]:

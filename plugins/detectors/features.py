@@ -1,6 +1,6 @@
 """Network input features of a complex RA map κ ∈ ℂ^{H×W} (Sec. 4.1), and padding to a multiple.
 
-Four float32 channels, shape (4, H, W):
+The power-map channels, float32, shape (4, H, W) (:func:`ra_features`, :data:`RA_CHANNELS`):
 
 0. normalised log power  ℓ = clip((10·log10 max(|κ|², P_floor) − L_ref) / 10 dB, −3, 10):
    decibels above the map's median power L_ref (the noise floor of a sparse map), in units of
@@ -15,6 +15,24 @@ Four float32 channels, shape (4, H, W):
 
 An all-zero map gives all-zero features (finite; a detector then finds what its bias says, for
 the shipped models nothing). NaN or infinite cells raise :class:`InputError`.
+
+Doppler channels (:func:`doppler_features`, :data:`DOPPLER_CHANNELS`), from a map of Doppler
+processing (``RAMap.velocity`` v̂_r and ``RAMap.velocity_std`` σ_v per cell,
+:func:`xnlos_core.signal.doppler.doppler_ra_maps`), set to 0 in cells not above the map's median
+level (ℓ ≤ 0: noise, whose velocity is a random bin):
+
+4. radial velocity  v̂_r / v_max, clipped to [−3, 3] (v_max = λ₀/(4·T_c·N_tx), the unambiguous
+   velocity; resolved folds lie beyond ±1). A wall's own echo is 0; a moving car's mirror is not —
+   the cue that tells a static wall echo mirrored through another wall from a road user.
+5. velocity σ  (log10(σ_v/Δv) + 3)/4, clipped to [0, 1.25] (Δv the Doppler-bin spacing): about 0
+   for a strong echo (σ_v ≤ Δv/1000), 0.75 at σ_v = Δv.
+6. Doppler spread  1 − |Σ w·e^{jπv̂/v_max}| / Σ w over the 3 × 3 neighbourhood, weights w = |κ|²
+   of the cells above the median: 0 where one rigid reflector fills the neighbourhood, up to 1
+   where velocities disagree (a wall edge next to a car, clutter, noise). The phase form makes it
+   indifferent to a fold (v and v ± 2·v_max agree).
+
+A model records its channel names (checkpoint metadata ``features.channels``); :func:`map_features`
+builds exactly those, and refuses (InputError) a map without Doppler for a model that wants it.
 """
 from __future__ import annotations
 
@@ -24,9 +42,13 @@ import torch.nn.functional as F
 
 from xnlos_core.errors import InputError
 
-N_FEATURES = 4
+N_FEATURES = 4  # the power-map channels; a network's input count is its ``in_channels`` hyper-parameter
 LOG_SCALE_DB = 10.0
 CLIP = (-3.0, 10.0)
+RA_CHANNELS = ("log_power_10db_over_median", "cos_phase", "sin_phase", "occlusion")
+DOPPLER_CHANNELS = ("radial_velocity_over_vmax", "log_velocity_std_over_bin", "doppler_spread_3x3")
+VELOCITY_CLIP = 3.0  # |v̂_r| / v_max: two folds either side
+STD_CLIP = (0.0, 1.25)
 
 
 def ra_features(data: np.ndarray, dynamic_range_db: float = 200.0, name: str = "RAMap.data") -> np.ndarray:
@@ -54,6 +76,58 @@ def ra_features(data: np.ndarray, dynamic_range_db: float = 200.0, name: str = "
     out[1] = np.where(above, k128.real / mag, 0.0)
     out[2] = np.where(above, k128.imag / mag, 0.0)
     return out
+
+
+def doppler_features(ra_map, level: np.ndarray, name: str = "RAMap") -> np.ndarray:
+    """The Doppler channels (3, H, W) float32 of ``ra_map`` (module doc); ``level`` is the
+    normalised log power ℓ (channel 0 of :func:`ra_features`). InputError without Doppler."""
+    if ra_map.velocity is None:
+        raise InputError(f"{name}: this model's inputs include Doppler channels ({', '.join(DOPPLER_CHANNELS)}), "
+                         "but the map has none (RAMap.velocity is None): give it maps from Doppler processing "
+                         "(forward model params doppler = true, or a recording with n_chirps > 1), or choose a model "
+                         "without Doppler inputs (checkpoint = 'default')")
+    radar = ra_map.radar
+    vmax, dv = radar.max_unambiguous_velocity, radar.velocity_resolution
+    v = np.asarray(ra_map.velocity, np.float64)
+    std = np.asarray(ra_map.velocity_std, np.float64)
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(std))):
+        raise InputError(f"{name}: RAMap.velocity / velocity_std hold NaN or infinite cells; a detector needs finite "
+                         "Doppler maps")
+    above = level > 0.0
+    out = np.zeros((3,) + v.shape, np.float32)
+    out[0] = np.where(above, np.clip(v / vmax, -VELOCITY_CLIP, VELOCITY_CLIP), 0.0)
+    rel = np.log10(np.maximum(std / dv, 1e-12))
+    out[1] = np.where(above, np.clip((rel + 3.0) / 4.0, *STD_CLIP), 0.0)
+    kappa = np.asarray(ra_map.data).astype(np.complex128)
+    w = np.where(above, kappa.real**2 + kappa.imag**2, 0.0)
+    w = w / w.max() if w.max() > 0 else w  # scale-free; the spread is a ratio of sums of w
+    phasor = w * np.exp(1j * np.pi * v / vmax)
+    pad = ((1, 1), (1, 1))
+    sw, sp = np.pad(w, pad), np.pad(phasor, pad)
+    h, wd = v.shape
+    tot_w = sum(sw[i:i + h, j:j + wd] for i in range(3) for j in range(3))
+    tot_p = sum(sp[i:i + h, j:j + wd] for i in range(3) for j in range(3))
+    spread = 1.0 - np.abs(tot_p) / np.where(tot_w > 0, tot_w, 1.0)
+    out[2] = np.where(above & (tot_w > 0), np.clip(spread, 0.0, 1.0), 0.0)
+    return out
+
+
+def map_features(ra_map, channels=RA_CHANNELS, dynamic_range_db: float = 200.0, name: str = "RAMap") -> np.ndarray:
+    """Features (len(channels), H, W) float32 of ``ra_map`` for a model whose inputs are ``channels``
+    (checkpoint metadata ``features.channels``): :data:`RA_CHANNELS`, optionally followed by
+    :data:`DOPPLER_CHANNELS`. InputError for a map without the Doppler a model wants; ConfigError
+    for channel names this version does not know (a newer checkpoint)."""
+    channels = tuple(channels)
+    known = (RA_CHANNELS, RA_CHANNELS + DOPPLER_CHANNELS)
+    if channels not in known:
+        from xnlos_core.errors import ConfigError
+
+        raise ConfigError(f"model input channels {list(channels)}: this xnlos builds {list(RA_CHANNELS)} or "
+                          f"{list(RA_CHANNELS + DOPPLER_CHANNELS)}; the checkpoint was made for other inputs")
+    ra = ra_features(ra_map.data, dynamic_range_db, name=f"{name}.data")
+    if channels == RA_CHANNELS:
+        return ra
+    return np.concatenate([ra, doppler_features(ra_map, ra[0], name)], axis=0)
 
 
 def pad_to_multiple(x: torch.Tensor, multiple: tuple[int, int]) -> tuple[torch.Tensor, tuple[int, int]]:

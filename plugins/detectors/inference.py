@@ -1,6 +1,6 @@
 """Running a detector network for inference, fast.
 
-:class:`InferenceRunner` wraps an ``nn.Module`` (B, 4, H, W) → (B, C, H', W') once it is built:
+:class:`InferenceRunner` wraps an ``nn.Module`` (B, C, H, W) → (B, C, H', W') once it is built:
 
 - eval mode under ``torch.inference_mode()`` (no autograd records, no version counters);
 - channels-last memory format for weights and input: oneDNN's convolutions run NHWC natively, so
@@ -50,7 +50,7 @@ def to_channels_last(x):
 
 
 class InferenceRunner:
-    """Callable: features (4, H, W) float32 numpy → raw network output (C, H', W') float32 numpy,
+    """Callable: features (C, H, W) float32 numpy (C the network's ``in_channels``) → raw network output (C, H', W') float32 numpy,
     C-contiguous (module doc). ``net`` is moved to ``device``, set to eval mode and converted to
     channels-last in place (the caller's module is the one used)."""
 
@@ -103,7 +103,7 @@ class InferenceRunner:
         return self.net(x)
 
     def __call__(self, features: np.ndarray) -> np.ndarray:
-        """Raw output (C, H', W') float32 of features (4, H, W), zero-padded to the network's multiple
+        """Raw output (C, H', W') float32 of features (C, H, W), zero-padded to the network's multiple
         (not cropped back: the head decides)."""
         import torch
 
@@ -137,5 +137,6 @@ class InferenceRunner:
         h, w = (int(s) for s in shape)
         if h < 1 or w < 1:
             raise ConfigError(f"{self.name}: warm-up map shape {shape}: expected positive (n_range, n_azimuth)")
-        self(np.zeros((4, h, w), np.float32))
+        channels = int(getattr(getattr(self.net, "hp", None), "in_channels", 4))
+        self(np.zeros((channels, h, w), np.float32))
         return 1

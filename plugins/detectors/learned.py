@@ -44,7 +44,7 @@ from typing import Annotated, Any, ClassVar, Literal
 import warnings
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator, model_validator
 
 from plugins.detectors.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
 from xnlos_core.core_share import limited
@@ -67,6 +67,10 @@ class LearnedParams(BaseModel):
     checkpoint: Annotated[str, config_path("default", "none")] = Field(
         "default", description="checkpoint file from `xnlos train`, relative to the config file's folder; "
                                "'default': the model shipped with xnlos; 'none': untrained (tests only)")
+    model: str | None = Field(None, pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}$",
+                              description="a model shipped with xnlos, by name (plugins/detectors/models/NAME.pt, "
+                                          "e.g. 'swin_unet_doppler', which also reads the Doppler channels); "
+                                          "None: checkpoint decides")
     device: str = Field("auto", pattern=r"^(auto|cpu|cuda(:\d+)?|mps)$",
                         description="torch device: auto (cuda when available, else cpu), cpu, cuda[:N], mps")
     threshold: float | tuple[float, float] | None = Field(
@@ -114,12 +118,49 @@ class LearnedParams(BaseModel):
             raise ValueError(f"threshold {v}: must lie in (0, 1)")
         return v
 
+    @model_validator(mode="after")
+    def _one_model(self):
+        if self.model is not None and self.checkpoint != "default":
+            raise ValueError(f"give model = {self.model!r} (a shipped model) or checkpoint = {self.checkpoint!r} "
+                             "(a file), not both")
+        return self
+
     @field_validator("window")
     @classmethod
     def _odd(cls, v):
         if v is not None and any(s < 1 or s > 31 or s % 2 == 0 for s in v):
             raise ValueError(f"window {v}: each size must be odd and in 1…31 cells")
         return v
+
+
+def shipped_models(architecture: str) -> list[str]:
+    """Names of the models shipped for ``architecture`` (plugins/detectors/models/NAME.pt whose
+    metadata sidecar NAME.json names that architecture)."""
+    import json
+
+    names = []
+    for pt in sorted(MODELS_DIR.glob("*.pt")):
+        side = pt.with_suffix(".json")
+        try:
+            arch = json.loads(side.read_text()).get("architecture") if side.is_file() else None
+        except (OSError, ValueError):
+            arch = None
+        if arch == architecture:
+            names.append(pt.stem)
+    return names
+
+
+def shipped_model(architecture: str, name: str) -> Path:
+    """The file of the shipped model ``name`` for ``architecture``; ConfigError naming the choices."""
+    names = shipped_models(architecture)
+    if name not in names:
+        import difflib
+
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ConfigError(f"params.model = {name!r}: no such {architecture} model shipped with xnlos{hint}; "
+                          f"shipped: {', '.join(names) or 'none'}")
+    return MODELS_DIR / f"{name}.pt"
 
 
 def resolve_device(name: str):
@@ -232,7 +273,8 @@ class LearnedDetector(Detector):
             meta: dict[str, Any] = {"architecture": self.architecture, "hparams": net.hp.model_dump(),
                                     "head": default_head(self.architecture, net.hp).describe()}
         else:
-            path = MODELS_DIR / f"{self.architecture}.pt" if p.checkpoint == "default" else Path(p.checkpoint)
+            path = shipped_model(self.architecture, p.model) if p.model else (
+                MODELS_DIR / f"{self.architecture}.pt" if p.checkpoint == "default" else Path(p.checkpoint))
             if p.checkpoint == "default" and not path.is_file():
                 raise InputError(f"{type(self).__name__}: no shipped checkpoint {path}; train one with "
                                  f"`xnlos train configs/training/{self.architecture}.toml` and set "
@@ -283,6 +325,26 @@ class LearnedDetector(Detector):
         self._load()
         return self._meta
 
+    @property
+    def input_channels(self) -> tuple[str, ...]:
+        """The names of the network's input channels (checkpoint metadata ``features.channels``; the
+        four power-map channels for checkpoints without a record), :mod:`.features`."""
+        from .features import RA_CHANNELS
+
+        self._load()
+        return tuple(self._meta.get("features", {}).get("channels", RA_CHANNELS))
+
+    @property
+    def needs_doppler(self) -> bool:
+        """Whether the model's inputs include Doppler channels (it refuses maps without them)."""
+        from .features import DOPPLER_CHANNELS
+
+        return any(c in DOPPLER_CHANNELS for c in self.input_channels)
+
+    def _model_name(self) -> str:
+        p = self.params
+        return f"model {p.model!r}" if p.model else f"checkpoint {p.checkpoint!r}"
+
     def state_sha256(self) -> str | None:
         """The checkpoint's ``weights_sha256`` (None for ``checkpoint = "none"``: the seed decides)."""
         return None if self.params.checkpoint == "none" else self.metadata["weights_sha256"]
@@ -314,7 +376,7 @@ class LearnedDetector(Detector):
             return list(self._checked[radar])
         problems = radar_mismatches(rec, radar)
         if problems:
-            what = f"{type(self).__name__} (checkpoint {self.params.checkpoint!r})"
+            what = f"{type(self).__name__} ({self._model_name()})"
             text = "; ".join(problems)
             if not self.params.allow_mismatch:
                 raise ConfigError(f"{what} was trained on another radar than the one whose maps it would see: "
@@ -347,7 +409,7 @@ class LearnedDetector(Detector):
             return []  # decided before the run (check_model)
         problems = map_mismatches(rec, ra_map)
         if problems:
-            what = f"{type(self).__name__} (checkpoint {self.params.checkpoint!r}) on {where}"
+            what = f"{type(self).__name__} ({self._model_name()}) on {where}"
             msg = mismatch_message(what, rec, ra_map, problems)
             if self.params.strict and not self.params.allow_mismatch:
                 raise InputError(f"{msg}; strict = true refuses it (set strict = false to only warn, or "
@@ -361,13 +423,14 @@ class LearnedDetector(Detector):
         """Raw network output of ``frame`` (float32): dense logits (2, H', W') of the zero-padded map
         (H' ≥ H, W' ≥ W; rows and columns beyond the map are padding), or a grid head's (6, H'/s_r, W'/s_a);
         with ``tta = "flip"`` the flip-averaged logits. :meth:`decode` turns it into detections."""
-        from .features import ra_features
+        from .features import map_features
 
         self.check_frame(frame)
         self._load()
         self.check_grid(frame.ra_map, f"frame {frame.index}")
-        feats = ra_features(frame.ra_map.data, self._meta.get("features", {}).get("dynamic_range_db", 200.0),
-                            name=f"frame {frame.index}: RAMap.data")
+        feats = map_features(frame.ra_map, self.input_channels,
+                             self._meta.get("features", {}).get("dynamic_range_db", 200.0),
+                             name=f"{type(self).__name__} ({self._model_name()}) on frame {frame.index}: RAMap")
         out = self._runner(feats)
         if self.params.tta == "flip":
             kind = self._head.describe()["kind"]

@@ -33,6 +33,13 @@ FEATURES = {"version": 2, "channels": ["log_power_10db_over_median", "cos_phase"
             "dynamic_range_db": 200.0}
 
 
+def features_record(channels) -> dict[str, Any]:
+    """The checkpoint's ``features`` record: what a detector builds for the network's inputs
+    (:func:`plugins.detectors.features.map_features`); version 3 adds the Doppler channels."""
+    rec = {**FEATURES, "channels": list(channels)}
+    return rec if rec["channels"] == FEATURES["channels"] else {**rec, "version": 3}
+
+
 def _round_up(n: int, m: int) -> int:
     return -(-n // m) * m
 
@@ -110,9 +117,13 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
     sd, meta, _ = load_checkpoint(path, cfg.model.name, map_location="cpu")
     # the parent as any detector loads it: fields added since it was made take their defaults
     parent_hp = build_model(meta, source=f"init {str(path)!r}").hp.model_dump(mode="json")
-    if parent_hp != hp.model_dump(mode="json"):
+    here = hp.model_dump(mode="json")
+    widen = parent_hp["in_channels"] < here["in_channels"]
+    if {**parent_hp, "in_channels": 0} != {**here, "in_channels": 0} or parent_hp["in_channels"] > here["in_channels"]:
         raise InputError(f"init {str(path)!r}: its hyper-parameters {meta.get('hparams')} differ from model.params "
-                         f"{hp.model_dump(mode='json')}; fine-tuning needs the same network")
+                         f"{here}; fine-tuning needs the same network (it may only gain input channels)")
+    if widen:
+        sd = widened_inputs(sd, net.state_dict(), parent_hp["in_channels"])
     net.load_state_dict(sd)
     parent = meta.get("training", {})
     record = {"path": str(cfg.init), "weights_sha256": meta.get("weights_sha256"),
@@ -120,6 +131,29 @@ def _initial_weights(cfg: TrainConfig, net, hp, base_dir) -> dict[str, Any]:
               "epochs_run": parent.get("epochs_run"), "val": parent.get("metrics", {}).get("val")}
     grandparent = parent.get("dataset", {}).get("init")
     return {**record, "init": grandparent} if grandparent else record
+
+
+def widened_inputs(parent: dict[str, Any], target: dict[str, Any], n_parent: int) -> dict[str, Any]:
+    """``parent``'s weights for a network with more input channels (``target``'s shapes): a tensor
+    that differs only in its input-channel axis (the first convolution, (out, in, kh, kw)) keeps the
+    parent's weights for the first ``n_parent`` channels and gets zeros for the new ones, so the
+    widened network starts as the parent (same outputs on any map) and learns the new inputs'
+    weights from there. Any other difference raises InputError."""
+    import torch
+
+    out = {}
+    for key, value in parent.items():
+        want = target.get(key)
+        if want is None or tuple(want.shape) == tuple(value.shape):
+            out[key] = value
+            continue
+        if (value.ndim < 2 or value.shape[0] != want.shape[0] or value.shape[2:] != want.shape[2:]
+                or value.shape[1] != n_parent):
+            raise InputError(f"init: weights {key} {tuple(value.shape)} do not fit {tuple(want.shape)}")
+        grown = torch.zeros(want.shape, dtype=value.dtype)
+        grown[:, :n_parent] = value
+        out[key] = grown
+    return out
 
 
 def _trained_on(train_set, val_set, data_rec: dict[str, Any]) -> dict[str, Any]:
@@ -199,7 +233,7 @@ def train(cfg: TrainConfig, *, overwrite: bool = False, progress: bool = True, s
     init = _initial_weights(cfg, net, hp, base_dir) if cfg.init else None
     run.restore(net, opt, sched, cfg.model.name, map_location=device)  # also restores torch's RNG
     base_meta = {"architecture": cfg.model.name, "hparams": hp.model_dump(mode="json"), "head": head.describe(),
-                 "features": FEATURES, "trained_on": _trained_on(train_set, val_set, data_rec)}
+                 "features": features_record(cfg.channels()), "trained_on": _trained_on(train_set, val_set, data_rec)}
 
     def train_epoch(epoch: int) -> dict[str, Any]:
         """Eq. 8 (the head's loss) over ``steps`` seeded batches."""

@@ -66,7 +66,7 @@ class GenerateConfig(BaseModel):
         return self
 
 
-LATE_OPTIONS = (("data", "flip_azimuth", False),)  # (section, key, default): see TrainConfig.digest
+LATE_OPTIONS = (("data", "flip_azimuth", False), ("data", "doppler", False))  # (section, key, default): see TrainConfig.digest
 
 
 class DataConfig(BaseModel):
@@ -83,6 +83,9 @@ class DataConfig(BaseModel):
     flip_azimuth: bool = Field(False, description="mirror each training sample in azimuth with probability "
                                                   "1/2 (seeded); needs an azimuth axis symmetric about boresight")
     match_radius: float = Field(1.0, gt=0, le=100, description="F1 match radius [m] (Table 2 metrics)")
+    doppler: bool = Field(False, description="add the Doppler channels (radial velocity, its σ, Doppler spread; "
+                                             "plugins.detectors.features) to the network's inputs; needs maps "
+                                             "from Doppler processing (forward model params doppler = true)")
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -161,13 +164,26 @@ class TrainConfig(BaseModel):
     optim: OptimConfig = Field(default_factory=OptimConfig)
     eval: EvalConfig = Field(default_factory=EvalConfig)
 
+    def channels(self) -> tuple[str, ...]:
+        """The network's input channels (:mod:`plugins.detectors.features`): the power-map ones, and
+        the Doppler ones with ``data.doppler``."""
+        from .features import DOPPLER_CHANNELS, RA_CHANNELS
+
+        return RA_CHANNELS + DOPPLER_CHANNELS if self.data.doppler else RA_CHANNELS
+
     def hparams(self):
-        """The architecture's validated hyper-parameter model."""
+        """The architecture's validated hyper-parameter model; ``in_channels`` follows the input
+        channels (:meth:`channels`), and a different value in model.params is a ConfigError."""
         from .nets import architectures
 
         arch = architectures()[self.model.name]
-        return validate_model(arch.HParams, self.model.params, source=f"model {self.model.name!r}",
-                              prefix="model.params")
+        n = len(self.channels())
+        given = self.model.params.get("in_channels")
+        if given is not None and given != n:
+            raise ConfigError(f"model.params.in_channels = {given!r}: the inputs are {n} channels "
+                              f"({', '.join(self.channels())}); leave in_channels out, it follows data.doppler")
+        return validate_model(arch.HParams, {**self.model.params, "in_channels": n},
+                              source=f"model {self.model.name!r}", prefix="model.params")
 
     def digest(self) -> str:
         """sha256 of the canonical config, excluding where outputs go (identifies a run for resuming).

@@ -95,3 +95,25 @@ def test_pooled_motp_is_motmetrics_overall_motp_with_an_id_switch():
     assert recs[0]["mot"]["motp"] == pytest.approx(0.5) and recs[0]["mot"]["motp_sum"] == pytest.approx(2.0)
     assert want == pytest.approx(0.42)
     assert pool(recs)["motp"] == pytest.approx(want, rel=1e-12)
+
+
+def test_ghosts_are_hidden_points_within_2_m_of_no_object_and_pool_as_a_rate():
+    from xnlos_core.app.sequence_eval import Step, _ghost_summary, ghosts
+    from xnlos_core.types import HiddenPoints
+
+    mean = np.array([[10.0, 5.0],     # 1.5 m from the car's centre: not a ghost
+                     [20.0, -3.0],    # 0.5 m from a static hidden surface point: not a ghost
+                     [30.0, 8.0],     # 2.5 m from the nearest object: a ghost
+                     [40.0, 40.0]])   # far from everything: a ghost
+    hp = HiddenPoints(mean, np.tile(np.eye(2), (4, 1, 1)), np.arange(4), np.zeros(4, int), gated=np.array([7, 9]))
+    step = Step(0.0, {"position": [[10.0, 6.5], [30.0, 5.5]]}, None, hp, None)
+    assert ghosts(step) == (3, 4, 2)  # without ground truth the static surface is unknown
+    from xnlos_core.types import GroundTruth
+
+    gt = GroundTruth(los_points=np.empty((0, 2)), mnlos_points=np.array([[20.0, -3.5]]),
+                     hidden_points=np.array([[20.0, -3.5]]))
+    step = Step(0.0, {"position": [[10.0, 6.5], [30.0, 5.5]]}, None, hp, gt)
+    assert ghosts(step) == (2, 4, 2)
+    assert ghosts(Step(0.0, {"position": []}, None, HiddenPoints.empty(), None)) == (0, 0, 0)
+    assert _ghost_summary([[2, 4, 2], [1, 6, 0]]) == {"ghosts": {"rate": 0.3, "ghosts": 3, "points": 10, "gated": 2}}
+    assert _ghost_summary([]) == {}

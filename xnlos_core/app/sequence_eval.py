@@ -36,6 +36,11 @@ match threshold ``run.match_radius`` [m]):
   a point mirrored through the wrong wall or matched to another scatterer: one such point moves the
   RMSE of a few hundred by tenths of a m/s) with their share.
 
+* ghost rate: share of the reconstructed hidden points (the mNLOS detections the reconstructor
+  mirrored, after its visibility gate) that lie within :data:`GHOST_RADIUS` (2 m) of no object: no
+  road user's centre and no ground-truth hidden point (of a road user or a static surface); pooled
+  as ghosts / points over the frames, with the gate's refusals (``HiddenPoints.gated``) beside it.
+
 Sequence records (``sequences.jsonl``, one fsync'd line per finished sequence) keep sums and counts,
 so :func:`summarize` pools them exactly over a run, a family or a motion kind. A killed eval resumes
 per whole sequence: map lines of an unfinished sequence are dropped and the sequence is redone.
@@ -60,6 +65,7 @@ DEFAULT_HORIZONS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)  # s, the CV forecast of a tra
 AT = (1.0, 2.0, 3.0)  # s, the horizons ADE/FDE are reported at
 ARRIVAL_HORIZON = 3.0  # s, truth arrivals further ahead than this are not scored
 RANGE_BINS = ((0.0, 15.0, "<15 m"), (15.0, 25.0, "15–25 m"), (25.0, math.inf, "≥25 m"))
+GHOST_RADIUS = 2.0  # m, a hidden point farther than this from every object is a ghost (module docstring)
 GROSS_RADIAL = 1.0  # m/s, a radial-velocity error above this is a gross one (module docstring)
 SEQUENCES_LOG = "sequences.jsonl"
 
@@ -165,6 +171,25 @@ def _radial(step: Step, threshold: float, names: set[str]) -> dict[str, list[flo
     return out
 
 
+def ghosts(step: Step, radius: float = GHOST_RADIUS) -> tuple[int, int, int]:
+    """(ghosts, hidden points, gated) of one map: the reconstructed hidden points farther than
+    ``radius`` [m] from every road user's centre and every ground-truth hidden point (module doc)."""
+    hp = step.hidden
+    m = len(hp.mean)
+    gated = 0 if hp.gated is None else len(hp.gated)
+    if m == 0:
+        return 0, 0, gated
+    objects = [np.asarray(p, float).reshape(-1, 2) for p in step.truth.get("position", [])]
+    gt = step.ground_truth
+    if gt is not None and len(gt.hidden_points):
+        objects.append(np.asarray(gt.hidden_points, float).reshape(-1, 2))
+    if not objects:
+        return m, m, gated
+    obj = np.concatenate(objects)
+    d = np.linalg.norm(hp.mean[:, None, :] - obj[None], axis=-1).min(axis=1)
+    return int(np.count_nonzero(d > radius)), m, gated
+
+
 def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str, Any]:
     """The sums and counts of one sequence (module doc), JSON-ready: {frames, motion, mot {POOLED counts,
     motp_sum, mota, motp, idf1}, velocity [sse, n], forecasts [rows], arrivals [rows], radial {bin: [sse, n]}}.
@@ -222,6 +247,7 @@ def score_sequence(steps: list[Step], threshold: float, region=None) -> dict[str
         for label, sums in _radial(s, threshold, names).items():
             radial[label] = [a + b for a, b in zip(radial[label], sums)]
     rec["radial"] = radial
+    rec["ghosts"] = [sum(g) for g in zip(*(ghosts(s) for s in steps))]
     return rec
 
 
@@ -304,7 +330,17 @@ def pool(seqs: list[dict]) -> dict[str, Any]:
                     "bias_s": float(np.mean([a["pred"] - a["truth"] for a in finite])) if finite else None,
                     "interval_coverage": float(np.mean(inside)) if arrivals else None},
         "radial_velocity": radial,
+        **_ghost_summary([s["ghosts"] for s in seqs if "ghosts" in s]),
     }
+
+
+def _ghost_summary(cells: list[list[int]]) -> dict[str, Any]:
+    """{"ghosts": {rate, ghosts, points, gated}} pooled over sequence records; {} for records written
+    before the ghost count."""
+    if not cells:
+        return {}
+    g, m, gated = (int(sum(c[i] for c in cells)) for i in range(3))
+    return {"ghosts": {"rate": g / m if m else None, "ghosts": g, "points": m, "gated": gated}}
 
 
 def summarize(seqs: list[dict]) -> dict[str, Any]:
@@ -437,4 +473,17 @@ def render_tracking(runs: list[dict]) -> list[str]:
             rv = p["radial_velocity"]
             lines.append(f"| {r['run']} | {r['name']} | {fam} | "
                          + " | ".join(_radial_cell(rv[b[2]]) for b in RANGE_BINS) + " |")
+    if any("ghosts" in r["tracking"]["overall"] for r in runs):
+        lines += ["", "### Ghosts: reconstructed hidden points within "
+                  f"{GHOST_RADIUS:g} m of no object", "",
+                  "rate = ghosts / hidden points over every frame; gated: mNLOS detections the visibility gate "
+                  "refused before mirroring.", "",
+                  "| run | method | family | hidden points | ghosts | rate | gated |", "|" + "---|" * 7]
+        for r in runs:
+            t = r["tracking"]
+            for fam, p in [("all", t["overall"]), *t["families"].items()]:
+                g = p.get("ghosts")
+                if g:
+                    lines.append(f"| {r['run']} | {r['name']} | {fam} | {g['points']} | {g['ghosts']} | "
+                                 f"{_f(g['rate'], 3)} | {g['gated']} |")
     return lines

@@ -21,6 +21,7 @@ class FTCParams(BaseModel):
     """Hyper-parameters of :class:`FurtherThanCFAR`."""
 
     model_config = ConfigDict(extra="forbid")
+    in_channels: int = Field(N_FEATURES, ge=1, le=64, description="input feature channels (plugins.detectors.features: 4 power-map channels, 7 with Doppler)")
     base_channels: int = Field(16, ge=2, le=128, description="channels at full resolution (doubled per level)")
     levels: int = Field(2, ge=1, le=4, description="stride-2 encoder stages")
 
@@ -34,7 +35,7 @@ class FurtherThanCFAR(nn.Module):
         self.hp = hp
         c = [hp.base_channels * 2**i for i in range(hp.levels + 1)]
         self.multiple = (2**hp.levels, 2**hp.levels)
-        self.stem = conv_bn(N_FEATURES, c[0])
+        self.stem = conv_bn(hp.in_channels, c[0])
         self.enc = nn.ModuleList(ResBlock(c[i], c[i + 1], stride=2) for i in range(hp.levels))
         self.lateral = nn.ModuleList(nn.Conv2d(c[i], c[0], 1) for i in range(hp.levels + 1))
         self.out = conv_bn(c[0], c[0])

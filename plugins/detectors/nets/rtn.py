@@ -30,6 +30,7 @@ class RTNParams(BaseModel):
     """Hyper-parameters of :class:`RTN`."""
 
     model_config = ConfigDict(extra="forbid")
+    in_channels: int = Field(N_FEATURES, ge=1, le=64, description="input feature channels (plugins.detectors.features: 4 power-map channels, 7 with Doppler)")
     base_channels: int = Field(16, ge=2, le=128, description="channels of the first stage (doubled per stage)")
     stride: tuple[int, int] = Field((1, 2), description="output grid stride (range, azimuth) [bins]; "
                                                        "powers of two (module doc: keep it within a "
@@ -61,7 +62,7 @@ class RTN(nn.Module):
         self.stride = tuple(hp.stride)
         self.multiple = self.stride
         c = hp.base_channels
-        self.stem = conv_bn(N_FEATURES, c)
+        self.stem = conv_bn(hp.in_channels, c)
         stages, cin = [], c
         for i, s in enumerate(_strides(self.stride)):
             stages.append(ResBlock(cin, c * 2 ** (i + 1), s))

@@ -39,6 +39,7 @@ class SwinUNetParams(BaseModel):
     """Hyper-parameters of :class:`SwinUNet`."""
 
     model_config = ConfigDict(extra="forbid")
+    in_channels: int = Field(N_FEATURES, ge=1, le=64, description="input feature channels (plugins.detectors.features: 4 power-map channels, 7 with Doppler)")
     embed_dim: int = Field(32, ge=4, le=256, description="channels C of the first stage")
     depths: tuple[Annotated[int, Field(ge=1, le=32)], ...] = Field((2, 2, 2), min_length=1, max_length=5,
                                                                    description="Swin blocks per stage")
@@ -229,7 +230,7 @@ class SwinUNet(nn.Module):
         self.multiple = (hp.patch[0] * 2 ** (n - 1), hp.patch[1] * 2 ** (n - 1))
         levels = hp.stem_levels
         ch = [hp.stem_channels] + [hp.head_channels * 2 ** (k - 1) for k in range(1, levels)]
-        self.stem0 = nn.Sequential(conv_bn(N_FEATURES, ch[0]), conv_bn(ch[0], ch[0]))
+        self.stem0 = nn.Sequential(conv_bn(hp.in_channels, ch[0]), conv_bn(ch[0], ch[0]))
         for k in range(1, levels):
             self.add_module(f"stem{k}", nn.Sequential(conv_bn(ch[k - 1], ch[k], stride=2), conv_bn(ch[k], ch[k])))
         step = 2 ** (levels - 1)

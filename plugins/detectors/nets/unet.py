@@ -19,6 +19,7 @@ class UNetParams(BaseModel):
     """Hyper-parameters of :class:`UNet`."""
 
     model_config = ConfigDict(extra="forbid")
+    in_channels: int = Field(N_FEATURES, ge=1, le=64, description="input feature channels (plugins.detectors.features: 4 power-map channels, 7 with Doppler)")
     base_channels: int = Field(12, ge=2, le=128, description="channels of the first level (doubled per level)")
     levels: int = Field(3, ge=1, le=5, description="down-sampling steps")
 
@@ -32,7 +33,7 @@ class UNet(nn.Module):
         self.hp = hp
         c = [hp.base_channels * 2**i for i in range(hp.levels + 1)]
         self.multiple = (2**hp.levels, 2**hp.levels)
-        self.down = nn.ModuleList([double_conv(N_FEATURES, c[0])] + [double_conv(c[i], c[i + 1]) for i in range(hp.levels)])
+        self.down = nn.ModuleList([double_conv(hp.in_channels, c[0])] + [double_conv(c[i], c[i + 1]) for i in range(hp.levels)])
         self.pool = nn.MaxPool2d(2)
         self.up = nn.ModuleList(nn.ConvTranspose2d(c[i + 1], c[i], 2, stride=2) for i in range(hp.levels))
         self.dec = nn.ModuleList(double_conv(2 * c[i], c[i]) for i in range(hp.levels))
