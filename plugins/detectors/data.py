@@ -19,9 +19,9 @@ import numpy as np
 
 from xnlos_core.errors import ConfigError
 from xnlos_core.metrics import thin_to_resolution
-from xnlos_core.types import Frame, GroundTruth, RAMap
+from xnlos_core.types import FRAME_IN_SCENE, Frame, GroundTruth, RAMap
 
-from .features import RA_CHANNELS, map_features
+from .features import MAX_PREVIOUS, RA_CHANNELS, channel_layout, map_features
 from .heatmaps import peak_cells
 from .train_config import DataConfig, GenerateConfig, scene_generators
 
@@ -45,12 +45,19 @@ def _add(frames, keep_maps: bool, limit: int | None, desc: str, progress: bool,
          channels: tuple[str, ...] = RA_CHANNELS) -> MapSet:
     from tqdm import tqdm
 
+    from collections import deque
+
     feats, peaks, maps, truths = [], [], [], []
+    history: deque = deque(maxlen=MAX_PREVIOUS)  # earlier frames' log power of this sequence, the last first
     for f in tqdm(itertools.islice(frames, limit), desc=desc, unit="map", disable=not progress, total=limit):
         if not isinstance(f, Frame) or f.ground_truth is None:
             raise ConfigError(f"{desc}: map {getattr(f, 'index', '?')} has no ground truth; training needs "
                               "simulated maps")
-        feats.append(map_features(f.ra_map, channels, name=f"{desc}: map {f.index}").astype(np.float16))
+        if f.meta.get(FRAME_IN_SCENE, 0) == 0:
+            history.clear()  # a new sequence (or maps that stand alone)
+        x = map_features(f.ra_map, channels, name=f"{desc}: map {f.index}", previous=history)
+        history.appendleft(x[0])
+        feats.append(x.astype(np.float16))
         peaks.append(peak_cells(f.ra_map, f.ground_truth))
         if keep_maps:
             maps.append(f.ra_map)
@@ -87,10 +94,9 @@ def _generated(gen: GenerateConfig, seed: int, split: str, base_dir: Path):
 def load_split(cfg: DataConfig, seed: int, split: str, keep_maps: bool, limit: int | None,
                progress: bool = False, base_dir: str | Path = ".") -> MapSet:
     """The maps of ``split`` ("train", "val", "test") for training or evaluation, as features of the
-    input channels that ``cfg.doppler`` selects (:meth:`TrainConfig.channels`)."""
-    from .features import DOPPLER_CHANNELS
-
-    channels = RA_CHANNELS + DOPPLER_CHANNELS if cfg.doppler else RA_CHANNELS
+    input channels that ``cfg.doppler`` and ``cfg.previous_frames`` select (:meth:`TrainConfig.channels`;
+    a sequence dataset's maps come in frame order, and ``frame_in_scene`` 0 starts a sequence)."""
+    channels = channel_layout(cfg.doppler, cfg.previous_frames)
     if cfg.generate is not None:
         frames = _generated(cfg.generate, seed, split, Path(base_dir))
     else:

@@ -31,6 +31,9 @@ level (ℓ ≤ 0: noise, whose velocity is a random bin):
    where velocities disagree (a wall edge next to a car, clutter, noise). The phase form makes it
    indifferent to a fold (v and v ± 2·v_max agree).
 
+Previous frames (optional, :func:`previous_channels`): channel 0 of the K ≤ 4 frames before this one
+in the same sequence, the last one first — how the echoes moved, for a model that wants it.
+
 A model records its channel names (checkpoint metadata ``features.channels``); :func:`map_features`
 builds exactly those, and refuses (InputError) a map without Doppler for a model that wants it.
 """
@@ -112,22 +115,56 @@ def doppler_features(ra_map, level: np.ndarray, name: str = "RAMap") -> np.ndarr
     return out
 
 
-def map_features(ra_map, channels=RA_CHANNELS, dynamic_range_db: float = 200.0, name: str = "RAMap") -> np.ndarray:
-    """Features (len(channels), H, W) float32 of ``ra_map`` for a model whose inputs are ``channels``
-    (checkpoint metadata ``features.channels``): :data:`RA_CHANNELS`, optionally followed by
-    :data:`DOPPLER_CHANNELS`. InputError for a map without the Doppler a model wants; ConfigError
-    for channel names this version does not know (a newer checkpoint)."""
-    channels = tuple(channels)
-    known = (RA_CHANNELS, RA_CHANNELS + DOPPLER_CHANNELS)
-    if channels not in known:
+MAX_PREVIOUS = 4  # earlier frames a model may read
+
+
+def previous_channels(k: int) -> tuple[str, ...]:
+    """Names of the channels of the ``k`` previous frames' normalised log power (1 = the last one)."""
+    return tuple(f"log_power_prev{i}" for i in range(1, k + 1))
+
+
+def channel_layout(doppler: bool = False, previous: int = 0) -> tuple[str, ...]:
+    """The input channels of a model: the power-map ones, then the Doppler ones, then the previous
+    frames' log power (module doc)."""
+    if isinstance(previous, bool) or not 0 <= int(previous) <= MAX_PREVIOUS:
         from xnlos_core.errors import ConfigError
 
-        raise ConfigError(f"model input channels {list(channels)}: this xnlos builds {list(RA_CHANNELS)} or "
-                          f"{list(RA_CHANNELS + DOPPLER_CHANNELS)}; the checkpoint was made for other inputs")
+        raise ConfigError(f"previous frames {previous!r}: expected an integer from 0 to {MAX_PREVIOUS}")
+    return RA_CHANNELS + (DOPPLER_CHANNELS if doppler else ()) + previous_channels(int(previous))
+
+
+def parse_layout(channels) -> tuple[bool, int]:
+    """(doppler, previous frames) of a model's recorded input channels; ConfigError for channel names
+    this version does not build (a checkpoint made for other inputs)."""
+    channels = tuple(channels)
+    for doppler in (False, True):
+        for k in range(MAX_PREVIOUS + 1):
+            if channels == channel_layout(doppler, k):
+                return doppler, k
+    from xnlos_core.errors import ConfigError
+
+    raise ConfigError(f"model input channels {list(channels)}: this xnlos builds {list(RA_CHANNELS)}, optionally "
+                      f"followed by {list(DOPPLER_CHANNELS)} and log_power_prev1 … prev{MAX_PREVIOUS}; the checkpoint "
+                      "was made for other inputs")
+
+
+def map_features(ra_map, channels=RA_CHANNELS, dynamic_range_db: float = 200.0, name: str = "RAMap",
+                 previous=()) -> np.ndarray:
+    """Features (len(channels), H, W) float32 of ``ra_map`` for a model whose inputs are ``channels``
+    (checkpoint metadata ``features.channels``, :func:`channel_layout`). ``previous``: the normalised
+    log power (channel 0) of earlier frames of the same sequence, the last one first; where a model
+    reads more of them than there are (a sequence's first frames), the oldest given stands in, and
+    without any the frame's own (as if the scene stood still). InputError for a map without the
+    Doppler a model wants; ConfigError for channel names this version does not know."""
+    doppler, k = parse_layout(channels)
     ra = ra_features(ra_map.data, dynamic_range_db, name=f"{name}.data")
-    if channels == RA_CHANNELS:
-        return ra
-    return np.concatenate([ra, doppler_features(ra_map, ra[0], name)], axis=0)
+    parts = [ra]
+    if doppler:
+        parts.append(doppler_features(ra_map, ra[0], name))
+    if k:
+        prev = [np.asarray(p, np.float32) for p in previous if np.shape(p) == ra[0].shape] or [ra[0]]
+        parts.append(np.stack([prev[min(i, len(prev) - 1)] for i in range(k)]))
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
 
 
 def pad_to_multiple(x: torch.Tensor, multiple: tuple[int, int]) -> tuple[torch.Tensor, tuple[int, int]]:

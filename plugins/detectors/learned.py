@@ -49,7 +49,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator, 
 from plugins.detectors.detection_doppler import nearest_cells, strongest_cells, with_cell_velocity
 from xnlos_core.core_share import limited
 from xnlos_core.errors import ConfigError, GridMismatchWarning, InputError
-from xnlos_core.interfaces import Detector
+from xnlos_core.interfaces import Detector, FrameState
 from xnlos_core.radar import RadarConfig
 from xnlos_core.types import Detections, Frame, RAMap
 from xnlos_core.param_paths import config_path
@@ -245,8 +245,13 @@ def detections_from_output(out: np.ndarray, head, ra_map: RAMap, threshold, wind
     return det
 
 
-class LearnedDetector(Detector):
-    """Base of the learned detectors: network from a checkpoint, peaks of its confidence maps."""
+class LearnedDetector(Detector, FrameState):
+    """Base of the learned detectors: network from a checkpoint, peaks of its confidence maps.
+
+    A model that reads previous frames (input channels ``log_power_prev*``,
+    :func:`plugins.detectors.features.map_features`) keeps the last frames' log power of the running
+    sequence and carries state (:class:`~xnlos_core.interfaces.FrameState`): the pipeline resets it at
+    each sequence start and replays a resumed run from frame 0. Other models carry none."""
 
     Params = LearnedParams
     architecture: ClassVar[str] = ""
@@ -295,6 +300,11 @@ class LearnedDetector(Detector):
         self._runner = InferenceRunner(net, device, p.precision, p.compile, p.threads, name=type(self).__name__)
         self._net = self._runner.net  # eval mode, channels-last
         self._warm_shapes: set[tuple[int, int]] = set()
+        from collections import deque
+
+        from .features import parse_layout
+
+        self._history: deque = deque(maxlen=parse_layout(self.input_channels_of(meta))[1])  # last frames' ℓ
 
     def warm_up(self, radar: RadarConfig | None = None) -> int:
         """Load the network and run it once on an all-zero map of ``radar``'s grid (n_range_bins ×
@@ -325,14 +335,20 @@ class LearnedDetector(Detector):
         self._load()
         return self._meta
 
+    @staticmethod
+    def input_channels_of(meta: dict[str, Any]) -> tuple[str, ...]:
+        """The input channels a checkpoint's metadata records (the four power-map channels without a
+        record)."""
+        from .features import RA_CHANNELS
+
+        return tuple(meta.get("features", {}).get("channels", RA_CHANNELS))
+
     @property
     def input_channels(self) -> tuple[str, ...]:
         """The names of the network's input channels (checkpoint metadata ``features.channels``; the
         four power-map channels for checkpoints without a record), :mod:`.features`."""
-        from .features import RA_CHANNELS
-
         self._load()
-        return tuple(self._meta.get("features", {}).get("channels", RA_CHANNELS))
+        return self.input_channels_of(self._meta)
 
     @property
     def needs_doppler(self) -> bool:
@@ -340,6 +356,24 @@ class LearnedDetector(Detector):
         from .features import DOPPLER_CHANNELS
 
         return any(c in DOPPLER_CHANNELS for c in self.input_channels)
+
+    @property
+    def previous_frames(self) -> int:
+        """How many earlier frames' log power the model reads (0 for most)."""
+        from .features import parse_layout
+
+        return parse_layout(self.input_channels)[1]
+
+    @property
+    def carries_state(self) -> bool:
+        """True for a model that reads previous frames (:class:`~xnlos_core.interfaces.FrameState`)."""
+        return self.previous_frames > 0
+
+    def reset(self) -> None:
+        """Forget the previous frames (the start of a run or a sequence)."""
+        history = getattr(self, "_history", None)
+        if history is not None:
+            history.clear()
 
     def _model_name(self) -> str:
         p = self.params
@@ -430,7 +464,10 @@ class LearnedDetector(Detector):
         self.check_grid(frame.ra_map, f"frame {frame.index}")
         feats = map_features(frame.ra_map, self.input_channels,
                              self._meta.get("features", {}).get("dynamic_range_db", 200.0),
-                             name=f"{type(self).__name__} ({self._model_name()}) on frame {frame.index}: RAMap")
+                             name=f"{type(self).__name__} ({self._model_name()}) on frame {frame.index}: RAMap",
+                             previous=self._history)
+        if self._history.maxlen:
+            self._history.appendleft(feats[0])
         out = self._runner(feats)
         if self.params.tta == "flip":
             kind = self._head.describe()["kind"]

@@ -66,7 +66,7 @@ class GenerateConfig(BaseModel):
         return self
 
 
-LATE_OPTIONS = (("data", "flip_azimuth", False), ("data", "doppler", False))  # (section, key, default): see TrainConfig.digest
+LATE_OPTIONS = (("data", "flip_azimuth", False), ("data", "doppler", False), ("data", "previous_frames", 0))  # (section, key, default): see TrainConfig.digest
 
 
 class DataConfig(BaseModel):
@@ -86,6 +86,9 @@ class DataConfig(BaseModel):
     doppler: bool = Field(False, description="add the Doppler channels (radial velocity, its σ, Doppler spread; "
                                              "plugins.detectors.features) to the network's inputs; needs maps "
                                              "from Doppler processing (forward model params doppler = true)")
+    previous_frames: int = Field(0, ge=0, le=4, description="also feed the normalised log power of this many "
+                                 "earlier frames of the same sequence (plugins.detectors.features); a sequence's "
+                                 "first frames repeat the oldest one there is")
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -165,11 +168,12 @@ class TrainConfig(BaseModel):
     eval: EvalConfig = Field(default_factory=EvalConfig)
 
     def channels(self) -> tuple[str, ...]:
-        """The network's input channels (:mod:`plugins.detectors.features`): the power-map ones, and
-        the Doppler ones with ``data.doppler``."""
-        from .features import DOPPLER_CHANNELS, RA_CHANNELS
+        """The network's input channels (:func:`plugins.detectors.features.channel_layout`): the
+        power-map ones, the Doppler ones with ``data.doppler``, the previous frames' log power with
+        ``data.previous_frames``."""
+        from .features import channel_layout
 
-        return RA_CHANNELS + DOPPLER_CHANNELS if self.data.doppler else RA_CHANNELS
+        return channel_layout(self.data.doppler, self.data.previous_frames)
 
     def hparams(self):
         """The architecture's validated hyper-parameter model; ``in_channels`` follows the input
@@ -181,7 +185,8 @@ class TrainConfig(BaseModel):
         given = self.model.params.get("in_channels")
         if given is not None and given != n:
             raise ConfigError(f"model.params.in_channels = {given!r}: the inputs are {n} channels "
-                              f"({', '.join(self.channels())}); leave in_channels out, it follows data.doppler")
+                              f"({', '.join(self.channels())}); leave in_channels out, it follows data.doppler and "
+                              "data.previous_frames")
         return validate_model(arch.HParams, {**self.model.params, "in_channels": n},
                               source=f"model {self.model.name!r}", prefix="model.params")
 

@@ -125,3 +125,37 @@ def test_widened_inputs_start_as_the_parent_network(tiny_hparams):
     bad = {k: (v[:, :2] if v.ndim == 4 and v.shape[1] == 4 else v) for k, v in parent.state_dict().items()}
     with pytest.raises(InputError, match="do not fit"):
         widened_inputs(bad, child.state_dict(), 4)
+
+
+def test_previous_frames_repeat_the_oldest_there_is_and_a_detector_resets_them(tmp_path, tiny_checkpoint):
+    from plugins.detectors.features import channel_layout, previous_channels
+    from plugins.training.checkpoint import load_checkpoint, save_checkpoint
+
+    frames = [synthetic_frame(SMALL, seed=s) for s in range(3)]
+    levels = [ra_features(f.ra_map.data)[0] for f in frames]
+    layout = channel_layout(False, 2)
+    assert layout[4:] == previous_channels(2) == ("log_power_prev1", "log_power_prev2")
+    alone = map_features(frames[0].ra_map, layout)                  # no history: the frame's own, twice
+    np.testing.assert_array_equal(alone[4], levels[0])
+    np.testing.assert_array_equal(alone[5], levels[0])
+    one = map_features(frames[1].ra_map, layout, previous=[levels[0]])
+    np.testing.assert_array_equal(one[4], levels[0])
+    np.testing.assert_array_equal(one[5], levels[0])
+    two = map_features(frames[2].ra_map, layout, previous=[levels[1], levels[0]])
+    np.testing.assert_array_equal(two[4], levels[1])
+    np.testing.assert_array_equal(two[5], levels[0])
+    with pytest.raises(ConfigError, match="previous frames"):
+        channel_layout(False, 5)
+
+    tiny_checkpoint(tmp_path / "p.pt", "swin_unet", in_channels=6)
+    sd, meta, _ = load_checkpoint(tmp_path / "p.pt")
+    meta = {k: v for k, v in meta.items() if k != "weights_sha256"}
+    save_checkpoint(tmp_path / "p.pt", sd, {**meta, "features": features_record(layout)})
+    det = get_registry().create("detector", "swin_unet", {"checkpoint": str(tmp_path / "p.pt"), "device": "cpu"})
+    assert det.previous_frames == 2 and det.carries_state
+    first = det.output(frames[0])
+    det.output(frames[1])
+    det.reset()
+    np.testing.assert_array_equal(det.output(frames[0]), first)   # after a reset: as the first frame
+    plain = get_registry().create("detector", "swin_unet", {"checkpoint": "none", "device": "cpu"})
+    assert not plain.carries_state
