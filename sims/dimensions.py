@@ -20,22 +20,26 @@ and its peak moves, because a path arriving at elevation ε puts the phase y·si
 on channel (y, z): the share S(θ, ε) of its power stays in its 2-D peak cell
 (:func:`steering_keep`), the rest lands in the neighbours, and (D1) counts that power twice, once
 lost, once gained. Per scatterer the L1 change is thus δ = |G − 1| + 2·G·(1 − S). The scene's
-scatterers fall in classes of one height: the static surfaces (walls, meshes: strips at the radar's
-height h_r) and each object (its scattering centres at ``centre_height``, default min(h_r, height)).
-A class's range span is [d_min, max_range]: d_min the plan distance from the radar to its nearest
-point (walls: nearest point of any segment; objects: nearest scattering centre at the frame's time;
-meshes: :data:`MESH_MIN_RANGE`), max_range the radar's (longer paths fall off the map; mirror paths
+scatterers fall in classes of one height (classes of equal height merged): the static surfaces
+(walls, meshes: strips at the radar's height h_r) and each object (its scattering centres at
+``centre_height``, default min(h_r, height)). A class's range span is [d_min, max_range]: d_min the
+plan distance from the radar to its nearest point (walls: the nearest point of any segment; objects:
+the centre's distance at the frame's time less half a box's diagonal, a lower bound; meshes:
+:data:`MESH_MIN_RANGE`), max_range the radar's (longer paths fall off the map; mirror paths
 are longer than direct ones). The estimate is
 
     Ê = 10·log10(1 + max δ) over classes, d ∈ [d_min, max_range], θ ∈ [−fov, fov]   [dB],   (D2)
 
-on a grid fine enough to resolve the two-ray lobes (phase steps ≤ π/8 in k(R_G − R_D), at most
-:data:`MAX_GRID` points per class) and :data:`N_AZIMUTHS` azimuths. Ê bounds Δ where each cell holds
-one scatterer, and in expectation over the random phases where several add: no scatterer's response
-changes by more. So 2-D when Ê ≤ tolerance_db is safe; it is conservative where a strongly changed
-scatterer carries little of the map's power (a low object among bright walls: 3-D is chosen though
+on a grid fine enough to resolve the two-ray lobes (phase steps ≤ π/6 in k(R_G − R_D), at most
+:data:`MAX_GRID` points per class) and :data:`N_AZIMUTHS` azimuths; per class max δ is bounded by
+max|G − 1| + 2·max G·max(1 − S), S on 64 distances (S falls as |ε| grows, towards d_min). Classes are
+taken walls first, then objects; once one exceeds the tolerance the choice is 3-D and the rest are
+not evaluated (``estimate_db`` is then that class's value, a lower bound of Ê). Ê bounds Δ where
+each cell holds one scatterer, and in expectation over the random phases where several add: no
+scatterer's response changes by more. So 2-D when Ê ≤ tolerance_db is safe; it is conservative
+where a strongly changed scatterer carries little of the map's power (a low object among bright walls: 3-D is chosen though
 Δ is smaller). Typical outcomes: no ground, no tilt, every centre at h_r → G = S = 1, 2-D; a ground
-of |Γ| ≈ 1 (every real ground near grazing) → two-ray lobes of tens of dB, 3-D; a ground of
+of |Γ| ≈ 1 (every real ground near grazing) → two-ray lobes and nulls, Ê ≈ 11 dB, 3-D; a ground of
 |Γ| ≲ 0.005 → |G − 1| ≤ (1 + |Γ|)⁴ − 1 ≈ 2 %, 2-D.
 
 Stable choice: the structural case (no ground, no tilt, every centre at h_r: the inputs, not a
@@ -62,10 +66,12 @@ log = logging.getLogger(__name__)
 DECISION_TOL_DB = 1e-6
 #: Nearest range [m] assumed for a scene's meshes (their geometry is not loaded to decide).
 MESH_MIN_RANGE = 1.0
-#: Grid points per class and azimuth, at most (the lobes of a class nearer than ~0.3 m are not all resolved).
-MAX_GRID = 20000
+#: Nearest range [m] of any class (a scatterer nearer than this is taken at it).
+MIN_RANGE = 0.1
+#: Grid points per class and azimuth, at most (the lobes of a class nearer than ~1 m are not all resolved).
+MAX_GRID = 4000
 #: Azimuths [rad] per class: this many, evenly over the field of view.
-N_AZIMUTHS = 5
+N_AZIMUTHS = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,9 +112,9 @@ def scatterer_classes(scene, radar_height: float, timestamp: float = 0.0) -> lis
     if near:
         out.append(("walls", h_r, min(near)))
     for obj in scene.objects:
-        pts = obj.scatterers(timestamp)[0]
-        if len(pts):
-            out.append((obj.name, float(centre_height(obj, h_r)), float(np.min(np.hypot(pts[:, 0], pts[:, 1])))))
+        c = obj.center_at(timestamp)
+        reach = 0.0 if obj.shape == "point" else 0.5 * math.hypot(*obj.size)  # a box's outline lies within it
+        out.append((obj.name, float(centre_height(obj, h_r)), max(float(np.hypot(*c)) - reach, MIN_RANGE)))
     return out
 
 
@@ -116,13 +122,13 @@ def range_grid(d_min: float, d_max: float, h_t: float, radar: RadarConfig, radar
                ground) -> np.ndarray:
     """Horizontal distances [m] from ``d_min`` to ``d_max`` (both included) where (D2) is evaluated:
     uniform in 1/d, the variable in which the two-ray phase k(R_G − R_D) ≈ 2k·h_r·h_t/d is linear, at
-    ≤ π/8 per step with a ground (64 points without: G is then monotone in d)."""
+    ≤ π/6 per step with a ground (64 points without: G is then monotone in d)."""
     d_min = max(float(d_min), 1e-3)
     n = 64
     if ground is not None:
         k = 2 * math.pi / sweep_wavelength(radar)
         span = 2 * k * float(radar_height) * max(float(h_t), 1e-3) * (1 / d_min - 1 / d_max)
-        n = int(min(MAX_GRID, max(64, math.ceil(span / (math.pi / 8)) + 1)))
+        n = int(min(MAX_GRID, max(64, math.ceil(span / (math.pi / 6)) + 1)))
     return 1.0 / np.linspace(1.0 / d_min, 1.0 / d_max, n)
 
 
@@ -138,6 +144,16 @@ def steering_keep(radar: RadarConfig, azimuth, elevation) -> np.ndarray:
     a = array_response(pos, lam, th.ravel(), el.ravel())
     a0 = array_response(pos, lam, th.ravel(), 0.0)
     return (np.abs(np.einsum("k,kp->p", w, a * a0.conj())) ** 2 / np.sum(w) ** 2).reshape(th.shape)
+
+
+def _by_height(classes: list[tuple[str, float, float]]) -> list[tuple[str, float, float]]:
+    """Classes of equal height merged (one G(d) each): names joined, the nearest d_min, first-seen order."""
+    merged: dict[float, tuple[list[str], float]] = {}
+    for name, h, d in classes:
+        names, near = merged.get(h, ([], math.inf))
+        merged[h] = (names + [name], min(near, d))
+    return [(names[0] if len(names) == 1 else f"{names[0]} and {len(names) - 1} more", h, near)
+            for h, (names, near) in merged.items()]
 
 
 def decide_dimensions(scene, radar: RadarConfig, params, timestamp: float = 0.0) -> DimensionsDecision:
@@ -158,7 +174,7 @@ def _auto(scene, radar: RadarConfig, h_r: float, tilt: float, tol: float, timest
     off = any(centre_height(o, h_r) != h_r for o in scene.objects)  # the inputs: no rounding decides
     if ground is None and tilt == 0.0 and not off:
         return DimensionsDecision(False, "no ground, no tilt, every scatterer at the radar's height", 0.0, tol)
-    classes = scatterer_classes(scene, h_r, timestamp)
+    classes = _by_height(scatterer_classes(scene, h_r, timestamp))
     d_max = float(radar.max_range)
     az = np.linspace(-radar.field_of_view, radar.field_of_view, N_AZIMUTHS)
     worst, where = 0.0, None
@@ -167,17 +183,24 @@ def _auto(scene, radar: RadarConfig, h_r: float, tilt: float, tol: float, timest
             continue
         d = range_grid(d_min, d_max, h_t, radar, h_r, ground)
         g = power_factor(d[None, :], h_t, az[:, None], radar, h_r, tilt, ground)
-        keep = steering_keep(radar, az[:, None], np.arctan2(h_t - h_r, d)[None, :] - tilt)
-        dev = 10 * np.log10(1 + np.abs(g - 1) + 2 * g * np.maximum(1 - keep, 0.0))  # (D2)
+        loss = 0.0  # max (1 − S): S falls with |ε|, so a coarse grid from d_min suffices
+        if h_t != h_r or tilt != 0.0:  # else ε = 0 and S = 1
+            coarse = np.geomspace(d_min, d_max, 64)
+            keep = steering_keep(radar, az[:, None], np.arctan2(h_t - h_r, coarse)[None, :] - tilt)
+            loss = max(float(np.max(1 - keep)), 0.0)
+        dev = np.abs(g - 1)
         i = np.unravel_index(int(np.argmax(dev)), dev.shape)
-        if where is None or dev[i] > worst:
-            worst, where = float(dev[i]), (name, h_t, float(d[i[1]]))
+        db = float(10 * np.log10(1 + dev[i] + 2 * float(np.max(g)) * loss))  # (D2), ≥ the pointwise maximum
+        if where is None or db > worst:
+            worst, where = db, (name, h_t, float(d[i[1]]))
+        if worst > tol + DECISION_TOL_DB:
+            break  # 3-D: the classes after this one cannot change the choice
     if where is None:
         return DimensionsDecision(False, f"no scatterer within {d_max:g} m", 0.0, tol)
     terms = [t for t, on in (("ground", ground is not None), (f"tilt {tilt:.3g} rad", tilt != 0.0),
                              ("scatterers off the radar's height", off)) if on]
     name, h_t, d = where
-    why = (f"largest change of a scatterer's power {worst:.3g} dB ({name}, height {h_t:.3g} m, at {d:.3g} m; "
+    why = (f"largest change of a scatterer's response {worst:.3g} dB ({name}, height {h_t:.3g} m, at {d:.3g} m; "
            f"{', '.join(terms)})")
     use = worst > tol + DECISION_TOL_DB
     return DimensionsDecision(use, f"{why} {'>' if use else '≤'} tolerance {tol:g} dB", worst, tol)
