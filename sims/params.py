@@ -70,7 +70,7 @@ class ForwardParams(BaseModel):
                             "pattern at each path's elevation (radar_height, radar_tilt, scatterer heights) and "
                             "the ground-reflected twins of every path when the scene has a ground "
                             "(sims.ground); auto: 3d where, by a closed-form estimate from the scene, those terms "
-                            "change some scatterer's power by more than tolerance_db over the scene's range span "
+                            "change some scatterer's response by more than tolerance_db over the scene's range span "
                             "(sims.dimensions)")
     radar_height: float = Field(0.75, gt=0, le=100, description="antenna mounting height above ground [m]")
     radar_tilt: float = Field(0.0, ge=-math.pi / 2, le=math.pi / 2,
