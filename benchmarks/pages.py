@@ -51,14 +51,24 @@ def _number(cell: str) -> tuple[float, float] | None:
     return value, 10.0 ** (int(exp or 0) - len(frac))
 
 
+EMBEDDED = re.compile(r"[-+−]?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?")
+
+
 def cells_agree(committed: str, rerun: str) -> bool:
-    """One table cell: numbers within one unit of the committed cell's last digit, text exactly."""
+    """One table cell: numbers within one unit of the committed cell's last digit, text exactly.
+    A cell of text with numbers in it ("11.2 dB at 82.3 m") agrees when its text between the numbers
+    is the same and each number agrees so."""
     a, b = _number(committed), _number(rerun)
-    if a is None or b is None:
-        return committed.strip() == rerun.strip()
-    unit_a = NUMBER.match(committed.strip().replace(",", "")).group(5)
-    unit_b = NUMBER.match(rerun.strip().replace(",", "")).group(5)
-    return unit_a == unit_b and abs(a[0] - b[0]) <= a[1] * (1 + 1e-9)
+    if a is not None and b is not None:
+        unit_a = NUMBER.match(committed.strip().replace(",", "")).group(5)
+        unit_b = NUMBER.match(rerun.strip().replace(",", "")).group(5)
+        return unit_a == unit_b and abs(a[0] - b[0]) <= a[1] * (1 + 1e-9)
+    ca, cb = committed.strip(), rerun.strip()
+    if EMBEDDED.split(ca) != EMBEDDED.split(cb):
+        return False
+    na, nb = EMBEDDED.findall(ca), EMBEDDED.findall(cb)
+    return all((x == y) or (_number(x) is not None and _number(y) is not None and cells_agree(x, y))
+               for x, y in zip(na, nb))
 
 
 def compare(committed: str, rerun: str) -> list[str]:

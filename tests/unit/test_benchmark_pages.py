@@ -7,7 +7,8 @@ from benchmarks.regenerate import check
 
 PAGES = registry()
 
-PAGE = "\n".join(["# t", "", *marked("a", ["| x | y |", "|---|---:|", "| car | 0.125 |", "| bike | 3.1× |"]),
+PAGE = "\n".join(["# t", "", *marked("a", ["| x | y |", "|---|---:|", "| car | 0.125 |", "| bike | 3.1× |",
+                                        "| why | 11.2 dB at 82.3 m |"]),
                   "", "| timing | 12.3 |", *marked("b", ["| n |", "|---|", "| 1e-06 |"]), ""])
 
 
@@ -23,6 +24,8 @@ def test_marked_tables_are_found_and_timings_outside_are_ignored():
     ("0.125", "0.1251", True),
     ("3.1×", "3.2×", True), ("3.1×", "3.1", False), ("3.1×", "3.3×", False),
     ("car", "cat", False),
+    ("11.2 dB at 82.3 m", "11.3 dB at 82.2 m", True), ("11.2 dB at 82.3 m", "11.2 dB at 82.5 m", False),
+    ("11.2 dB at 82.3 m", "11.2 dB near 82.3 m", False),
 ])
 def test_cells_compare_within_one_unit_of_the_last_digit(old, new, agree):
     assert (compare(PAGE, PAGE.replace(f"| {old} |", f"| {new} |")) == []) is agree
