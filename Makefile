@@ -8,7 +8,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.xnlos-installed
 LOCK   := requirements.lock
 
-.PHONY: demo test test-slow test-kernels test-latest lock fuzz docs bench dataset table2 figures clean
+.PHONY: demo test test-slow test-kernels test-latest lock fuzz docs bench benchmarks benchmarks-check dataset table2 figures clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -68,6 +68,15 @@ bench: $(STAMP)
 	$(PY) benchmarks/detectors.py
 	$(PY) benchmarks/detector_errors.py --detectors swin_unet,unet,further_than_cfar,rtn --out benchmarks/detector_errors.md --figure benchmarks/detector_errors.png
 	$(PY) benchmarks/residual_mirror.py
+
+# The benchmark pages of benchmarks/pages.toml, each rerun by its seeded command (PAGES="a b" picks some);
+# benchmarks-check compares their deterministic tables with a rerun and writes nothing
+PAGES ?=
+benchmarks: $(STAMP)
+	$(PY) -m benchmarks.regenerate $(PAGES)
+
+benchmarks-check: $(STAMP)
+	$(PY) -m benchmarks.regenerate --check $(PAGES)
 
 # The default simulated dataset (2,160 ray-traced maps, ≈ 2 min on 2 cores; resumes, no-op when complete)
 dataset: $(STAMP)

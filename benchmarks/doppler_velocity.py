@@ -16,14 +16,18 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from xnlos_core.radar import RadarConfig
-from xnlos_core.signal.chain import processing_gain
-from xnlos_core.signal.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube, chirp_start_times,
-                                       crlb_velocity, doppler_ra_maps)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.pages import marked  # noqa: E402
+from xnlos_core.radar import RadarConfig  # noqa: E402
+from xnlos_core.signal.chain import processing_gain  # noqa: E402
+from xnlos_core.signal.doppler import (add_chirp_noise, chirp_noise_power, chirp_sequence_cube,  # noqa: E402
+                                       chirp_start_times, crlb_velocity, doppler_ra_maps)
 
 
 def _cube(radar, k_range, theta, amp, v, tone):
@@ -94,12 +98,13 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     radar = RadarConfig()
     lines = ["# Doppler velocity at the Cramér–Rao bound", "",
-             f"`PYTHONPATH=. python benchmarks/doppler_velocity.py --seeds {args.seeds}`", "",
+             f"`PYTHONPATH=. python benchmarks/doppler_velocity.py --seeds {args.seeds}` (its tables: "
+             "`python -m benchmarks.regenerate doppler_velocity`)", "",
              "## RMSE against the complex-tone bound", "",
              f"Default radar (N = {radar.n_chirps} loops, Δv = {radar.velocity_resolution:.3f} m/s, v_max = "
              f"{radar.max_unambiguous_velocity:.2f} m/s); {args.seeds} cubes × 20 movers per row; η is the "
              "per-chirp SNR of the beamformed cell; offset from the Doppler bin centre.", "",
-             *bound_table(radar, args.seeds), "",
+             *marked("bound", bound_table(radar, args.seeds)), "",
              "The pure-tone rows measure the estimator: at the bound on and off the grid (the likelihood's 9 bins "
              "hold all but ≤ 7 % of the information on the grid, all of it half a bin off), σ its own. The "
              "chirp-sequence rows add the simulated mover's range change over the frame, which shifts its "
@@ -107,7 +112,7 @@ def main(argv=None) -> None:
              "30 dB that offset is a third to a whole bound and dominates the RMSE.", "",
              "## Folded velocities: azimuth and velocity", "",
              "One mover at 12.3°, η = 30 dB; azimuth from a parabola through the best three bins.", "",
-             *fold_table(radar), ""]
+             *marked("folds", fold_table(radar)), ""]
     args.out.write_text("\n".join(lines))
     print("\n".join(lines))
 

@@ -5,10 +5,11 @@ materials from tags as in real extracts) around a radar, then times, best and me
 ``read`` (parse the file: sims.maps.read_map), ``scene`` (the ``osm`` scene generator's scene:
 read + project with pyproj + walls, as a pipeline does it) and ``meshes`` (the extruded prisms).
 
-    python benchmarks/osm_import.py            # writes benchmarks/osm_import.md
+    python benchmarks/osm_import.py [--no-timing] [--out PATH]   # writes benchmarks/osm_import.md
 """
 from __future__ import annotations
 
+import argparse
 import platform
 import statistics
 import sys
@@ -20,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.pages import marked  # noqa: E402
 from sims.maps import LocalFrame, read_map  # noqa: E402
 from sims.maps.buildings import building_meshes  # noqa: E402
 from sims.maps.generator import OsmSceneGenerator, _read  # noqa: E402
@@ -78,7 +80,11 @@ def timed(fn, repeats: int = REPEATS) -> tuple[float, float]:
 
 
 def main() -> None:
-    rows = []
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--no-timing", action="store_true", help="only the deterministic table (maps and walls)")
+    ap.add_argument("--out", type=Path, default=Path(__file__).with_suffix(".md"))
+    args = ap.parse_args()
+    sizes, times = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for n in SIZES:
             path = Path(tmp) / f"city{n}.osm"
@@ -86,25 +92,27 @@ def main() -> None:
             gen = OsmSceneGenerator({"map": str(path), "radar": RADAR, "max_distance": 10_000.0})
             scene = gen.generate(0)
             assert scene.meta["buildings"] == n and len(scene.walls) == 8 * n
-            t_read = timed(lambda: read_map(path))
-            t_scene = timed(lambda: gen.generate(0))
-            t_mesh = timed(lambda: building_meshes(gen.buildings()))
-            rows.append((n, path.stat().st_size / 1e6, len(scene.walls), t_read, t_scene, t_mesh))
-    out = Path(__file__).with_suffix(".md")
+            sizes.append(f"| {n} | {path.stat().st_size / 1e6:.2f} | {len(scene.walls)} |")
+            if args.no_timing:
+                continue
+            (r0, r1), (s0, s1), (m0, m1) = (timed(lambda: read_map(path)), timed(lambda: gen.generate(0)),
+                                            timed(lambda: building_meshes(gen.buildings())))
+            times.append(f"| {n} | {r0:.3f} / {r1:.3f} | {s0:.3f} / {s1:.3f} | {m0:.3f} / {m1:.3f} |")
     text = [f"# OpenStreetMap import speed ({Path(__file__).relative_to(Path(__file__).parents[1])})", "",
-            "Made by `python benchmarks/osm_import.py`.", "",
+            "Made by `python benchmarks/osm_import.py` (its maps table: `python -m benchmarks.regenerate "
+            "osm_import`).", "",
             "A seeded grid of chamfered blocks (8 corners each, tags for height, levels and material as in real "
             "extracts) written as OSM XML, imported around a radar. `read`: parse the file; `scene`: the `osm` scene "
             "generator's scene (read, project every node with pyproj, one wall per edge) — what a pipeline with "
             "`[scene] family = \"osm\"` does once; `meshes`: the buildings (projected) extruded to closed "
             f"prisms. Best / median of {REPEATS} runs, the file read afresh each time. Target: a 200-building "
             "map's scene ≤ 2 s.", "",
-            f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}.", "",
-            "| buildings | file MB | walls | read s (best / median) | scene s (best / median) | meshes s (best / median) |",
-            "|---:|---:|---:|---:|---:|---:|"]
-    for n, mb, walls, (r0, r1), (s0, s1), (m0, m1) in rows:
-        text.append(f"| {n} | {mb:.2f} | {walls} | {r0:.3f} / {r1:.3f} | {s0:.3f} / {s1:.3f} | {m0:.3f} / {m1:.3f} |")
-    out.write_text("\n".join(text) + "\n")
+            *marked("maps", ["| buildings | file MB | walls |", "|---:|---:|---:|", *sizes]), ""]
+    if times:
+        text += [f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}.", "",
+                 "| buildings | read s (best / median) | scene s (best / median) | meshes s (best / median) |",
+                 "|---:|---:|---:|---:|", *times]
+    args.out.write_text("\n".join(text) + "\n")
     print("\n".join(text))
 
 

@@ -35,7 +35,9 @@ def benchmark_index(pages: list[Path]) -> str:
     """The generated ``benchmarks/index.md``: one line per benchmark page, by its title."""
     lines = ["# Benchmarks", "",
              "Speed and speed-versus-accuracy measurements, written by the scripts in `benchmarks/` "
-             "(`make bench` reruns the main ones; each page names its command and machine). "
+             "(`make bench` reruns the main ones; each page names its command and machine). Pages registered "
+             "in `benchmarks/pages.toml` are rerun by `make benchmarks`, and their deterministic tables are "
+             "checked against a rerun by `make benchmarks-check` ([how](../reproducibility.md)). "
              "The user guide links here wherever it quotes a figure.", ""]
     lines += [f"- [{_title(p)}]({p.name})" for p in pages]
     return "\n".join(lines) + "\n"

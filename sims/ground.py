@@ -108,6 +108,31 @@ def heights(paths: Paths, radar_height: float) -> np.ndarray:
     return np.where(np.isnan(paths.height), float(radar_height), paths.height)
 
 
+def _blocks(r_d, d, h_t, th, radar: RadarConfig, radar_height: float, tilt: float, ground) -> list:
+    """The round trips of the module doc per scatterer: [(amplitude factor relative to the 2-D path,
+    one-way out + back length [m], arrival elevation ε [rad]) for DD, and DG, GD, GG with a ground].
+    r_d: direct one-way length [m]; d: its horizontal length [m]; h_t: heights [m]; th: azimuth [rad]
+    (broadcast shapes)."""
+    h_r = float(radar_height)
+    eps_d = np.arctan2(h_t - h_r, d)
+    g0 = element_gain(radar, th, 0.0)
+    ref = g0 * g0 * transmit_gain(radar, th, 0.0)  # what the 2-D model's power holds (ε = 0, no tilt)
+
+    def leg_pair(out, back):  # legs (elevation, one-way length, reflection, (G_e, G_t) at that elevation)
+        (g_out, t_out), (g_in, _) = out[3], back[3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.where(ref > 0, np.sqrt(g_out * t_out * g_in / np.where(ref > 0, ref, 1.0)), 0.0)
+        return f * r_d * r_d / (out[1] * back[1]) * (out[2] * back[2])
+
+    legs = [(eps_d, r_d, np.ones(np.shape(r_d)))]  # (elevation, one-way length, reflection) per leg kind
+    if ground is not None:
+        r_g = np.sqrt(d**2 + (h_t + h_r) ** 2)
+        psi = np.arctan2(h_t + h_r, d)
+        legs.append((-psi, r_g, ground_reflection(ground, radar, psi)))
+    legs = [(*leg, (element_gain(radar, th, leg[0] - tilt), transmit_gain(radar, th, leg[0] - tilt))) for leg in legs]
+    return [(leg_pair(o, i), o[1] + i[1], i[0]) for o in legs for i in legs]
+
+
 def twins(paths: Paths, radar: RadarConfig, radar_height: float, tilt: float = 0.0, ground=None) -> Twins:
     """The 3-D twins (module doc) of ``paths`` for a radar at ``radar_height`` [m] tilted up by
     ``tilt`` [rad] over ``ground`` (a GroundSpec, or None: no ground, only the DD path).
@@ -123,32 +148,12 @@ def twins(paths: Paths, radar: RadarConfig, radar_height: float, tilt: float = 0
         raise InputError("3-D propagation: scatterer heights must be ≥ 0 m (above the ground)")
     r_d = paths.length / 2
     d = np.sqrt(np.maximum(r_d**2 - (h_t - h_r) ** 2, 0.0))
-    eps_d = np.arctan2(h_t - h_r, d)
-    th = paths.azimuth
-    g0 = element_gain(radar, th, 0.0)
-    ref = g0 * g0 * transmit_gain(radar, th, 0.0)  # what the 2-D model's power holds (ε = 0, no tilt)
     base = paths.amp if paths.amp is not None else np.sqrt(paths.power).astype(np.complex128)
-
-    def gains(eps):
-        return element_gain(radar, th, eps - tilt), transmit_gain(radar, th, eps - tilt)
-
-    def leg_pair(eps_out, eps_in, r_out, r_in, gamma):
-        g_out, t_out = gains(eps_out)
-        g_in, _ = gains(eps_in)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            f = np.where(ref > 0, np.sqrt(g_out * t_out * g_in / np.where(ref > 0, ref, 1.0)), 0.0)
-        return f * r_d * r_d / (r_out * r_in) * gamma
-
-    legs = [(eps_d, r_d, np.ones(len(paths)))]  # (elevation, one-way length, reflection) per leg kind
-    if ground is not None:
-        r_g = np.sqrt(d**2 + (h_t + h_r) ** 2)
-        psi = np.arctan2(h_t + h_r, d)
-        legs.append((-psi, r_g, ground_reflection(ground, radar, psi)))
-    blocks = [(a, b) for a in legs for b in legs]  # (out, back): DD, DG, GD, GG
+    blocks = _blocks(r_d, d, h_t, paths.azimuth, radar, h_r, tilt, ground)  # DD, DG, GD, GG
     n = len(paths)
-    factor = np.concatenate([leg_pair(o[0], i[0], o[1], i[1], o[2] * i[2]) for o, i in blocks])
-    length = np.concatenate([paths.length] + [o[1] + i[1] for o, i in blocks[1:]])  # DD: the model's own
-    elevation = np.concatenate([i[0] - tilt for _, i in blocks])
+    factor = np.concatenate([f for f, _, _ in blocks])
+    length = np.concatenate([paths.length] + [length for _, length, _ in blocks[1:]])  # DD: the model's own
+    elevation = np.concatenate([eps - tilt for _, _, eps in blocks])
     source = np.tile(np.arange(n), len(blocks))
     amp = np.tile(base, len(blocks)) * factor
     lam = sweep_wavelength(radar)
@@ -164,26 +169,21 @@ def twins(paths: Paths, radar: RadarConfig, radar_height: float, tilt: float = 0
     return Twins(out, source, elevation, np.abs(total) ** 2)
 
 
-def decide(switch: str, paths: Paths, radar: RadarConfig, radar_height: float, tilt: float, ground,
-           tolerance_db: float) -> tuple[bool, str]:
-    """(3-D on?, why) for ``dimensions`` = ``switch`` ("auto", "2d", "3d"): auto measures the 3-D
-    terms on these paths — on when some path with power has its carrier power changed by at least
-    ``tolerance_db`` [dB] by the twins (:attr:`Twins.gain`), off otherwise (then the 2-D map is the
-    3-D one to within that tolerance in every path's power)."""
-    if switch != "auto":
-        return switch == "3d", "switched on" if switch == "3d" else "switched off"
-    live = paths.power > 0
-    if not live.any():
-        return False, "no path with power"
-    if ground is None and tilt == 0 and np.all(heights(paths, radar_height)[live] == radar_height):
-        return False, "no ground, no tilt, every scatterer at the radar's height"
-    gain = twins(paths, radar, radar_height, tilt, ground).gain[live]
-    with np.errstate(divide="ignore"):
-        worst = float(np.max(np.abs(10 * np.log10(gain))))
-    why = f"largest change of a path's power {worst:.3g} dB"
-    if worst >= tolerance_db:
-        return True, f"{why} ≥ tolerance {tolerance_db} dB" + (" (ground)" if ground is not None else "")
-    return False, f"{why} < tolerance {tolerance_db} dB"
+def power_factor(d, h_t, azimuth, radar: RadarConfig, radar_height: float, tilt: float = 0.0,
+                 ground=None) -> np.ndarray:
+    """The 3-D terms' power factor G = |Σ twins' amplitude factor · carrier|² (:attr:`Twins.gain`) of a
+    scatterer at horizontal distance ``d`` [m], height ``h_t`` [m] and azimuth ``azimuth`` [rad]
+    (arrays, broadcast together): the closed form of the module doc without any path — two-ray
+    interference over ``ground`` (None: none) and the elevation pattern relative to the 2-D model's
+    gains at ε = 0. G = 1 exactly with no ground, no tilt and h_t = h_r."""
+    h_r = float(radar_height)
+    d, h_t, th = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (d, h_t, azimuth)))
+    r_d = np.sqrt(d**2 + (h_t - h_r) ** 2)
+    lam = sweep_wavelength(radar)
+    total = np.zeros(d.shape, dtype=np.complex128)
+    for factor, length, _ in _blocks(r_d, d, h_t, th, radar, h_r, tilt, ground):
+        total = total + factor * np.exp(2j * np.pi * np.mod((length - 2 * r_d) / lam, 1.0))
+    return np.abs(total) ** 2
 
 
 def null_ranges(wavelength: float, radar_height: float, target_height: float, n_max: int) -> np.ndarray:

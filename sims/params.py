@@ -69,8 +69,9 @@ class ForwardParams(BaseModel):
         "auto", description="'2d': every path in the radar's horizontal plane, no ground; '3d': the elevation "
                             "pattern at each path's elevation (radar_height, radar_tilt, scatterer heights) and "
                             "the ground-reflected twins of every path when the scene has a ground "
-                            "(sims.ground); auto: 3d where those terms change some path's power by at least "
-                            "tolerance_db")
+                            "(sims.ground); auto: 3d where, by a closed-form estimate from the scene, those terms "
+                            "change some scatterer's response by more than tolerance_db over the scene's range span "
+                            "(sims.dimensions)")
     radar_height: float = Field(0.75, gt=0, le=100, description="antenna mounting height above ground [m]")
     radar_tilt: float = Field(0.0, ge=-math.pi / 2, le=math.pi / 2,
                               description="elevation of the antenna boresight [rad], positive up (3-D only)")

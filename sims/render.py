@@ -7,7 +7,8 @@ Given the paths a forward model found (:class:`sims.paths.Paths`), :func:`render
 3. dechirps every path with positive power into the ADC cube (:func:`xnlos_core.signal.chain.dechirp`),
    through the radar's coupling matrix only when the ``coupling`` component is on;
 4. adds receiver noise (``noise``), forms the RA map (coupling compensated as the radar says);
-   with 3-D propagation (``dimensions``, :mod:`sims.ground`) steps 1–4 run over each path's
+   with 3-D propagation (``dimensions``, :mod:`sims.ground`; "auto" decided from the scene by
+   :func:`sims.dimensions.decide_dimensions`) steps 1–4 run over each path's
    direct and ground-reflected twins, at their arrival elevations;
    with ``doppler`` on, steps 3–4 run over the chirp sequence instead (:func:`render_doppler`);
 5. lists as ground truth the LOS and mNLOS paths inside the field of view and range whose RA-map
@@ -30,6 +31,7 @@ from xnlos_core.types import Frame, GroundTruth, RAMap
 
 from . import ground
 from .atmosphere import attenuation_db
+from .dimensions import decide_dimensions
 from .motion_paths import radial_velocity
 from .params import ForwardParams
 from .paths import LOS, MNLOS, Paths
@@ -52,9 +54,9 @@ def render_paths(paths: Paths, scene, radar: RadarConfig, rng: np.random.Generat
     ``params.doppler`` the chirp sequence (n_samples, n_chirps, n_channels) — and the Frame at
     ``timestamp`` [s] with its RA map, ground truth and meta.
     """
-    on3d, why3d = ground.decide(params.dimensions, paths, radar, params.radar_height, params.radar_tilt,
-                                scene.ground, params.tolerance_db)
-    use = {**use, "dimensions": ("3d: " if on3d else "2d: ") + why3d}
+    dims = decide_dimensions(scene, radar, params, timestamp)
+    on3d = dims.use_3d
+    use = {**use, "dimensions": dims.label}
     syn, elevation = paths, None  # the paths synthesised: the 2-D ones, or their 3-D twins
     if on3d:
         tw = ground.twins(paths, radar, params.radar_height, params.radar_tilt, scene.ground)
