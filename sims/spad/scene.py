@@ -51,7 +51,8 @@ class SpadParams(BaseModel):
     exposure: float = Field(0.01, gt=0, le=100, description="dwell time per scan point [s]")
     n_bins: int = Field(2048, ge=1, le=65536, description="time bins T")
     bin_width: float = Field(64e-12, gt=0, le=1e-8, description="time bin width Δ [s]")
-    t0: float = Field(0.0, ge=0, le=1e-5, description="round-trip time of bin 0 [s]")
+    t0: float = Field(0.0, ge=0, le=1e-5, description="round-trip time at the centre of bin 0 [s] "
+                      "(bin k centred at t0 + k·bin_width, sims/spad/transport.py)")
     grid_points: tuple[int, int] = Field((32, 32), description="scan points (W along the wall, H up)")
     grid_width: float = Field(2.0, gt=0, le=100, description="scan grid extent along the wall [m]")
     grid_height: float = Field(2.0, gt=0, le=100, description="scan grid extent in height [m]")

@@ -13,9 +13,12 @@ SPAD's spot of area A_spot, and that spot scatters into the aperture A_ap at col
 photons per pulse (average power P, repetition rate f_rep, wavelength λ); η the detection
 efficiency. Round trip (confocal convention, the sensor–wall legs removed): τ = 2r/c.
 
-Histogram: bin k covers [t0 + kΔ, t0 + (k+1)Δ); each return is split linearly between the two
-nearest bin centres, then convolved along time with the bin-integrated Gaussian of the system
-response, σ = √(FWHM_pulse² + FWHM_jitter²)/(2√(2 ln 2)) (pulse width ⊕ SPAD timing jitter).
+Histogram (the project's one depth-bin convention, shared with the NLOS solvers,
+:mod:`estimators.nlos.prep`): bin k is CENTRED at round trip t_k = t0 + kΔ, i.e. it covers
+[t0 + (k − ½)Δ, t0 + (k + ½)Δ), and the solvers put it at depth z_k = c·(t_k)/2. Each return is
+split linearly between the two nearest bin centres (a return at exactly t_k lands wholly in bin k),
+then convolved along time with the bin-integrated Gaussian of the system response,
+σ = √(FWHM_pulse² + FWHM_jitter²)/(2√(2 ln 2)) (pulse width ⊕ SPAD timing jitter).
 """
 from __future__ import annotations
 
@@ -112,10 +115,11 @@ def gaussian_kernel(sigma: float, bin_width: float) -> np.ndarray:
 def histogram(weights: np.ndarray, tau: np.ndarray, n_bins: int, bin_width: float, t0: float = 0.0,
               sigma: float = 0.0) -> np.ndarray:
     """Transient (T, H, W) of returns ``weights`` (P, H, W) [photons] at round trips ``tau``
-    (P, H, W) [s]: linear split between bin centres t0 + (k + ½)Δ, then the Gaussian system
-    response of std ``sigma`` [s]. Returns outside [t0, t0 + TΔ) are dropped."""
+    (P, H, W) [s]: linear split between the bin centres t0 + kΔ (module docstring: bin k is centred
+    at t0 + kΔ), then the Gaussian system response of std ``sigma`` [s]. A share that falls on a bin
+    outside 0 … T − 1 is dropped."""
     p, h, w = weights.shape
-    u = (tau - t0) / bin_width - 0.5
+    u = (tau - t0) / bin_width
     k = np.floor(u).astype(np.int64)
     f = u - k
     pix = np.broadcast_to(np.arange(h * w).reshape(h, w), (p, h, w))
