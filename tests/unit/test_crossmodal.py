@@ -221,7 +221,7 @@ def test_check_and_conformance():
     from xnlos_core.app.cli import check_file
     from xnlos_core.testing import check_component
 
-    assert "valid (cross-modality study: 6 row(s) × 8 distance(s))" in check_file(CONFIG)
+    assert "valid (cross-modality study: 6 row(s) × 9 distance(s))" in check_file(CONFIG)
     check_component("transient_model", "spad", {"grid_points": (8, 8), "n_bins": 256, "bin_width": 1e-10})
 
 

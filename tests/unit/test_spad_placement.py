@@ -25,7 +25,7 @@ def test_patch_faces_the_target_head_on_in_an_open_scene():
 def test_patch_stays_where_the_sensor_sees_the_wall_and_the_wall_sees_the_car():
     """The study's corner: facade x + y = 25, building front y = −1 (x 5 … 22) and side x = 22. The
     sensor at the origin sees the facade only where y ≥ −25/21 (the line over the corner (22, −1)),
-    i.e. up to offset √2·25/21 along u = (1, −1)/√2: the 2 m patch's far end stops there."""
+    i.e. up to offset √2·25/21 along u = (1, −1)/√2: the 2 m patch's far end ends there."""
     from xnlos_core.app.crossmodal.study import _scene as study_scene
     from xnlos_core.app.crossmodal.study import load_study
     from pathlib import Path

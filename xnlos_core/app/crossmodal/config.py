@@ -60,13 +60,13 @@ class SpadModality(BaseModel):
 
 
 class Bisection(BaseModel):
-    """Bounds [m] and stopping width of the per-seed bisection to failure (crossmodal.bisect)."""
+    """Bounds [m] and final bracket width of the per-seed bisection to failure (crossmodal.bisect)."""
 
     model_config = ConfigDict(extra="forbid")
     lower: float = Field(0.5, gt=0, le=1000, description="nearest distance tested [m]")
     upper: float = Field(150.0, gt=0, le=1000, description="farthest distance tested [m] (the radar maps are made "
                                                            "to cover the hidden object's image there)")
-    rel_tol: float = Field(0.03, gt=0, le=1, description="stop when the bracket hi/lo ≤ 1 + rel_tol")
+    rel_tol: float = Field(0.03, gt=0, le=1, description="bisection ends when the bracket hi/lo ≤ 1 + rel_tol")
 
     @model_validator(mode="after")
     def _order(self):

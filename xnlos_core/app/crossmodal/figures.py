@@ -101,12 +101,14 @@ def draw_failure_points(ax, res: dict, colours: dict[str, str] | None = None) ->
         out[row] = arts
     ax.set_yticks(range(len(names)), list(reversed(names)), fontsize=8)
     ax.set_ylim(-0.7, len(names) - 0.3)
-    for v in (b.get("lower"), b.get("upper")):
+    for v, what in ((b.get("lower"), "lower"), (b.get("upper"), "upper")):
         if v:
             ax.axvline(v, color="0.6", lw=0.8, ls=":")
+            ax.annotate(f"{what} bound {v:g} m", (v, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=7, color="0.4")
     level = (res.get("bootstrap") or {}).get("level", 0.95)
     ax.set_title(f"range to failure (bisection per seed): seeds •, median ◆ with its {100 * level:g} % bootstrap "
-                 "interval; ▶ / ◀ bound of the sweep reached", fontsize=8)
+                 "interval; ▶ / ◀ bound of the sweep reached", fontsize=8, pad=12)
     return out
 
 

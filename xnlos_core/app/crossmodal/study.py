@@ -240,8 +240,11 @@ def _spad_trial(cfg: StudyConfig, mod: SpadModality, d: float, seed: int, base_d
 
 class Trials:
     """Every trial of one modality, computed once and kept (``cells/<m>_<label>.json``, keyed by seed
-    index and distance in mm; written atomically after each new trial, reused while the config's
-    digest is unchanged)."""
+    index and distance in mm; written atomically at most every SAVE_EVERY seconds while new trials
+    come in and by :meth:`save` at the end of the modality; reused while the config's digest is
+    unchanged)."""
+
+    SAVE_EVERY = 5.0  # [s]
 
     def __init__(self, cfg: StudyConfig, index: int, mod, base_dir: Path, cells_dir: Path | None, digest: str):
         from xnlos_core.registry import get_registry
@@ -252,6 +255,7 @@ class Trials:
         self.digest = digest
         self.cache: dict[str, dict] = {}
         self.computed = 0
+        self._saved = time.monotonic()
         if self.path is not None and self.path.is_file():
             saved = json.loads(self.path.read_text())
             if saved.get("digest") == digest:
@@ -278,11 +282,14 @@ class Trials:
         if key not in self.cache:
             self.cache[key] = self.run(round(d * 1000) / 1000, self.seed(k))[0]
             self.computed += 1
-            self.save()
+            if time.monotonic() - self._saved > self.SAVE_EVERY:
+                self.save()
         return self.cache[key]
 
     def save(self) -> None:
-        if self.path is not None:
+        """Write the trials so far (atomically)."""
+        self._saved = time.monotonic()
+        if self.path is not None and self.computed:
             atomic_write_text(self.path, json.dumps({"digest": self.digest, "trials": self.cache}, default=float))
 
 
@@ -354,6 +361,7 @@ def run_study(config: str | Path, out: str | Path, *, progress: bool = True, fig
                 runs.append(res.as_dict())
             bisections[r] = runs
             _log(f"{r} ranges to failure: " + ", ".join(_range_text(x) for x in runs), progress)
+        trials.save()
         _log(f"{mod.label}: {trials.computed} new trial(s) [{time.perf_counter() - t0:.1f} s]", progress)
     res = summarise(cfg, results, bisections)
     atomic_write_text(out / "crossmodal.json", strict_json_text(res, indent=2))
@@ -513,6 +521,10 @@ def render_markdown(cfg: StudyConfig, res: dict, source: str, out: str = "out/cr
                              f"{_interval_text(q['interval'])} |")
             else:
                 lines.append(f"| {q['reference']} / {q['baseline']} | — | — |")
+        if any(q["interval"] and (q["interval"]["low"] == 0 or math.isinf(q["interval"]["high"]))
+               for q in res["ratios"]):
+            lines += ["", "A ratio interval that ends at ∞ (or 0) is open on that side: in some resamples of the "
+                      "seeds the baseline's (or reference's) median fell on a seed censored at the lower bound."]
         for q in res["ratios"]:
             if q["note"]:
                 lines.append("")
