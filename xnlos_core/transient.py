@@ -26,7 +26,7 @@ SPEED_OF_LIGHT = 299_792_458.0  # [m/s]
 class TransientVolume(ReadOnlyArrays):
     """data (T, H, W) float64 photon counts (or expected counts), ≥ 0 and finite; bin_width [s] of a
     time bin (> 0); wall_width, wall_height [m] the scan grid's extent along W (x) and H (y), > 0;
-    t0 [s] the round-trip time of bin 0 (default 0). Arrays are read-only once validated."""
+    t0 [s] the round-trip time at the centre of bin 0 (default 0). Arrays are read-only once validated."""
 
     data: np.ndarray
     bin_width: float
@@ -68,5 +68,7 @@ class TransientVolume(ReadOnlyArrays):
         return x, y
 
     def times(self) -> np.ndarray:
-        """Round-trip time of each bin's start, t0 + k·bin_width [s], shape (T,)."""
+        """Round-trip time of each bin, t0 + k·bin_width [s], shape (T,): bin k is CENTRED there (it
+        covers [t_k − Δ/2, t_k + Δ/2)), the convention of the SPAD forward model and the NLOS
+        solvers (``sims/spad/transport.py``, ``estimators/nlos/prep.py``)."""
         return self.t0 + np.arange(self.data.shape[0]) * self.bin_width

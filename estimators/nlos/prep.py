@@ -94,7 +94,9 @@ def prepare(volume: TransientVolume, solver: str, dtype=np.float32) -> Prepared:
     """Check ``volume`` for ``solver`` (its name, for the messages) and return it as :class:`Prepared`.
 
     t0 ≠ 0 is a whole number of bins: a positive t0 prepends that many empty bins, a negative one
-    drops them, so that bin k is round trip k·bin_width. Raises InputError naming the input for a
+    drops them, so that bin k is CENTRED at round trip k·bin_width (the project's one depth-bin
+    convention, ``sims/spad/transport.py``), and :meth:`Prepared.result` puts it at depth
+    z_k = k·c·bin_width/2. Raises InputError naming the input for a
     volume that is not a TransientVolume, a non-square grid (H ≠ W), fewer than MIN_BINS bins,
     all-zero counts, a t0 that is not a whole number of bins, or a bin width, wall size or t0
     beyond the bounds of the module docstring.

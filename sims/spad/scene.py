@@ -51,7 +51,8 @@ class SpadParams(BaseModel):
     exposure: float = Field(0.01, gt=0, le=100, description="dwell time per scan point [s]")
     n_bins: int = Field(2048, ge=1, le=65536, description="time bins T")
     bin_width: float = Field(64e-12, gt=0, le=1e-8, description="time bin width Δ [s]")
-    t0: float = Field(0.0, ge=0, le=1e-5, description="round-trip time of bin 0 [s]")
+    t0: float = Field(0.0, ge=0, le=1e-5, description="round-trip time at the centre of bin 0 [s] "
+                      "(bin k centred at t0 + k·bin_width, sims/spad/transport.py)")
     grid_points: tuple[int, int] = Field((32, 32), description="scan points (W along the wall, H up)")
     grid_width: float = Field(2.0, gt=0, le=100, description="scan grid extent along the wall [m]")
     grid_height: float = Field(2.0, gt=0, le=100, description="scan grid extent in height [m]")
@@ -64,6 +65,8 @@ class SpadParams(BaseModel):
     spot_diameter: float = Field(0.01, gt=0, le=1, description="SPAD's field-of-view spot on the wall [m]")
     collection_distance: float | None = Field(None, gt=0, le=1e4, description="sensor to grid centre [m]; "
                                               "None: from the sensor at the origin, sensor_height up")
+    view_cosine: float | None = Field(None, ge=0, le=1, description="cosθ_v of the collection direction from the "
+                                      "wall normal; None: from the sensor at the origin, sensor_height up")
     sensor_height: float = Field(1.0, ge=0, le=100, description="sensor height above ground [m]")
     patch_size: float = Field(0.1, gt=0.001, le=10, description="hidden-surface patch edge [m]")
     point_area: float = Field(0.1, gt=0, le=100, description="area of a point object's patch [m²]")
@@ -220,16 +223,31 @@ def visible_patches(scene: Scene, params: SpadParams) -> Patches:
     return Patches(pt.centers[seen], pt.normals[seen], pt.areas[seen], pt.albedo[seen])
 
 
+def view_geometry(scene: Scene, params: SpadParams) -> tuple[float, float]:
+    """Distance D [m] from the sensor (at the origin, ``sensor_height`` up) to the scan-grid centre
+    and cosθ_v of that direction from the relay wall's normal (clipped at 0: a sensor behind the
+    wall's plane collects nothing): the collection leg of the transport at the sensor's real view
+    angle (sims/spad/transport.py)."""
+    c, _, n = wall_frame(relay_wall(scene, params.wall), params)
+    v = np.array([-c[0], -c[1], params.sensor_height - params.grid_elevation])
+    d = float(np.linalg.norm(v))
+    cos = float(np.dot(v[:2], n) / d) if d > 0 else 1.0
+    return d, min(max(cos, 0.0), 1.0)
+
+
 def optics(scene: Scene, params: SpadParams) -> Optics:
-    """The transport's Optics from the params (collection distance from the scene when not given)."""
-    d = params.collection_distance
-    if d is None:
-        c, _, _ = wall_frame(relay_wall(scene, params.wall), params)
-        d = float(np.linalg.norm([c[0], c[1], params.grid_elevation - params.sensor_height]))
+    """The transport's Optics from the params: collection distance D and the view cosine cosθ_v
+    from the sensor's position (:func:`view_geometry`) unless given (``collection_distance``,
+    ``view_cosine``)."""
+    d, cos = view_geometry(scene, params)
+    if params.collection_distance is not None:
+        d = params.collection_distance
+    if params.view_cosine is not None:
+        cos = params.view_cosine
     return Optics(power=params.power, wavelength=params.wavelength, rep_rate=params.rep_rate,
                   efficiency=params.efficiency, aperture_area=math.pi * params.aperture_diameter**2 / 4,
                   collection_distance=max(d, 1e-3), spot_area=math.pi * params.spot_diameter**2 / 4,
-                  wall_albedo=params.wall_albedo)
+                  wall_albedo=params.wall_albedo, view_cosine=cos)
 
 
 def scan_grid(params: SpadParams) -> tuple[np.ndarray, np.ndarray]:

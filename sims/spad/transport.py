@@ -4,18 +4,22 @@ Wall coordinates: the relay wall is the plane z = 0, x along it, y up, z the dis
 it toward the hidden side; the laser and the SPAD both aim at scan point s = (x_s, y_s, 0).
 A hidden Lambertian patch at p (area A [m²], unit normal n_p, albedo ρ) returns, per laser pulse,
 
-    N = N_γ · (ρ_w cosθ_s/π) · (A cosθ_p/r²) · (ρ cosθ_p/π) · (A_spot cosθ_s/r²) · (ρ_w/π) · (A_ap/D²) · η
+    N = N_γ · (ρ_w cosθ_s/π) · (A cosθ_p/r²) · (ρ cosθ_p/π) · (A_spot cosθ_s/r²) · (ρ_w cosθ_v/π) · (A_ap/D²) · η
 
 photons (r = |p − s|, cosθ_s = z/r at the wall, cosθ_p = n_p·(s − p)/r ≥ 0 at the patch): the laser
 spot scatters Lambertian (ρ_w) toward the patch, the patch scatters Lambertian (ρ) back onto the
-SPAD's spot of area A_spot, and that spot scatters into the aperture A_ap at collection distance D
-(viewed along the wall normal). The two wall–patch legs give the 1/r⁴ falloff. N_γ = P/(f_rep·hc/λ)
+SPAD's spot of area A_spot, and that spot scatters Lambertian into the aperture A_ap at collection
+distance D, seen at the sensor's view angle θ_v from the wall normal (``Optics.view_cosine`` =
+cosθ_v; 1 for a sensor on the wall normal). The two wall–patch legs give the 1/r⁴ falloff. N_γ = P/(f_rep·hc/λ)
 photons per pulse (average power P, repetition rate f_rep, wavelength λ); η the detection
 efficiency. Round trip (confocal convention, the sensor–wall legs removed): τ = 2r/c.
 
-Histogram: bin k covers [t0 + kΔ, t0 + (k+1)Δ); each return is split linearly between the two
-nearest bin centres, then convolved along time with the bin-integrated Gaussian of the system
-response, σ = √(FWHM_pulse² + FWHM_jitter²)/(2√(2 ln 2)) (pulse width ⊕ SPAD timing jitter).
+Histogram (the project's one depth-bin convention, shared with the NLOS solvers,
+:mod:`estimators.nlos.prep`): bin k is CENTRED at round trip t_k = t0 + kΔ, i.e. it covers
+[t0 + (k − ½)Δ, t0 + (k + ½)Δ), and the solvers put it at depth z_k = c·(t_k)/2. Each return is
+split linearly between the two nearest bin centres (a return at exactly t_k lands wholly in bin k),
+then convolved along time with the bin-integrated Gaussian of the system response,
+σ = √(FWHM_pulse² + FWHM_jitter²)/(2√(2 ln 2)) (pulse width ⊕ SPAD timing jitter).
 """
 from __future__ import annotations
 
@@ -64,7 +68,8 @@ class Patches:
 class Optics:
     """Laser and collection optics: average power [W], wavelength [m], repetition rate [Hz],
     detection efficiency η, aperture area [m²], collection distance D [m], SPAD spot area on the
-    wall [m²], relay-wall albedo ρ_w."""
+    wall [m²], relay-wall albedo ρ_w, cosθ_v of the collection direction from the wall normal
+    (module docstring)."""
 
     power: float = 1.6e-3
     wavelength: float = 850e-9
@@ -74,6 +79,11 @@ class Optics:
     collection_distance: float = 2.0
     spot_area: float = 7.85e-5
     wall_albedo: float = 0.8
+    view_cosine: float = 1.0
+
+    def __post_init__(self):
+        if not 0.0 <= self.view_cosine <= 1.0:
+            raise InputError(f"Optics.view_cosine: expected cosθ_v in [0, 1], got {self.view_cosine}")
 
     @property
     def photons_per_pulse(self) -> float:
@@ -93,7 +103,7 @@ def return_per_pulse(scan_x: np.ndarray, scan_y: np.ndarray, patches: Patches, o
     cos_patch = np.clip(-np.einsum("phwk,pk->phw", d, patches.normals) / r, 0.0, None)
     geom = (cos_wall * cos_patch / r**2) ** 2
     k = (optics.photons_per_pulse * optics.wall_albedo**2 / np.pi**3 * optics.spot_area
-         * optics.aperture_area / optics.collection_distance**2 * optics.efficiency)
+         * optics.aperture_area / optics.collection_distance**2 * optics.efficiency * optics.view_cosine)
     n = k * (patches.areas * patches.albedo)[:, None, None] * geom
     return n, 2.0 * r / SPEED_OF_LIGHT
 
@@ -112,10 +122,11 @@ def gaussian_kernel(sigma: float, bin_width: float) -> np.ndarray:
 def histogram(weights: np.ndarray, tau: np.ndarray, n_bins: int, bin_width: float, t0: float = 0.0,
               sigma: float = 0.0) -> np.ndarray:
     """Transient (T, H, W) of returns ``weights`` (P, H, W) [photons] at round trips ``tau``
-    (P, H, W) [s]: linear split between bin centres t0 + (k + ½)Δ, then the Gaussian system
-    response of std ``sigma`` [s]. Returns outside [t0, t0 + TΔ) are dropped."""
+    (P, H, W) [s]: linear split between the bin centres t0 + kΔ (module docstring: bin k is centred
+    at t0 + kΔ), then the Gaussian system response of std ``sigma`` [s]. A share that falls on a bin
+    outside 0 … T − 1 is dropped."""
     p, h, w = weights.shape
-    u = (tau - t0) / bin_width - 0.5
+    u = (tau - t0) / bin_width
     k = np.floor(u).astype(np.int64)
     f = u - k
     pix = np.broadcast_to(np.arange(h * w).reshape(h, w), (p, h, w))

@@ -38,7 +38,7 @@ def bad_plugin_config(kind: str, tmp: Path) -> Path:
                        ('preset = "../radar/xband_default.toml"', 'preset = "xband_default"'),
                        ('name = "image"', 'name = "imag"'))
     return variant(CONFIGS / "ablations" / "crossmodal.toml", tmp / "study.toml",
-                   ('reference = "xband"', 'reference = "xbnd"'))
+                   ('["xband", "radar77"]', '["xbnd", "radar77"]'))
 
 
 # command → (argv before the options, its config kind or None, whether it takes --out)

@@ -130,36 +130,60 @@ def test_boundary_artefacts_that_the_old_score_counted_are_not_hits():
     assert (o.tp, o.fp, o.fn) == (False, True, True)
 
 
-def _tiny(tmp_path: Path) -> Path:
-    text = CONFIG.read_text()
-    text = text.replace("distances = [1, 1.5, 2, 3, 4, 6, 8, 10, 15, 20, 30, 40, 50, 60]", "distances = [1, 20]")
-    text = text.replace("seeds = 4", "seeds = 1")
-    text = text.replace("grid_points = [16, 16]", "grid_points = [8, 8]").replace("n_bins = 1024", "n_bins = 512")
-    text = text.replace("patch_size = 0.15", "patch_size = 0.4")
-    text = text[:text.index("# Extra row")]  # the learned row is left out of the tiny study (speed)
-    assert "distances = [1, 20]" in text and "n_bins = 512" in text
-    path = tmp_path / "tiny.toml"
-    path.write_text(text)
-    return path
+TINY = CONFIG.with_name("crossmodal_tiny.toml")
 
 
 def test_tiny_study_end_to_end(tmp_path):
-    cfg = _tiny(tmp_path)
     out = tmp_path / "out"
-    res = run_study(cfg, out, progress=False)
+    res = run_study(TINY, out, progress=False)
     for name in ("crossmodal.json", "crossmodal.md", "range_curve.png", "panel.png"):
         assert (out / name).stat().st_size > 0, name
-    assert set(res["rows"]) == {"spad/lct", "spad/fk", "radar77", "xband"}
+    assert set(res["rows"]) == {"spad_night/lct", "spad_night/fk", "spad_day/lct", "spad_day/fk", "radar77", "xband"}
     for row in res["rows"].values():
         assert row["distances"] == [1.0, 20.0]
         assert all(f is None or 0 <= f <= 1 for f in row["detection_f1"] + row["reconstruction_f1"])
+        rtf = row["range_to_failure"]
+        assert rtf["status"] in {"measured", "above", "below"} and rtf["n"] == 2
+        v = rtf["interval"]["value"]
+        assert rtf["status"] == ("below" if v == 0 else "above" if math.isinf(v) else "measured")
     assert json.loads((out / "crossmodal.json").read_text())["rows"] == json.loads(json.dumps(res["rows"]))
+    md = (out / "crossmodal.md").read_text()
+    assert md.splitlines()[2].startswith(f"Command: `xnlos crossmodal {TINY} --out {out}`")
+    # a ratio is printed only from two measured ranges
+    for q in res["ratios"]:
+        measured = all(res["rows"][r]["range_to_failure"]["status"] == "measured" for r in (q["reference"], q["baseline"]))
+        assert (q["value"] is not None) == measured and (q["note"] is None) == measured
     cells = sorted((out / "cells").glob("*.json"))
-    assert len(cells) == 3 * 2
+    assert len(cells) == 4
     # resumed: the same summary from the saved cells, nothing recomputed (cells untouched)
     stamps = [c.stat().st_mtime_ns for c in cells]
-    again = run_study(cfg, out, progress=False, figures=False)
+    again = run_study(TINY, out, progress=False, figures=False)
     assert again["rows"] == res["rows"] and [c.stat().st_mtime_ns for c in cells] == stamps
+    # deterministic: a fresh run gives the same tables
+    fresh = run_study(TINY, tmp_path / "fresh", progress=False, figures=False)
+    assert fresh["rows"] == res["rows"] and fresh["ratios"] == res["ratios"]
+
+
+def test_radar_range_axis_follows_from_the_configuration():
+    """No fixed crop: max_range is the unambiguous range N·c/2B, with N doubled from the preset's 512
+    until the car's mirror image at the bisection's upper bound (150 m behind the corner) fits."""
+    from xnlos_core.app.crossmodal.study import image_range, radar_range_table
+    from xnlos_core.radar import load_radar
+
+    cfg, base = load_study(CONFIG)
+    need = image_range(cfg, 150.0, base) + cfg.gate
+    # the car (x 23.1 … 24.9, y −155.5 … −151 at 150 m) mirrored across x + y = 25: (x, y) → (25 − y, 25 − x);
+    # its farthest corner (23.1, −155.5) → (180.5, 1.9)
+    assert need - cfg.gate == pytest.approx(np.hypot(180.5, 1.9), rel=1e-9)
+    for mod in cfg.modality:
+        if mod.type != "radar":
+            continue
+        table = radar_range_table(cfg, mod, base)
+        radar = load_radar(table, "t", base)
+        assert radar.max_range == pytest.approx(radar.max_unambiguous_range)
+        assert radar.max_unambiguous_range >= need > radar.max_unambiguous_range / 2
+        assert radar.n_samples == 1024 and radar.range_resolution == pytest.approx(SPEED_OF_LIGHT / 2 / 600e6)
+        assert radar.range_axis[-1] >= need - radar.range_resolution
 
 
 def test_object_placed_behind_the_corner():
@@ -171,7 +195,9 @@ def test_object_placed_behind_the_corner():
 
 
 @pytest.mark.parametrize("edit, match", [
-    (("seeds = 4", "seeds = 4\nseedz = 3"), "seedz"),
+    (("seeds = 20", "seeds = 20\nseedz = 3"), "seedz"),
+    (("upper = 150.0", "upper = 0.1"), "lower < upper"),
+    (('["xband", "radar77"]', '["xband", "radar7"]'), "radar77"),
     (("gate = 2.0", "gate = -1.0"), "gate"),
     (('label = "xband"', 'label = "xband"\nsolvers = ["lct"]'), "solvers"),
     (('type = "spad"', 'type = "lidar"'), "type"),
@@ -195,7 +221,7 @@ def test_check_and_conformance():
     from xnlos_core.app.cli import check_file
     from xnlos_core.testing import check_component
 
-    assert "valid (cross-modality study: 5 row(s) × 14 distance(s))" in check_file(CONFIG)
+    assert "valid (cross-modality study: 6 row(s) × 9 distance(s))" in check_file(CONFIG)
     check_component("transient_model", "spad", {"grid_points": (8, 8), "n_bins": 256, "bin_width": 1e-10})
 
 

@@ -1,5 +1,7 @@
-"""The cross-modality study prints a range ratio only from two measured ranges: a range at the sweep's
-farthest distance or below its nearest is a bound of the sweep, and the report says which instead."""
+"""The cross-modality study prints a range ratio only from two measured ranges: a row whose seeds
+reached the bisection's upper bound (still in range) or failed at its lower bound is a bound of the
+sweep, and the report says which instead of a number; measured ranges give a ratio with a seeded
+bootstrap interval."""
 from pathlib import Path
 
 from xnlos_core.app.crossmodal.config import StudyConfig
@@ -9,34 +11,65 @@ from xnlos_core.files import load_toml
 CONFIG = Path(__file__).resolve().parents[2] / "configs" / "ablations" / "crossmodal.toml"
 
 
-def _cfg(distances):
+def _cfg():
     table = load_toml(CONFIG)
-    table["distances"] = distances
+    table["distances"] = [1.0, 2.0, 4.0]
+    table["ratios"] = [["xband", "spad_night/fk"]]
     return StudyConfig.model_validate(table)
 
 
-def _trials(hits: list[float]) -> list[dict]:
-    """Trials whose detection and reconstruction hit (F1 1) or miss (F1 0) the hidden car."""
-    outcome = lambda hit: {"tp": hit, "fp": False, "fn": not hit}  # noqa: E731
-    return [{"detection": outcome(bool(h)), "reconstruction": outcome(bool(h))} for h in hits]
+def _trial(hit: bool) -> dict:
+    outcome = {"tp": hit, "fp": False, "fn": not hit}
+    return {"detection": outcome, "reconstruction": outcome}
 
 
-def _study(xband: list[float], spad: list[float], distances=(1.0, 2.0, 4.0)):
-    cfg = _cfg(list(distances))
-    results = {"xband": {d: _trials([f]) for d, f in zip(distances, xband)},
-               "spad/lct": {d: _trials([f]) for d, f in zip(distances, spad)}}
-    res = summarise(cfg, results)
+def _runs(ranges) -> list[dict]:
+    """Per-seed bisection records: a number is a bracketed range, '>' the upper bound, '<' the lower."""
+    out = []
+    for r in ranges:
+        if r == ">":
+            out.append({"range": 150.0, "lo": 150.0, "hi": None, "status": "above", "evaluations": []})
+        elif r == "<":
+            out.append({"range": None, "lo": None, "hi": 0.5, "status": "below", "evaluations": []})
+        else:
+            out.append({"range": r, "lo": r, "hi": r * 1.02, "status": "bracketed", "evaluations": []})
+    return out
+
+
+def _study(xband, spad):
+    cfg = _cfg()
+    grid = {d: [_trial(True)] for d in cfg.distances}
+    res = summarise(cfg, {"xband": grid, "spad_night/fk": grid}, {"xband": _runs(xband), "spad_night/fk": _runs(spad)})
     return res, render_markdown(cfg, res, "c.toml")
 
 
-def test_measured_ranges_give_a_ratio():
-    res, md = _study([1.0, 1.0, 0.0], [1.0, 0.0, 0.0])
-    assert res["range_ratio"] == {"value": 2.0, "bound": "="} and "ratio xband / spad/lct: 2.0" in md
+def test_measured_ranges_give_a_ratio_with_an_interval():
+    res, md = _study([40.0, 44.0, 36.0, 40.0, 42.0], [2.0, 2.0, 2.1, 1.9, 2.0])
+    q = res["ratios"][0]
+    assert q["value"] == 20.0 and q["note"] is None
+    assert q["interval"]["low"] < 20.0 < q["interval"]["high"]
+    assert res["range_ratio"]["value"] == 20.0 and res["range_ratio_note"] is None
+    assert "| xband / spad_night/fk | 20.00 | [" in md
+    again, _ = _study([40.0, 44.0, 36.0, 40.0, 42.0], [2.0, 2.0, 2.1, 1.9, 2.0])
+    assert again["ratios"] == res["ratios"]  # seeded bootstrap
 
 
 def test_no_ratio_from_a_bound():
-    res, md = _study([1.0, 1.0, 1.0], [1.0, 0.0, 0.0])
-    assert res["range_ratio"] is None and "above 4 m" in res["range_ratio_note"]
-    assert "No range ratio" in md and "ratio xband / spad/lct:" not in md
-    res, md = _study([1.0, 1.0, 0.0], [0.0, 0.0, 0.0])
-    assert res["range_ratio"] is None and "below 1 m" in res["range_ratio_note"]
+    res, md = _study([">", ">", ">", ">"], [2.0, 2.0, 2.0, 2.0])
+    assert res["range_ratio"] is None and "above 150 m" in res["range_ratio_note"]
+    assert res["rows"]["xband"]["range_to_failure"]["status"] == "above"
+    assert "≥ 150 (upper bound reached)" in md and "| xband / spad_night/fk | — | — |" in md
+    assert "No range ratio: the sweep's bound was reached" in md
+    res, md = _study([40.0, 44.0, 36.0, 40.0], ["<", "<", "<", "<"])
+    assert res["range_ratio"] is None and "below 0.5 m" in res["range_ratio_note"]
+    # the median is a bound as soon as it falls on a censored seed (here 3 of 4 above) ...
+    res, md = _study([40.0, ">", ">", ">"], [2.0, 2.0, 2.0, 2.0])
+    assert res["rows"]["xband"]["range_to_failure"]["status"] == "above"
+    assert res["ratios"][0]["value"] is None and "3/4 seed(s)" in res["range_ratio_note"]
+    assert "| xband / spad_night/fk | — | — |" in md
+    # ... and a measurement while it falls on a bracketed one; an interval end on a censored seed is a bound
+    res, md = _study([40.0, ">", 36.0, 40.0], [2.0, 2.0, 2.0, 2.0])
+    x = res["rows"]["xband"]["range_to_failure"]
+    assert x["status"] == "measured" and x["interval"]["value"] == 40.0 and x["n_above"] == 1
+    assert res["ratios"][0]["value"] == 20.0
+    assert "| xband | 40.00 | [36.00, ≥ 150] |" in md

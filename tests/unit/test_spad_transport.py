@@ -52,14 +52,14 @@ def test_peak_bin_at_round_trip(z):
     t0 = 1e-9
     vol = expected_transient(np.zeros(1), np.zeros(1), facing(z), Optics(), n_bins=256, bin_width=BW,
                              n_pulses=1, sigma=system_sigma(50e-12, 60e-12), t0=t0)
-    assert int(np.argmax(vol[:, 0, 0])) == int(np.floor((2 * z / C - t0) / BW))
+    assert int(np.argmax(vol[:, 0, 0])) == int(np.rint((2 * z / C - t0) / BW))  # bin k centred at t0 + kΔ
 
 
-def test_histogram_conserves_counts_and_places_mid_bin_exactly():
-    tau = np.full((1, 1, 1), (30 + 0.5) * BW)
+def test_histogram_conserves_counts_and_places_a_bin_centre_exactly():
+    tau = np.full((1, 1, 1), 30 * BW)  # bin k is centred at kΔ: all of it in bin 30
     v = histogram(np.ones((1, 1, 1)), tau, 64, BW)
     assert v[30, 0, 0] == pytest.approx(1.0) and v.sum() == pytest.approx(1.0)
-    tau = np.full((1, 1, 1), (30 + 0.8) * BW)  # 0.3 of a bin past centre 30: split 0.7 / 0.3
+    tau = np.full((1, 1, 1), (30 + 0.3) * BW)  # 0.3 of a bin past centre 30: split 0.7 / 0.3
     v = histogram(np.ones((1, 1, 1)), tau, 64, BW)
     assert v[30:32, 0, 0] == pytest.approx([0.7, 0.3])
     v = histogram(np.ones((1, 1, 1)), tau, 64, BW, sigma=100e-12)

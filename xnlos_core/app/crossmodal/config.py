@@ -1,6 +1,6 @@
-"""The cross-modality study's config file (:mod:`xnlos_core.app.crossmodal.study`): modalities, distances,
-scoring gates, the scene whose hidden object is moved. Strict: unknown keys are a ConfigError
-naming the file and key."""
+"""The cross-modality study's config file (:mod:`xnlos_core.app.crossmodal.study`): modalities, the
+distance grid and the bisection bounds, scoring gates, the bootstrap, the range ratios, the scene
+whose hidden object is moved. Strict: unknown keys are a ConfigError naming the file and key."""
 from __future__ import annotations
 
 import difflib
@@ -53,6 +53,34 @@ class SpadModality(BaseModel):
     first_bounce_gate: float = Field(0.5, ge=0, le=100, description="reconstruction peak search starts at this "
                                      "depth z [m] from the relay wall: gates the first bounce (the wall's own "
                                      "return) and the solvers' artefacts at t = 0 (crossmodal_score)")
+    placement: Literal["facing", "fixed"] = Field(
+        "facing", description="facing: per distance, the scan patch (transient_model grid_offset) goes where the "
+        "relay wall faces the hidden object most nearly head-on among the positions the sensor sees "
+        "(sims/spad/placement.py); fixed: the transient_model's own grid_offset")
+
+
+class Bisection(BaseModel):
+    """Bounds [m] and final bracket width of the per-seed bisection to failure (crossmodal.bisect)."""
+
+    model_config = ConfigDict(extra="forbid")
+    lower: float = Field(0.5, gt=0, le=1000, description="nearest distance tested [m]")
+    upper: float = Field(150.0, gt=0, le=1000, description="farthest distance tested [m] (the radar maps are made "
+                                                           "to cover the hidden object's image there)")
+    rel_tol: float = Field(0.03, gt=0, le=1, description="bisection ends when the bracket hi/lo ≤ 1 + rel_tol")
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"bisection: expected lower < upper, got {self.lower} and {self.upper}")
+        return self
+
+
+class Bootstrap(BaseModel):
+    """Percentile bootstrap of the mean range over seeds and of the range ratios (crossmodal.bisect)."""
+
+    model_config = ConfigDict(extra="forbid")
+    level: float = Field(0.95, gt=0, lt=1, description="confidence level of the intervals")
+    resamples: int = Field(2000, ge=100, le=100_000, description="bootstrap resamples")
 
 
 Modality = Annotated[Union[RadarModality, SpadModality], Field(discriminator="type")]
@@ -64,9 +92,12 @@ class StudyConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = "crossmodal"
     seed: int = Field(0, ge=0, lt=2**63, description="root seed of every trial")
-    distances: list[Annotated[float, Field(gt=0, le=1000)]] = Field(min_length=1,
-                                                                     description="distances behind the corner [m]")
-    seeds: int = Field(3, ge=1, le=1000, description="trials (seeds) per modality and distance")
+    distances: list[Annotated[float, Field(gt=0, le=1000)]] = Field(
+        min_length=1, description="distance grid behind the corner [m] of the F1 table and range curve")
+    seeds: int = Field(3, ge=1, le=1000, description="trial seeds per modality: each seed is one trial at every "
+                                                     "grid distance and one bisection to failure")
+    bisection: Bisection = Field(default_factory=Bisection)
+    bootstrap: Bootstrap = Field(default_factory=Bootstrap)
     hidden_object: str = Field(description="name of the scene object that is moved")
     relay_wall: str = Field(description="name of the relay wall (radar truth image; SPAD scan)")
     corner: tuple[float, float] = Field(description="a point on the occluder's front line [m]")
@@ -75,8 +106,8 @@ class StudyConfig(BaseModel):
     tolerance: float = Field(1.5, gt=0, le=100, description="reconstruction tolerance [m]")
     threshold: float = Field(0.5, gt=0, le=1, description="F1 at which a distance counts as in range")
     panel_distance: float = Field(3.0, gt=0, le=1000, description="distance of the Fig. 5-style panel [m]")
-    reference: str = Field("", description="row label of the X-band radar for the range ratio")
-    baseline: str = Field("", description="row label of the SPAD for the range ratio")
+    ratios: list[tuple[str, str]] = Field(default_factory=list, description="(reference, baseline) row pairs whose "
+                                          "range ratio (mean range of reference / of baseline) is reported")
     scene: dict[str, Any] = Field(description="inline scene (walls, objects): the hidden object's "
                                               "centre is replaced per distance")
     modality: list[Modality] = Field(min_length=1)
@@ -90,12 +121,12 @@ class StudyConfig(BaseModel):
             raise ValueError(f"modality: labels must be unique, got {labels}")
         rows = [r for m in self.modality
                 for r in ([m.label] if isinstance(m, RadarModality) else [f"{m.label}/{s}" for s in m.solvers])]
-        for key in ("reference", "baseline"):
-            value = getattr(self, key)
-            if value and value not in rows:
-                close = difflib.get_close_matches(value, rows, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise ValueError(f"{key} = {value!r} names no row of the study{hint}; rows: {', '.join(rows)}")
+        for pair in self.ratios:
+            for value in pair:
+                if value not in rows:
+                    close = difflib.get_close_matches(value, rows, n=1)
+                    hint = f" (did you mean {close[0]!r}?)" if close else ""
+                    raise ValueError(f"ratios: {value!r} names no row of the study{hint}; rows: {', '.join(rows)}")
         return self
 
     def digest(self) -> str:

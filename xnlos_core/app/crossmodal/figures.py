@@ -1,5 +1,6 @@
 """Figures of the cross-modality study (:mod:`xnlos_core.app.crossmodal.study`): the range curve (F1 vs
-distance behind the corner per modality) and a Fig. 5-style panel (paper Sec. 5.1.2): one row per
+distance behind the corner per modality, and below it each row's range to failure: the seeds'
+bisection results, their median and bootstrap interval, or the sweep bound reached) and a Fig. 5-style panel (paper Sec. 5.1.2): one row per
 modality, columns scene (top view), raw measurement (radar: |RA map| [dB] over range × azimuth;
 SPAD: counts summed over the scan rows, scan x × round-trip range c·t/2), intensity or dense
 prediction (radar: RA map with the detections, LOS and mNLOS; SPAD: the solver's albedo, max over
@@ -72,15 +73,70 @@ def draw_range_curve(ax, res: dict, colours: dict[str, str] | None = None) -> di
     return lines
 
 
+def draw_failure_points(ax, res: dict, colours: dict[str, str] | None = None) -> dict[str, list]:
+    """Each row's range to failure on ``ax`` (log distance axis, one line per row): the seeds'
+    ranges (dots), the median (diamond) and its bootstrap interval (bar, drawn to the sweep's bound
+    where it ends on a censored seed); seeds that reached a bound of the bisection get an arrow at
+    that bound (▶ at the upper bound: still in range there; ◀ at the lower bound: failed already
+    there), and a median on such a seed is that arrow, not a diamond. Returns row → its artists."""
+    colours = colours or row_colours({r: None for r in res["rows"]})
+    b = res.get("bisection") or {}
+    names = [r for r, t in res["rows"].items() if t.get("range_to_failure")]
+    out: dict[str, list] = {}
+    for i, row in enumerate(names):
+        x, c, y = res["rows"][row]["range_to_failure"], colours[row], len(names) - 1 - i
+        runs = res["rows"][row]["bisections"]
+        got = [r["range"] for r in runs if r["status"] == "bracketed"]
+        arts = [ax.plot(got, [y] * len(got), "o", color=c, ms=3, alpha=0.6)[0]] if got else []
+        if x["status"] == "measured":
+            iv = x["interval"]
+            lo = iv["low"] if iv["low"] > 0 else b.get("lower", iv["value"])
+            hi = iv["high"] if np.isfinite(iv["high"]) else b.get("upper", iv["value"])
+            arts.append(ax.errorbar([iv["value"]], [y], xerr=[[iv["value"] - lo], [hi - iv["value"]]],
+                                    fmt="D", color=c, ms=7, capsize=4, lw=2))
+        if x["n_above"]:
+            arts.append(ax.plot([b.get("upper")], [y], ">", color=c, ms=9)[0])
+        if x["n_below"]:
+            arts.append(ax.plot([b.get("lower")], [y], "<", color=c, ms=9)[0])
+        out[row] = arts
+    ax.set_yticks(range(len(names)), list(reversed(names)), fontsize=8)
+    ax.set_ylim(-0.7, len(names) - 0.3)
+    for v, what in ((b.get("lower"), "lower"), (b.get("upper"), "upper")):
+        if v:
+            ax.axvline(v, color="0.6", lw=0.8, ls=":")
+            ax.annotate(f"{what} bound {v:g} m", (v, 1.0), xycoords=("data", "axes fraction"), xytext=(0, 2),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=7, color="0.4")
+    level = (res.get("bootstrap") or {}).get("level", 0.95)
+    ax.set_title(f"range to failure (bisection per seed): seeds •, median ◆ with its {100 * level:g} % bootstrap "
+                 "interval; ▶ / ◀ bound of the sweep reached", fontsize=8, pad=12)
+    return out
+
+
 def range_curve(res: dict, path: str | Path, colours: dict[str, str] | None = None) -> Path:
-    """Write :func:`draw_range_curve` of the study result ``res`` to ``path`` (PNG); returns the path."""
+    """Write the study result ``res`` to ``path`` (PNG): :func:`draw_range_curve` above and, when the
+    result holds ranges to failure, :func:`draw_failure_points` below on the same distance axis."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 4))
+    failures = any(t.get("range_to_failure") for t in res["rows"].values())
+    if not failures:
+        fig, ax = plt.subplots(figsize=(8, 4))
+        draw_range_curve(ax, res, colours)
+        return save_png(fig, path)
+    n = sum(1 for t in res["rows"].values() if t.get("range_to_failure"))
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 4.5 + 0.35 * n), sharex=True,
+                                 gridspec_kw={"height_ratios": [3, 0.6 + 0.3 * n]})
     draw_range_curve(ax, res, colours)
+    draw_failure_points(bx, res, colours)
+    b = res.get("bisection") or {}
+    ds = [d for t in res["rows"].values() for d in t["distances"]] + [b.get("lower"), b.get("upper")]
+    ds = [d for d in ds if d]
+    ax.set_xlim(min(ds) / 1.3, max(ds) * 1.3)
+    log_distance_ticks(bx, ds)
+    ax.set_xlabel("")
+    bx.set_xlabel("distance behind the corner [m]")
     return save_png(fig, path)
 
 

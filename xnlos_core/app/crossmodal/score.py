@@ -20,7 +20,8 @@ What a "report" and the "truth" are per modality and stage (all distances in met
   the object's outline (top view; a point inside the box is at distance 0); within ``tolerance``.
 * SPAD detection: the summed transient h(t) = Σ_scan counts (T,), background b = median(h),
   box-filtered excess e = Σ_w (h − b) over ``window`` bins; reported when max e > k·√(w·b)
-  (Poisson, k = ``n_sigma``), at range ρ = c·t/2 of the window's centre; truth: the interval
+  (Poisson, k = ``n_sigma``), at range ρ = c·t/2 of the window's centre bin (bin k centred at
+  t0 + kΔ, the convention of ``sims/spad/transport.py`` and the solvers); truth: the interval
   [min, max] of |p − s| over truth points p and scan points s (confocal round trip 2|p − s|),
   widened by ``gate``.
 * SPAD reconstruction: the NLOS volume's peak voxel (x, y, z) in wall coordinates over the
@@ -182,7 +183,7 @@ def transient_peak(data: np.ndarray, bin_width: float, t0: float = 0.0, window: 
     e = uniform_filter1d(h - b, size=window, mode="constant") * window
     k = int(np.argmax(e))
     thr = n_sigma * np.sqrt(window * max(b, 1.0))
-    rho = SPEED_OF_LIGHT * (t0 + (k + 0.5) * bin_width) / 2
+    rho = SPEED_OF_LIGHT * (t0 + k * bin_width) / 2  # bin k centred at t0 + kΔ (sims/spad/transport.py)
     return TransientPeak(bool(e[k] > thr), float(rho), float(e[k]), float(thr), b)
 
 
