@@ -73,3 +73,23 @@ def test_no_ratio_from_a_bound():
     assert x["status"] == "measured" and x["interval"]["value"] == 40.0 and x["n_above"] == 1
     assert res["ratios"][0]["value"] == 20.0
     assert "| xband | 40.00 | [36.00, ≥ 150] |" in md
+
+
+def test_the_report_marks_its_tables_for_the_benchmark_page():
+    """crossmodal.md marks every seeded table as benchmarks/pages.py reads them (the study writes the
+    markers itself: the core imports nothing from benchmarks/), so benchmarks/crossmodal.md's tables
+    are compared with a rerun; a changed cell is a difference."""
+    from benchmarks.pages import compare, marked, tables
+    from xnlos_core.app.crossmodal.study import marked as study_marked
+
+    assert study_marked("t", ["| a |"]) == marked("t", ["| a |"])
+    _, md = _study([40.0, ">", ">", ">"], [2.0, 2.0, 2.0, 2.0])
+    got = tables(md)
+    assert set(got) == {"ranges", "ratios", "ratio_notes", "f1_grid"}
+    assert got["ratios"] == ["| ratio | value | 95 % interval |", "|---|---|---|",
+                             "| xband / spad_night/fk | — | — |"]
+    assert "3/4 seed(s)" in got["ratio_notes"][0]
+    assert [ln.split(" |")[0] for ln in got["f1_grid"][2:]] == ["| xband", "| spad_night/fk"]
+    _, measured = _study([40.0, 44.0, 36.0, 40.0, 42.0], [2.0, 2.0, 2.1, 1.9, 2.0])
+    assert "ratio_notes" not in tables(measured) and compare(measured, measured) == []
+    assert compare(measured, measured.replace("| xband | 40.00 |", "| xband | 40.02 |"))

@@ -483,6 +483,14 @@ def summarise(cfg: StudyConfig, results: dict[str, dict[float, list]], bisection
             "range_ratio_note": None if first is None else first["note"]}
 
 
+def marked(name: str, lines: list[str]) -> list[str]:
+    """``lines`` between ``<!-- table:NAME -->`` and ``<!-- /table -->``: the markers with which a
+    benchmark page names a deterministic table (``benchmarks/pages.py`` compares the lines between
+    them with a rerun of the page's seeded command; HTML comments, invisible on the rendered page).
+    Written here, not imported: the core imports nothing from ``benchmarks/``."""
+    return [f"<!-- table:{name} -->", *lines, "<!-- /table -->"]
+
+
 def command_line(config: str, out: str) -> str:
     """The command that regenerates a study's tables (printed at the top of ``crossmodal.md``)."""
     return f"xnlos crossmodal {config} --out {out}"
@@ -490,7 +498,9 @@ def command_line(config: str, out: str) -> str:
 
 def render_markdown(cfg: StudyConfig, res: dict, source: str, out: str = "out/crossmodal") -> str:
     """The study's tables: range to failure per row (median over seeds, bootstrap interval, per-seed
-    ranges), the range ratios, and the F1 grid (detection / reconstruction per distance)."""
+    ranges), the range ratios, and the F1 grid (detection / reconstruction per distance). Each is
+    :func:`marked` (``ranges``, ``ratios`` with ``ratio_notes``, ``f1_grid``): all are deterministic
+    (the same config gives the same text on every run)."""
     b, lvl = cfg.bisection, f"{100 * cfg.bootstrap.level:g} %"
     lines = [f"# Cross-modality study `{cfg.name}`", "",
              f"Command: `{command_line(source, out)}` (seed {cfg.seed}; deterministic)", "",
@@ -501,8 +511,8 @@ def render_markdown(cfg: StudyConfig, res: dict, source: str, out: str = "out/cr
              f"interval over resampled seeds ({cfg.bootstrap.resamples} resamples, seeded); a seed that still "
              f"succeeds at {b.upper:g} m or already fails at {b.lower:g} m is censored at that bound (shown ≥ / <), "
              "and a median or interval end on a censored seed is that bound, never a number.", "",
-             "## Range to failure", "",
-             f"| row | range [m] | {lvl} interval [m] | per-seed ranges [m] |", "|---|---|---|---|"]
+             "## Range to failure", ""]
+    ranges = [f"| row | range [m] | {lvl} interval [m] | per-seed ranges [m] |", "|---|---|---|---|"]
     for r, t in res["rows"].items():
         x = t.get("range_to_failure")
         if x is None:
@@ -512,31 +522,36 @@ def render_markdown(cfg: StudyConfig, res: dict, source: str, out: str = "out/cr
         value = (f"{iv['value']:.2f}" if x["status"] == "measured" else
                  f"≥ {b.upper:g} (upper bound reached)" if x["status"] == "above" else
                  f"< {b.lower:g} (fails at the lower bound)")
-        lines.append(f"| {r} | {value} | {_interval_text(iv, b.lower, b.upper)} | {per} |")
+        ranges.append(f"| {r} | {value} | {_interval_text(iv, b.lower, b.upper)} | {per} |")
+    lines += marked("ranges", ranges)
     if res["ratios"]:
-        lines += ["", "## Range ratios", "", f"| ratio | value | {lvl} interval |", "|---|---|---|"]
+        table = [f"| ratio | value | {lvl} interval |", "|---|---|---|"]
         for q in res["ratios"]:
             if q["value"] is not None:
-                lines.append(f"| {q['reference']} / {q['baseline']} | {q['value']:.2f} | "
+                table.append(f"| {q['reference']} / {q['baseline']} | {q['value']:.2f} | "
                              f"{_interval_text(q['interval'])} |")
             else:
-                lines.append(f"| {q['reference']} / {q['baseline']} | — | — |")
+                table.append(f"| {q['reference']} / {q['baseline']} | — | — |")
+        lines += ["", "## Range ratios", "", *marked("ratios", table)]
+        notes = []
         if any(q["interval"] and (q["interval"]["low"] == 0 or math.isinf(q["interval"]["high"]))
                for q in res["ratios"]):
-            lines += ["", "A ratio interval that ends at ∞ (or 0) is open on that side: in some resamples of the "
+            notes += ["", "A ratio interval that ends at ∞ (or 0) is open on that side: in some resamples of the "
                       "seeds the baseline's (or reference's) median fell on a seed censored at the lower bound."]
         for q in res["ratios"]:
             if q["note"]:
-                lines.append("")
-                lines.append(f"{q['reference']} / {q['baseline']}: " + q["note"][0].upper() + q["note"][1:] + ".")
+                notes.append("")
+                notes.append(f"{q['reference']} / {q['baseline']}: " + q["note"][0].upper() + q["note"][1:] + ".")
+        if notes:
+            lines += [*notes[:1], *marked("ratio_notes", notes[1:])]
     ds = sorted(cfg.distances)
-    lines += ["", "## F1 on the distance grid", "",
-              "Cells: detection F1 / reconstruction F1 over the seeds' trials (the same trial seeds as the "
-              "bisection).", "",
-              "| row | " + " | ".join(f"{d:g} m" for d in ds) + " |", "|---|" + "---|" * len(ds)]
+    grid = ["| row | " + " | ".join(f"{d:g} m" for d in ds) + " |", "|---|" + "---|" * len(ds)]
     for r, t in res["rows"].items():
         cells = [f"{_fmt(a)} / {_fmt(c)}" for a, c in zip(t["detection_f1"], t["reconstruction_f1"])]
-        lines.append(f"| {r} | " + " | ".join(cells) + " |")
+        grid.append(f"| {r} | " + " | ".join(cells) + " |")
+    lines += ["", "## F1 on the distance grid", "",
+              "Cells: detection F1 / reconstruction F1 over the seeds' trials (the same trial seeds as the "
+              "bisection).", "", *marked("f1_grid", grid)]
     return "\n".join(lines) + "\n"
 
 
