@@ -39,7 +39,7 @@ def test_a_missing_or_extra_row_or_table_is_a_difference():
 
 
 def test_every_registered_page_exists_and_marks_its_tables():
-    assert {"ground_3d", "osm_import", "doppler_velocity", "dimensions_auto"} <= set(PAGES)
+    assert {"ground_3d", "osm_import", "doppler_velocity", "dimensions_auto", "crossmodal"} <= set(PAGES)
     for page in PAGES.values():
         assert page.path.exists(), page.path
         assert tables(page.path.read_text(encoding="utf-8")), f"{page.name}: no marked table"
