@@ -347,6 +347,13 @@ class TransientModel(Plugin, abc.ABC):
         wall coordinates (x along the wall, y up, z in front of it: the frame of :meth:`TransientVolume.grid` and of an
         :class:`~xnlos_core.nlos_volume.NLOSVolume`'s (x, y, z)); (0, 3) for a scene without objects."""
 
+    def facing_params(self, scene: "Scene", target, exclude: str | None = None) -> tuple[dict, dict] | None:
+        """Optional: this model's parameters with its scan patch placed where the relay wall sees a
+        hidden ``target`` (3,) [m] (world x, y, z), and a JSON-able record of the placement; the
+        record's ``grid_offset`` is None when no patch both is seen by the sensor and sees the target.
+        None (the default): the model places no patch, and the study keeps its parameters."""
+        return None
+
 
 # The one list of kinds, in the order ``xnlos plugins`` lists them: the registry, the config's
 # stage tables, the conformance kit and the tests all derive from it.

@@ -26,3 +26,15 @@ class SpadTransientModel(TransientModel):
         """Centres (P, 3) [m] of the hidden-surface patches the scan sees (:func:`.scene.visible_patches`:
         not occluded, facing the grid) in wall coordinates (x, y, z)."""
         return np.asarray(visible_patches(scene, self.params).centers, float).reshape(-1, 3)
+
+    def facing_params(self, scene: Scene, target, exclude: str | None = None) -> tuple[dict, dict]:
+        """Parameters with ``grid_offset`` at the wall position facing ``target`` most nearly head-on
+        among those the sensor sees (:func:`.placement.facing_offset`), and the placement record."""
+        from .placement import facing_offset
+
+        params = self.params.model_dump()
+        pl = facing_offset(scene, self.params, target, exclude=exclude)
+        if pl.offset is not None:
+            params["grid_offset"] = pl.offset
+        return params, {"placement": "facing", "grid_offset": pl.offset, "facing_offset": pl.facing,
+                        "clipped": pl.clipped}

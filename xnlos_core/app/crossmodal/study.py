@@ -180,21 +180,23 @@ def _radar_trial(cfg: StudyConfig, mod: RadarModality, d: float, seed: int, base
 
 
 def _spad_params(cfg: StudyConfig, mod: SpadModality, scene) -> tuple[dict, dict]:
-    """The transient model's params at this scene (the patch placed when ``placement = "facing"``)
-    and the placement record."""
+    """The transient model's params at this scene (the patch placed when ``placement = "facing"``, by
+    the registered model's :meth:`~xnlos_core.interfaces.TransientModel.facing_params`) and the
+    placement record."""
     params = dict(mod.transient_model.params)
-    if mod.placement == "fixed" or mod.transient_model.name != "spad":
-        return params, {"placement": "fixed", "grid_offset": params.get("grid_offset", 0.0)}
-    from sims.spad.placement import facing_offset
-    from sims.spad.scene import SpadParams
+    fixed = {"placement": "fixed", "grid_offset": params.get("grid_offset", 0.0)}
+    if mod.placement == "fixed":
+        return params, fixed
+    from xnlos_core.registry import get_registry
 
-    sp = SpadParams.model_validate(params)
+    model = get_registry().create("transient_model", mod.transient_model.name, params,
+                                  source=f"{cfg.name} [[modality]] {mod.label}")
     obj = next(o for o in scene.objects if o.name == cfg.hidden_object)
-    pl = facing_offset(scene, sp, [*obj.center_at(0.0), obj.height / 2], exclude=cfg.hidden_object)
-    if pl.offset is not None:
-        params["grid_offset"] = pl.offset
-    return params, {"placement": "facing", "grid_offset": pl.offset, "facing_offset": pl.facing,
-                    "clipped": pl.clipped}
+    placed = model.facing_params(scene, [*obj.center_at(0.0), obj.height / 2], exclude=cfg.hidden_object)
+    if placed is None:
+        return params, fixed
+    facing, record = placed
+    return {**params, "grid_offset": facing["grid_offset"]} if record["grid_offset"] is not None else params, record
 
 
 def _spad_trial(cfg: StudyConfig, mod: SpadModality, d: float, seed: int, base_dir: Path, solvers: dict,
