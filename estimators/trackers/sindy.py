@@ -68,12 +68,15 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, KalmanTrack
 from .measurements import Measurements
 from estimators.state import StateReader
+from . import motion_library as ml
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
 MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
 MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh cornering
+# per-model disc factors of library forecasts (split-conformal, benchmarks/bicycle_forecasts.py --calibrate)
+INTERVAL_FACTORS = {"cv": 1.0, "brake": 1.0, "accelerate": 1.0, "reverse": 1.0, "turn": 1.0, "lane_change": 1.0}
 
 
 class SindyParams(KalmanParams):
@@ -83,8 +86,24 @@ class SindyParams(KalmanParams):
                                                                        "the sequence data, see configs/ablations/tracking.toml)")
     window: float = Field(3.0, gt=0, le=60, description="length [s] of the history identified from")
     refit_every: int = Field(2, ge=1, le=10_000, description="frames between two identifications of a track")
-    max_fits_per_frame: int = Field(1, ge=1, le=1000, description="identifications at most per frame "
-                                                                  "(the longest-unfitted due tracks first)")
+    max_fits_per_frame: int | None = Field(None, ge=1, le=100_000, description="identifications at most per "
+                                           "frame (the longest-unfitted due tracks first); None: every due track, "
+                                           "so each is refitted every refit_every frames however many there are")
+    identification: Literal["library", "ensemble"] = Field("library", description="'library': every due track "
+                                                           "identified at once over the manoeuvre library (straight, "
+                                                           "braking, speeding up, reversing, turn, lane change; "
+                                                           "motion_library.py) by a likelihood-ratio test at "
+                                                           "selection_level, from the positions; 'ensemble': one "
+                                                           "track at a time by ensemble SINDy (sindy_model.py; it "
+                                                           "also fits the radial velocities)")
+    selection_level: float = Field(0.01, gt=0, lt=1, description="level α of the library's likelihood-ratio test "
+                                                                 "against constant velocity (Bonferroni over the "
+                                                                 "alternatives): a straight track is given a manoeuvre "
+                                                                 "model with probability ≈ α")
+    interval_factors: dict[Literal["cv", "brake", "accelerate", "reverse", "turn", "lane_change"], Scale] = Field(
+        default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
+        "library-identified track by its model: split-conformal factors learned on a calibration split of "
+        "kinematic-bicycle tracks (benchmarks/bicycle_forecasts.py --calibrate)")
     n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
@@ -133,6 +152,7 @@ class _SindyTrack(KalmanTrack):
     motion: fc.LinearMotion = field(default_factory=lambda: CV)
     fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
     identified: MotionModel | None = None
+    library: ml.LibraryFit | None = None           # the library identification (identification "library")
 
 
 def bounded(coef, max_growth: float) -> np.ndarray:
@@ -211,6 +231,16 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     return fc.LinearMotion(bounded(point, p.max_growth), bounded(members, p.max_growth), " ".join(terms))
 
 
+def library_motion(fit: ml.LibraryFit, speed: float, p: "SindyParams") -> fc.LinearMotion:
+    """The linear filter's motion of a library fit at ``speed`` [m/s]: a turn ωJ (+ matched α of a speed
+    change), braking or speeding up as the matched α (module docstring, 4); CV for the rest (a lane
+    change or a reversal, whose forecast comes from the fit itself)."""
+    if fit.label not in ("turn", "brake", "accelerate"):
+        return CV
+    point = bounded(np.r_[matched_alpha(fit.rates[0], speed), fit.rates[1]], p.max_growth)
+    return fc.LinearMotion(point, point[None], fit.label)
+
+
 def _legacy(identified) -> bool:
     """Whether a checkpoint's identified model comes from an earlier library — the world-frame one
     (support masks (2, 2)) or the exponential speed change dv/dt = αv (no ``rates``): it is dropped on
@@ -250,6 +280,7 @@ class SindyTracker(KalmanTracker):
                                           for mask, theta, cov in ident.fits],
                                  "t_last": float(ident.t_last), "sigma": float(ident.sigma),
                                  "evidence": float(ident.evidence), "rates": ident.rates.tolist()}
+        out["library"] = None if tr.library is None else tr.library.to_dict()
         return out
 
     def _track_from(self, r: StateReader) -> _SindyTrack:
@@ -276,9 +307,12 @@ class SindyTracker(KalmanTracker):
             identified = MotionModel(d.array("coefficients", (2, 2)), d.array("ensemble", (None, 2, 2)), tuple(fits),
                                      d.number("t_last"), d.number("sigma"), d.number("evidence"),
                                      d.array("rates", (len(GENERATORS),)))
+        library = None
+        if r.data.get("library") is not None:
+            library = ml.LibraryFit.from_reader(r.sub("library"))
         return _SindyTrack(base.id, base.x, base.P, base.t, base.frames, base.hits, base.misses, base.confirmed,
                            history=history, motion=motion, fitted_frame=r.integer("fitted_frame", -1),
-                           identified=identified)
+                           identified=identified, library=library)
 
     def _new_track(self, track_id, x, P, t) -> _SindyTrack:
         return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy(), np.zeros(2), np.nan)])
@@ -295,7 +329,22 @@ class SindyTracker(KalmanTracker):
         return self.params.accel_psd if tr.motion.is_cv else self.params.model_accel_psd
 
     def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
+        if tr.library is not None:
+            f = self.params.interval_factors.get(tr.library.label, 1.0)
+            return f, f
         return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
+
+    def _forecast(self, tr: _SindyTrack, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A library-identified track forecasts from its fit (motion_library.predict) at τ = t − t_ref + h,
+        with the white-acceleration noise of ``accel_psd`` over τ added; any other as ``kalman``."""
+        if tr.library is None:
+            return super()._forecast(tr, h)
+        tau = (tr.t - tr.library.t_ref) + np.asarray(h, dtype=np.float64)
+        mean, cov = ml.predict(tr.library, tau)
+        return mean, cov + fc.cv_process_noise(tau, self.params.accel_psd)[:, :2, :2]
+
+    def _label(self, tr: _SindyTrack) -> str:
+        return tr.library.label if tr.library is not None else tr.motion.label
 
     def _spread(self, tr: _SindyTrack) -> float:
         return self.params.member_spread
@@ -310,8 +359,28 @@ class SindyTracker(KalmanTracker):
             ready = tr.confirmed and not self._lost(tr) and len(tr.history) >= p.min_samples
             if ready and (tr.fitted_frame < 0 or stale >= p.refit_every):
                 due.append((-stale if tr.fitted_frame >= 0 else -np.inf, tr.id, tr))
-        for _, _, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]:
+        due = [tr for *_, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]]
+        if p.identification == "library":
+            self._identify_library(due)
+            return
+        for tr in due:
             self._identify(tr)
+
+    def _identify_library(self, due: list) -> None:
+        """Every due track identified at once over the manoeuvre library (motion_library.identify_batch)."""
+        if not due:
+            return
+        p = self.params
+        fits = ml.identify_batch([(np.array([h[0] for h in tr.history]), np.array([h[1] for h in tr.history]))
+                                  for tr in due], p.selection_level, ml.Envelope(p.max_speedup, p.max_lateral))
+        for tr, fit in zip(due, fits):
+            tr.fitted_frame, tr.identified = self._frame, None
+            speed = float(np.linalg.norm(tr.x[2:]))
+            if speed < p.min_speed:  # turn and acceleration unobservable: the Kalman CV forecast
+                tr.library, tr.motion = None, CV
+                continue
+            tr.library = fit
+            tr.motion = library_motion(fit, speed, p)
 
     def _identify(self, tr: _SindyTrack) -> None:
         p = self.params
