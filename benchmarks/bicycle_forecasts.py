@@ -171,7 +171,14 @@ def run_group(tracker, group, timing: list | None = None) -> dict:
                 continue
             d = np.linalg.norm(out.position - (g[1][k] + offsets[i]), axis=1)
             m = int(np.argmin(d))
-            res[i][k] = None if d[m] > 5.0 else (out.forecast[m, j] - offsets[i], float(out.radius90[m, j]), out.model[m])
+            key = out.model[m]
+            fit = getattr(tracker, "_tracks", None)
+            if fit is not None:
+                tr = next((x for x in tracker._tracks if x.id == out.track_id[m]), None)
+                if tr is not None and hasattr(tr, "library"):
+                    key = "unfitted" if tr.library is None else tr.library.interval_key
+            res[i][k] = None if d[m] > 5.0 else (out.forecast[m, j] - offsets[i], float(out.radius90[m, j]),
+                                                 out.model[m], key)
     return res
 
 
@@ -204,10 +211,10 @@ def evaluate(per_class: int, seed: int, sizes=(1, 10, 50), params: dict | None =
                            "cv": float(np.linalg.norm(cv_line(noisy, k) - future))}
                     for name, r in (("sindy", s[i][k]), ("kalman", kf[i][k])):
                         if r is None:
-                            rec[name], rec[name + "_r90"], rec[name + "_label"] = np.nan, np.nan, "lost"
+                            rec[name], rec[name + "_r90"], rec[name + "_label"], rec[name + "_key"] = np.nan, np.nan, "lost", "lost"
                         else:
                             rec[name] = float(np.linalg.norm(r[0] - future))
-                            rec[name + "_r90"], rec[name + "_label"] = r[1], r[2]
+                            rec[name + "_r90"], rec[name + "_label"], rec[name + "_key"] = r[1], r[2], r[3]
                     rows.append(rec)
         out[N] = {"rows": rows, "ms": 1e3 * float(np.median(timing))}
     return out
@@ -273,9 +280,9 @@ def calibrate(per_class: int, seed: int = 1) -> dict:
     factors = SindyTracker().params.interval_factors
     rows = evaluate(per_class, seed, sizes=(1,))[1]["rows"]
     out = {}
-    for label in sorted({x["sindy_label"] for x in rows} - {"lost"}):
+    for label in sorted({x["sindy_key"] for x in rows} - {"lost"}):
         s = np.sort([x["sindy"] / (x["sindy_r90"] / factors.get(label, 1.0)) for x in rows
-                     if x["sindy_label"] == label and np.isfinite(x["sindy"])])
+                     if x["sindy_key"] == label and np.isfinite(x["sindy"])])
         q = min(int(np.ceil(0.9 * (len(s) + 1))), len(s)) - 1
         out[label] = (round(float(s[q]), 2), len(s))
     return out

@@ -10,7 +10,8 @@ window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
   principal axis of the window's positions). It is **braking** when the speed along û falls to zero in
   the future (t* = −(ûᵀv₀)/β > 0: the forecast stops there, the car then stays), **reversing** when it
   went through zero inside the window (t* between the first sample and now: the speed changed sign,
-  and the forecast carries on unclamped), **accelerating** otherwise.
+  and the forecast carries on unclamped) and the car has since run back farther than twice the
+  residual SD (else it is braking that stopped at t*: it stays), **accelerating** otherwise.
 * ``turn``: p₀ + R(ω, τ) v₀ (P = 4 + ω): constant speed and turn rate ω [rad/s],
   R = (sin ωτ/ω) I + ((1 − cos ωτ)/ω) J (J the +90° rotation).
 * ``turn_accel``: ``turn`` + M(ω, τ) a₀ (P = 6 + ω): an acceleration a₀ [m/s²] that turns with the
@@ -103,6 +104,15 @@ class LibraryFit:
     sigma: float
     statistic: float
     rates: np.ndarray
+
+    @property
+    def interval_key(self) -> str:
+        """The key of this fit's disc factor: its label, or ``cv_uncertain`` for a CV selection whose CV
+        entry holds less than half the BIC weight (a manoeuvre model fits better by BIC but fails the
+        test: the track may be starting one)."""
+        if self.label == "cv" and self.entries[0].weight < 0.5:
+            return "cv_uncertain"
+        return self.label
 
     def to_dict(self) -> dict:
         return {"label": self.label, "t_ref": float(self.t_ref), "sigma": float(self.sigma),
@@ -338,7 +348,7 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
         th[:2] += centre
         hyper = hyper.copy()
         hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
-        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env)
+        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, float(np.sqrt(sigma2[j])))
         ok[j] = inside
         described.append((label, rates))
         built.append((m, hyper, th, sigma2[j] / f * (R @ inv @ R.T), stop))
@@ -354,8 +364,10 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
                       np.asarray(described[best][1], dtype=np.float64))
 
 
-def _describe(model: str, hyper, theta, tau_first: float, env: Envelope):
-    """(label, stop τ [s] or inf, rates (β, ω), inside the envelope) of a fitted entry (module docstring)."""
+def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: float = 0.0):
+    """(label, stop τ [s] or inf, rates (β, ω), inside the envelope) of a fitted entry (module docstring);
+    sigma [m] the entry's residual SD: a reversal must have run back farther than 2σ since its turning
+    point, else the window shows a car that stopped there (it stays)."""
     v = theta[2:4]
     speed = math.hypot(v[0], v[1])
     if model == "cv":
@@ -368,6 +380,8 @@ def _describe(model: str, hyper, theta, tau_first: float, env: Envelope):
             return "brake", -s1 / beta, (-abs(beta), 0.0), True
         t_star = -s1 / beta if beta != 0 else -np.inf
         if tau_first < t_star <= 0:                                   # through zero inside the window
+            if 0.5 * abs(beta) * t_star ** 2 <= 2.0 * sigma:           # no farther back than the noise: stopped
+                return "brake", t_star, (-abs(beta), 0.0), True
             return "reverse", float("inf"), (abs(beta), 0.0), True
         return "accelerate", float("inf"), (abs(beta), 0.0), abs(beta) <= env.max_speedup
     omega = float(hyper[0])

@@ -1,5 +1,17 @@
 """Multi-target tracker ``sindy``: the Kalman tracker's association, birth and death (and Doppler
-update), with each confirmed track's motion model identified by ensemble SINDy.
+update), with each confirmed track's motion model identified over a manoeuvre library or by ensemble SINDy.
+
+Identification ``library`` (the default): every track due in a frame (≥ ``min_samples`` in the window,
+last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`` caps them) is
+identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
+speeding up, reversing, turn (with or without a speed change), lane change — selected by a
+likelihood-ratio test at ``selection_level`` against constant velocity and then by BIC, from the
+positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
+plus ``accel_psd`` white acceleration noise from the fit's last sample), its disc radii scaled by
+``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
+its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
+lane change or a reversal); the reported ``model`` is the manoeuvre's name. Below ``min_speed`` a track
+stays CV. Identification ``ensemble``: steps 2–6 below.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
@@ -76,7 +88,8 @@ MEMBER_SPREAD = 0.0
 MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
 MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh cornering
 # per-model disc factors of library forecasts (split-conformal, benchmarks/bicycle_forecasts.py --calibrate)
-INTERVAL_FACTORS = {"cv": 1.0, "brake": 1.0, "accelerate": 1.0, "reverse": 1.0, "turn": 1.0, "lane_change": 1.0}
+INTERVAL_FACTORS = {"cv": 1.0, "cv_uncertain": 1.0, "brake": 1.0, "accelerate": 1.0, "reverse": 1.0, "turn": 1.0,
+                    "lane_change": 1.0}
 
 
 class SindyParams(KalmanParams):
@@ -100,10 +113,12 @@ class SindyParams(KalmanParams):
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
                                                                  "model with probability ≈ α")
-    interval_factors: dict[Literal["cv", "brake", "accelerate", "reverse", "turn", "lane_change"], Scale] = Field(
+    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change"],
+                           Scale] = Field(
         default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
-        "library-identified track by its model: split-conformal factors learned on a calibration split of "
-        "kinematic-bicycle tracks (benchmarks/bicycle_forecasts.py --calibrate)")
+        "library-identified track by its model ('cv_uncertain': CV selected with less than half the BIC weight, "
+        "motion_library.LibraryFit.interval_key): split-conformal factors learned on a calibration split of "
+        "kinematic-bicycle tracks (benchmarks/bicycle_forecasts.py --calibrate); a model missing here: 1")
     n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
@@ -330,7 +345,7 @@ class SindyTracker(KalmanTracker):
 
     def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
         if tr.library is not None:
-            f = self.params.interval_factors.get(tr.library.label, 1.0)
+            f = self.params.interval_factors.get(tr.library.interval_key, 1.0)
             return f, f
         return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
 
