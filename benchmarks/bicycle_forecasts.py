@@ -35,9 +35,11 @@ machine as it is ("quiet") and with two CPU-bound processes started by the bench
     OMP_NUM_THREADS=1 python benchmarks/bicycle_forecasts.py --calibrate  # per-model disc factors, seed 1
 
 ``--calibrate`` runs one track at a time on the calibration split (seed 1; the results use seed 0) and
-prints the split-conformal factor per model label: the ⌈0.9(n + 1)⌉-th smallest of error / (unscaled
-90 % radius) over the forecasts of that label (Vovk et al. 2005; Lei et al. 2018), stored as
-``INTERVAL_FACTORS`` in estimators/trackers/sindy.py.
+prints the split-conformal factor per model key (``LibraryFit.interval_key``): the ⌈0.9(n + 1)⌉-th
+smallest of error / (unscaled 90 % radius) over that key's forecasts in the phases the intervals are
+for — straight cars, and the other classes during their manoeuvre (Vovk et al. 2005; Lei et al. 2018)
+— stored as ``INTERVAL_FACTORS`` in estimators/trackers/sindy.py. Forecasts whose 2 s straddle a
+manoeuvre's onset or end are not calibrated for: nothing in the track's past announces them.
 """
 from __future__ import annotations
 
@@ -278,7 +280,7 @@ def calibrate(per_class: int, seed: int = 1) -> dict:
     from estimators.trackers.sindy import SindyTracker
 
     factors = SindyTracker().params.interval_factors
-    rows = evaluate(per_class, seed, sizes=(1,))[1]["rows"]
+    rows = [x for x in evaluate(per_class, seed, sizes=(1,))[1]["rows"] if x["during"] or x["cls"] == "straight"]
     out = {}
     for label in sorted({x["sindy_key"] for x in rows} - {"lost"}):
         s = np.sort([x["sindy"] / (x["sindy_r90"] / factors.get(label, 1.0)) for x in rows

@@ -322,6 +322,10 @@ class KalmanTracker(Tracker):
         (:func:`estimators.trackers.forecast.forecast` of its motion model here)."""
         return fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr))
 
+    def _forecasts(self, trs: list, h: np.ndarray) -> list:
+        """[(mean, covariance)] of :meth:`_forecast` for the tracks ``trs`` (a subclass may batch them)."""
+        return [self._forecast(tr, h) for tr in trs]
+
     def _label(self, tr: KalmanTrack) -> str:
         """The motion model reported for track ``tr`` (its motion's label here)."""
         return self._motion(tr).label
@@ -394,7 +398,7 @@ class KalmanTracker(Tracker):
                           np.empty((0, len(h))), np.empty((0, len(h))), (), **extra)
         x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
-        fcs = [self._forecast(tr, h) for tr in trs]
+        fcs = self._forecasts(trs, h)
         mean = np.array([m for m, _ in fcs])
         r50, r90 = fc.radii(np.array([c for _, c in fcs]))
         scale = np.array([self._interval_scale(tr) for tr in trs])  # (T, 2)

@@ -65,7 +65,7 @@ LANE_SCALES = np.array([0.9])                  # s [s]: 10–90 % of the offset 
 LANE_MAX = 8.0                                   # [m] largest lateral offset of a lane change (two lanes)
 BETA_MAX = 10.0                                  # [m/s²] about 1 g
 MIN_SAMPLES = 8
-MIN_WEIGHT = 1e-4  # entries of a smaller BIC weight leave the forecast mixture (their share of its spread is nil)
+MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
 
 
 @dataclass(frozen=True)
@@ -240,7 +240,7 @@ def _pick(rss: np.ndarray, order: np.ndarray) -> np.ndarray:
 
 def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
     """Every entry of the library fitted to tracks sampled at the same τ (L,), local positions z (T, L, 2):
-    {model: (grid index (T,), θ (T, P), RSS (T,), (BᵀB)⁻¹ (T, P, P))}."""
+    {model: (grid index (T,), θ (T, P), RSS (T,), (BᵀB)⁻¹ (T, P, P), residuals (T, 2L))}."""
     shared = _shared(np.ascontiguousarray(tau).tobytes())
     T = len(z)
     zf = z.reshape(T, -1)
@@ -259,7 +259,9 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
             order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
                      else np.arange(rss.shape[1]))
             g = _pick(rss, order)
-            out[m] = (g, theta[idx, g], rss[idx, g], invs[m][g])
+            th = theta[idx, g]
+            resid = zf - np.einsum("tkp,tp->tk", X[g][:, :, :c], th)     # (T, 2L) at the chosen grid values
+            out[m] = (g, th, rss[idx, g], invs[m][g], resid)
     return out
 
 
@@ -336,8 +338,7 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
     rss = np.array([fits[m][2][row] for m in LIBRARY])
     rss = np.maximum(rss, 1e-18 * max(float(np.sum(zl * zl)), 1e-6))  # rounding-level RSS never chooses
     local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
-    m, hyper, theta, _ = local[int(np.argmin(rss))]
-    f = _effective_share(zl - basis(m, hyper, tau) @ theta)
+    f = _effective_share(fits[LIBRARY[int(np.argmin(rss))]][4][row].reshape(-1, 2))
     stat = f * N * np.log(rss[0] / rss)                                # Eq. (1)
     bic = f * N * np.log(rss / N) + k * np.log(f * N)
     sigma2 = rss / np.maximum(N - k, 1.0)
@@ -348,10 +349,10 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
         th[:2] += centre
         hyper = hyper.copy()
         hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
-        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, float(np.sqrt(sigma2[j])))
+        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, math.sqrt(sigma2[j]))
         ok[j] = inside
         described.append((label, rates))
-        built.append((m, hyper, th, sigma2[j] / f * (R @ inv @ R.T), stop))
+        built.append((m, hyper, th, R, inv, stop))
     passing = ok & (stat > thresholds)
     passing[0] = True
     cand = np.flatnonzero(passing)
@@ -359,7 +360,8 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
     wts = np.where(ok, np.exp(-0.5 * (bic - bic[ok].min())), 0.0)
     wts /= wts.sum()
     order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
-    ents = tuple(Entry(built[j][0], built[j][1], built[j][2], built[j][3], float(wts[j]), built[j][4]) for j in order)
+    ents = tuple(Entry(built[j][0], built[j][1], built[j][2], sigma2[j] / f * (built[j][3] @ built[j][4] @ built[j][3].T),
+                       float(wts[j]), built[j][5]) for j in order)
     return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
                       np.asarray(described[best][1], dtype=np.float64))
 
@@ -410,3 +412,39 @@ def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
         d = m - mu
         cov = cov + e.weight * np.einsum("ki,kj->kij", d, d)
     return mu, cov
+
+
+def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict` of many fits at once: means (T, K, 2) [m], covariances (T, K, 2, 2) [m²] at tau (T, K)
+    ≥ 0 [s] after each fit's ``t_ref`` — one basis evaluation per library entry over all tracks."""
+    tau = np.asarray(tau, dtype=np.float64)
+    T, K = tau.shape
+    mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
+    if T == 0:
+        return mean, cov
+    rows = [(i, j, e) for i, f in enumerate(fits) for j, e in enumerate(f.entries)]
+    mus = {}
+    for m in LIBRARY:
+        sel = [(i, j, e) for i, j, e in rows if e.model == m]
+        if not sel:
+            continue
+        idx = np.array([i for i, _, _ in sel])
+        hyper = np.array([e.hyper for *_, e in sel])
+        stop = np.array([e.stop for *_, e in sel])
+        B = basis(m, hyper, np.minimum(tau[idx], stop[:, None]))          # (E, K, 2, P)
+        theta = np.array([e.theta for *_, e in sel])
+        mu = np.einsum("ekcp,ep->ekc", B, theta)
+        first = np.array([j == 0 for _, j, _ in sel])
+        if first.any():
+            covs = np.array([e.cov for (_, j, e) in sel if j == 0])
+            Bf = B[first]
+            cov[idx[first]] = np.einsum("ekip,epq,ekjq->ekij", Bf, covs, Bf)
+        for r, (i, j, e) in enumerate(sel):
+            mus[(i, j)] = (mu[r], e.weight)
+    for i, f in enumerate(fits):
+        mean[i] = mus[(i, 0)][0]
+        for j in range(1, len(f.entries)):
+            m, w = mus[(i, j)]
+            d = m - mean[i]
+            cov[i] += w * d[:, :, None] * d[:, None, :]
+    return mean, cov

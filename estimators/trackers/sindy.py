@@ -358,6 +358,19 @@ class SindyTracker(KalmanTracker):
         mean, cov = ml.predict(tr.library, tau)
         return mean, cov + fc.cv_process_noise(tau, self.params.accel_psd)[:, :2, :2]
 
+    def _forecasts(self, trs: list, h: np.ndarray) -> list:
+        """The library-identified tracks' forecasts in one batch (motion_library.predict_many), the others
+        as ``kalman``'s (:meth:`_forecast`)."""
+        lib = [i for i, tr in enumerate(trs) if tr.library is not None]
+        out = [None if tr.library is not None else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
+        if lib:
+            tau = np.array([trs[i].t - trs[i].library.t_ref for i in lib])[:, None] + np.asarray(h, np.float64)[None]
+            mean, cov = ml.predict_many([trs[i].library for i in lib], tau)
+            cov = cov + fc.cv_process_noise(tau, self.params.accel_psd)[..., :2, :2]
+            for r, i in enumerate(lib):
+                out[i] = (mean[r], cov[r])
+        return out
+
     def _label(self, tr: _SindyTrack) -> str:
         return tr.library.label if tr.library is not None else tr.motion.label
 

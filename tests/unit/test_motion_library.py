@@ -87,3 +87,16 @@ def test_bad_tracks_are_typed_errors():
         ml.identify_batch([(T[::-1], np.zeros((30, 2)))])
     with pytest.raises(InputError, match="level"):
         ml.identify_batch([(T, np.zeros((30, 2)))], level=1.5)
+
+
+def test_batched_forecasts_equal_one_at_a_time():
+    rng = np.random.default_rng(4)
+    tracks = [(T, lane_change(T) + 0.1 * rng.standard_normal((30, 2))),
+              (T, np.c_[10 * T - 1.5 * T ** 2, 0 * T] + 0.3 * rng.standard_normal((30, 2))),
+              (T, np.c_[8 * T, 0 * T] + 0.4 * rng.standard_normal((30, 2)))]
+    fits = ml.identify_batch(tracks)
+    tau = np.array([[0.5, 2.0, 3.0], [0.1, 2.1, 3.1], [0.0, 1.0, 9.0]])
+    mean, cov = ml.predict_many(fits, tau)
+    for i, f in enumerate(fits):
+        m1, c1 = ml.predict(f, tau[i])
+        assert np.allclose(mean[i], m1) and np.allclose(cov[i], c1)
