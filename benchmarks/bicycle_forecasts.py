@@ -27,7 +27,7 @@ time is the median wall time of ``update`` over the frames after the first 3 s.
 
 Rows per class: mean 2 s error of sindy, of the CV line and of kalman; the ratios; 90 % disc coverage
 over all origins and during the manoeuvre (sindy; kalman for reference); the share of straight
-forecasts given a non-CV model. The speed section times the sindy tracker at 10 and 50 tracks with the
+forecasts given a non-CV model; the same at 50 tracks with ``max_fits_per_frame = 1``. The speed section times the sindy tracker at 10 and 50 tracks with the
 machine as it is ("quiet") and with two CPU-bound processes started by the benchmark ("busy").
 
     OMP_NUM_THREADS=1 python benchmarks/bicycle_forecasts.py            # small: 12 cars per class
@@ -302,6 +302,7 @@ def main():
         print(calibrate(per_class))
         return
     res = evaluate(per_class, seed=0)
+    capped = evaluate(per_class, seed=0, sizes=(50,), params={"max_fits_per_frame": 1})[50]
     sp = speed()
     load = os.getloadavg()[0]
     lines = [f"# Kinematic-bicycle forecasts, 2 s ahead ({per_class} cars per class, {len(ORIGINS)} origins each, "
@@ -321,7 +322,16 @@ def main():
             cov = f"{s['cover']:.2f}" + (f" / {s['cover_d']:.2f} ({s['kcover_d']:.2f})" if during else "")
             lines.append(f"| {cls} | {s['sindy']:.2f} | {rcv} | {rkf} | {cov} | {s['non_cv']:.2f} | {s['lost']:.2f} |")
         lines.append("")
-    lines += ["## Tracker time per frame (sindy, median over frames 30–119)", "",
+    lines += ["## 50 tracks at once with `max_fits_per_frame = 1` (the former default: each track refitted every "
+              f"50 frames; sindy {capped['ms']:.1f} ms per frame, median)", "",
+              "| class | sindy / CV line | sindy / kalman | 90 % cover all / during | non-CV share |", "|---|---|---|---|---|"]
+    for cls in CLASSES:
+        s = summary(capped["rows"], cls)
+        d = cls != "straight"
+        lines.append(f"| {cls} | {s['sindy'] / s['cv']:.2f}" + (f" ({s['sindy_d'] / s['cv_d']:.2f})" if d else "")
+                     + f" | {s['sindy'] / s['kalman']:.2f}" + (f" ({s['sindy_d'] / s['kalman_d']:.2f})" if d else "")
+                     + f" | {s['cover']:.2f}" + (f" / {s['cover_d']:.2f}" if d else "") + f" | {s['non_cv']:.2f} |")
+    lines += ["", "## Tracker time per frame (sindy, median over frames 30–119)", "",
               "| tracks | quiet [ms] | quiet / target | busy (2 CPU-bound processes) [ms] | busy / target |",
               "|---|---|---|---|---|"]
     for N in (10, 50):
