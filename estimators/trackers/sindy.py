@@ -113,6 +113,10 @@ class SindyParams(KalmanParams):
                                                            "selection_level, from the positions; 'ensemble': one "
                                                            "track at a time by ensemble SINDy (sindy_model.py; it "
                                                            "also fits the radial velocities)")
+    max_fit_age: float = Field(0.5, gt=0, le=60, description="a library fit forecasts the track for this long [s] "
+                                                           "after its last sample; an older one (fits capped by "
+                                                           "max_fits_per_frame, missed frames) forecasts through the "
+                                                           "filter's state with the fit's turn rate or speed change")
     selection_level: float = Field(0.01, gt=0, lt=1, description="level α of the library's likelihood-ratio test "
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
@@ -347,8 +351,12 @@ class SindyTracker(KalmanTracker):
     def _forecast_psd(self, tr: _SindyTrack) -> float:
         return self.params.accel_psd if tr.motion.is_cv else self.params.model_accel_psd
 
+    def _fresh(self, tr: _SindyTrack) -> bool:
+        """Whether ``tr`` forecasts from its library fit: it has one, at most ``max_fit_age`` old."""
+        return tr.library is not None and tr.t - tr.library.t_ref <= self.params.max_fit_age + 1e-9
+
     def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
-        if tr.library is not None:
+        if self._fresh(tr):
             f = self.params.interval_factors.get(tr.library.interval_key, 1.0)
             return f, f
         return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
@@ -356,7 +364,7 @@ class SindyTracker(KalmanTracker):
     def _forecast(self, tr: _SindyTrack, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A library-identified track forecasts from its fit (motion_library.predict) at τ = t − t_ref + h,
         with the white-acceleration noise of ``accel_psd`` over τ added; any other as ``kalman``."""
-        if tr.library is None:
+        if not self._fresh(tr):
             return super()._forecast(tr, h)
         tau = (tr.t - tr.library.t_ref) + np.asarray(h, dtype=np.float64)
         mean, cov = ml.predict(tr.library, tau)
@@ -365,8 +373,8 @@ class SindyTracker(KalmanTracker):
     def _forecasts(self, trs: list, h: np.ndarray) -> list:
         """The library-identified tracks' forecasts in one batch (motion_library.predict_many), the others
         as ``kalman``'s (:meth:`_forecast`)."""
-        lib = [i for i, tr in enumerate(trs) if tr.library is not None]
-        out = [None if tr.library is not None else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
+        lib = [i for i, tr in enumerate(trs) if self._fresh(tr)]
+        out = [None if self._fresh(tr) else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
         if lib:
             tau = np.array([trs[i].t - trs[i].library.t_ref for i in lib])[:, None] + np.asarray(h, np.float64)[None]
             mean, cov = ml.predict_many([trs[i].library for i in lib], tau)
@@ -376,7 +384,7 @@ class SindyTracker(KalmanTracker):
         return out
 
     def _label(self, tr: _SindyTrack) -> str:
-        return tr.library.label if tr.library is not None else tr.motion.label
+        return tr.library.label if self._fresh(tr) else tr.motion.label
 
     def _spread(self, tr: _SindyTrack) -> float:
         return self.params.member_spread
