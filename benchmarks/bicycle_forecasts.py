@@ -27,7 +27,8 @@ time is the median wall time of ``update`` over the frames after the first 3 s.
 
 Rows per class: mean 2 s error of sindy, of the CV line and of kalman; the ratios; 90 % disc coverage
 over all origins and during the manoeuvre (sindy; kalman for reference); the share of straight
-forecasts given a non-CV model; the same at 50 tracks with ``max_fits_per_frame = 1``. The speed section times the sindy tracker at 10 and 50 tracks with the
+forecasts given a non-CV model; the same at 50 tracks with ``max_fits_per_frame = 1``. The speed section
+times the sindy tracker at 10 and 50 tracks with the
 machine as it is ("quiet") and with two CPU-bound processes started by the benchmark ("busy").
 
     OMP_NUM_THREADS=1 python benchmarks/bicycle_forecasts.py            # small: 12 cars per class
@@ -213,7 +214,8 @@ def evaluate(per_class: int, seed: int, sizes=(1, 10, 50), params: dict | None =
                            "cv": float(np.linalg.norm(cv_line(noisy, k) - future))}
                     for name, r in (("sindy", s[i][k]), ("kalman", kf[i][k])):
                         if r is None:
-                            rec[name], rec[name + "_r90"], rec[name + "_label"], rec[name + "_key"] = np.nan, np.nan, "lost", "lost"
+                            rec.update({name: np.nan, name + "_r90": np.nan, name + "_label": "lost",
+                                        name + "_key": "lost"})
                         else:
                             rec[name] = float(np.linalg.norm(r[0] - future))
                             rec[name + "_r90"], rec[name + "_label"], rec[name + "_key"] = r[1], r[2], r[3]
@@ -324,7 +326,8 @@ def main():
         lines.append("")
     lines += ["## 50 tracks at once with `max_fits_per_frame = 1` (the former default: each track refitted every "
               f"50 frames; sindy {capped['ms']:.1f} ms per frame, median)", "",
-              "| class | sindy / CV line | sindy / kalman | 90 % cover all / during | non-CV share |", "|---|---|---|---|---|"]
+              "| class | sindy / CV line | sindy / kalman | 90 % cover all / during | non-CV share |",
+              "|---|---|---|---|---|"]
     for cls in CLASSES:
         s = summary(capped["rows"], cls)
         d = cls != "straight"

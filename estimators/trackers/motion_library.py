@@ -38,7 +38,12 @@ rather than exact). Among CV and the entries that pass, the least BIC_m = f N ln
 wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters. Entries
 outside the road users' envelope (``Envelope``) do not compete.
 
-Forecast (:func:`predict`): the selected entry's B(τ)θ with covariance B Σ_θ Bᵀ, Σ_θ = σ² (BᵀB)⁻¹ / f
+Hand-written on numpy rather than with pysindy: pysindy fits one system at a time (an sklearn estimator
+per fit, 6–17 ms a track with the ensemble's refits, ``benchmarks/tracking_speed.md``), where the batched
+normal equations here fit every track of a frame in one matrix product per entry; with a library this
+small every support is a candidate, so no sparse-regression path is needed to propose them.
+
+Forecast (:func:`predict`, :func:`predict_many` for many tracks at once): the selected entry's B(τ)θ with covariance B Σ_θ Bᵀ, Σ_θ = σ² (BᵀB)⁻¹ / f
 (σ² = RSS/(N − k)), plus the model-selection uncertainty Σ_j w_j (μ_j − μ)(μ_j − μ)ᵀ over the entries
 with BIC weights w_j ∝ exp(−BIC_j/2) (Schwarz weights; Burnham & Anderson 2002, §6.4). A braking
 entry's τ is cut at its stop.
@@ -55,8 +60,8 @@ from xnlos_core.errors import InputError
 from xnlos_core.numerics import simplest_within
 
 LIBRARY = ("cv", "line", "turn", "turn_accel", "lane")
-N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6}
-VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,)}  # 2-vectors of θ  # grid parameters included
+N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6}  # grid parameters included
+VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,)}  # 2-vectors of θ
 N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4}
 OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
 LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
