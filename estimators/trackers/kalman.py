@@ -317,6 +317,19 @@ class KalmanTracker(Tracker):
         """Scale of the members' spread in the forecast, Eq. (1) of :mod:`estimators.trackers.forecast`."""
         return 1.0
 
+    def _forecast(self, tr: KalmanTrack, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Track ``tr``'s forecast mean (K, 2) [m] and covariance (K, 2, 2) [m²] at horizons h (K,) [s]
+        (:func:`estimators.trackers.forecast.forecast` of its motion model here)."""
+        return fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr))
+
+    def _forecasts(self, trs: list, h: np.ndarray) -> list:
+        """[(mean, covariance)] of :meth:`_forecast` for the tracks ``trs`` (a subclass may batch them)."""
+        return [self._forecast(tr, h) for tr in trs]
+
+    def _label(self, tr: KalmanTrack) -> str:
+        """The motion model reported for track ``tr`` (its motion's label here)."""
+        return self._motion(tr).label
+
     def _after_update(self, t: float) -> None:
         """Called once per frame after association, updates, births and deaths."""
 
@@ -385,12 +398,12 @@ class KalmanTracker(Tracker):
                           np.empty((0, len(h))), np.empty((0, len(h))), (), **extra)
         x = np.array([tr.x for tr in trs])
         pos, vel = x[:, :2], x[:, 2:]
-        fcs = [fc.forecast(self._motion(tr), tr.x, tr.P, h, self._forecast_psd(tr), self._spread(tr)) for tr in trs]
+        fcs = self._forecasts(trs, h)
         mean = np.array([m for m, _ in fcs])
         r50, r90 = fc.radii(np.array([c for _, c in fcs]))
         scale = np.array([self._interval_scale(tr) for tr in trs])  # (T, 2)
         r50, r90 = r50 * scale[:, :1], r90 * scale[:, 1:]
-        labels = tuple(self._motion(tr).label for tr in trs)
+        labels = tuple(self._label(tr) for tr in trs)
         pred = np.array([self._motion(tr).transition(self._dt_frame)[:2] @ tr.x for tr in trs])
         extra = self._arrivals(trs, t) if self._region else {}
         return Tracks(np.array([tr.id for tr in trs]), pos, vel, pred, t, h, mean, r50, r90, labels, **extra)

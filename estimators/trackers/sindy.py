@@ -1,5 +1,17 @@
 """Multi-target tracker ``sindy``: the Kalman tracker's association, birth and death (and Doppler
-update), with each confirmed track's motion model identified by ensemble SINDy.
+update), with each confirmed track's motion model identified over a manoeuvre library or by ensemble SINDy.
+
+Identification ``library`` (the default): every track due in a frame (≥ ``min_samples`` in the window,
+last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`` caps them) is
+identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
+speeding up, reversing, turn (with or without a speed change), lane change — selected by a
+likelihood-ratio test at ``selection_level`` against constant velocity and then by BIC, from the
+positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
+plus ``accel_psd`` white acceleration noise from the fit's last sample), its disc radii scaled by
+``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
+its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
+lane change or a reversal); the reported ``model`` is the manoeuvre's name. Below ``min_speed`` a track
+stays CV. Identification ``ensemble``: steps 2–6 below.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
@@ -68,12 +80,20 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, KalmanTrack
 from .measurements import Measurements
 from estimators.state import StateReader
+from . import motion_library as ml
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
 MEMBER_SPREAD = 0.0
 MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
 MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh cornering
+# Per-model disc factors of library forecasts: split-conformal on the calibration split (seed 1, 20 cars per class,
+# straight cars and the others during their manoeuvre; `benchmarks/bicycle_forecasts.py --calibrate --per-class 20`:
+# cv 0.86 of 327 forecasts, cv_uncertain 1.80 of 106, accelerate 1.05 of 150, brake 2.01 of 137, turn 1.85 of 190).
+# reverse (1 forecast) and lane_change (2) had fewer than the 9 a 90 % split-conformal quantile needs: they take the
+# largest of the others.
+INTERVAL_FACTORS = {"cv": 0.86, "cv_uncertain": 1.80, "brake": 2.01, "accelerate": 1.05, "reverse": 2.01, "turn": 1.85,
+                    "lane_change": 2.01}
 
 
 class SindyParams(KalmanParams):
@@ -83,8 +103,30 @@ class SindyParams(KalmanParams):
                                                                        "the sequence data, see configs/ablations/tracking.toml)")
     window: float = Field(3.0, gt=0, le=60, description="length [s] of the history identified from")
     refit_every: int = Field(2, ge=1, le=10_000, description="frames between two identifications of a track")
-    max_fits_per_frame: int = Field(1, ge=1, le=1000, description="identifications at most per frame "
-                                                                  "(the longest-unfitted due tracks first)")
+    max_fits_per_frame: int | None = Field(None, ge=1, le=100_000, description="identifications at most per "
+                                           "frame (the longest-unfitted due tracks first); None: every due track, "
+                                           "so each is refitted every refit_every frames however many there are")
+    identification: Literal["library", "ensemble"] = Field("library", description="'library': every due track "
+                                                           "identified at once over the manoeuvre library (straight, "
+                                                           "braking, speeding up, reversing, turn, lane change; "
+                                                           "motion_library.py) by a likelihood-ratio test at "
+                                                           "selection_level, from the positions; 'ensemble': one "
+                                                           "track at a time by ensemble SINDy (sindy_model.py; it "
+                                                           "also fits the radial velocities)")
+    max_fit_age: float = Field(0.5, gt=0, le=60, description="a library fit forecasts the track for this long [s] "
+                                                           "after its last sample; an older one (fits capped by "
+                                                           "max_fits_per_frame, missed frames) forecasts through the "
+                                                           "filter's state with the fit's turn rate or speed change")
+    selection_level: float = Field(0.01, gt=0, lt=1, description="level α of the library's likelihood-ratio test "
+                                                                 "against constant velocity (Bonferroni over the "
+                                                                 "alternatives): a straight track is given a manoeuvre "
+                                                                 "model with probability ≈ α")
+    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change"],
+                           Scale] = Field(
+        default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
+        "library-identified track by its model ('cv_uncertain': CV selected with less than half the BIC weight, "
+        "motion_library.LibraryFit.interval_key): split-conformal factors learned on a calibration split of "
+        "kinematic-bicycle tracks (benchmarks/bicycle_forecasts.py --calibrate); a model missing here: 1")
     n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
@@ -133,6 +175,7 @@ class _SindyTrack(KalmanTrack):
     motion: fc.LinearMotion = field(default_factory=lambda: CV)
     fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
     identified: MotionModel | None = None
+    library: ml.LibraryFit | None = None           # the library identification (identification "library")
 
 
 def bounded(coef, max_growth: float) -> np.ndarray:
@@ -211,6 +254,16 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     return fc.LinearMotion(bounded(point, p.max_growth), bounded(members, p.max_growth), " ".join(terms))
 
 
+def library_motion(fit: ml.LibraryFit, speed: float, p: "SindyParams") -> fc.LinearMotion:
+    """The linear filter's motion of a library fit at ``speed`` [m/s]: a turn ωJ (+ matched α of a speed
+    change), braking or speeding up as the matched α (module docstring, 4); CV for the rest (a lane
+    change or a reversal, whose forecast comes from the fit itself)."""
+    if fit.label not in ("turn", "brake", "accelerate"):
+        return CV
+    point = bounded(np.r_[matched_alpha(fit.rates[0], speed), fit.rates[1]], p.max_growth)
+    return fc.LinearMotion(point, point[None], fit.label)
+
+
 def _legacy(identified) -> bool:
     """Whether a checkpoint's identified model comes from an earlier library — the world-frame one
     (support masks (2, 2)) or the exponential speed change dv/dt = αv (no ``rates``): it is dropped on
@@ -250,6 +303,7 @@ class SindyTracker(KalmanTracker):
                                           for mask, theta, cov in ident.fits],
                                  "t_last": float(ident.t_last), "sigma": float(ident.sigma),
                                  "evidence": float(ident.evidence), "rates": ident.rates.tolist()}
+        out["library"] = None if tr.library is None else tr.library.to_dict()
         return out
 
     def _track_from(self, r: StateReader) -> _SindyTrack:
@@ -276,9 +330,12 @@ class SindyTracker(KalmanTracker):
             identified = MotionModel(d.array("coefficients", (2, 2)), d.array("ensemble", (None, 2, 2)), tuple(fits),
                                      d.number("t_last"), d.number("sigma"), d.number("evidence"),
                                      d.array("rates", (len(GENERATORS),)))
+        library = None
+        if r.data.get("library") is not None:
+            library = ml.LibraryFit.from_reader(r.sub("library"))
         return _SindyTrack(base.id, base.x, base.P, base.t, base.frames, base.hits, base.misses, base.confirmed,
                            history=history, motion=motion, fitted_frame=r.integer("fitted_frame", -1),
-                           identified=identified)
+                           identified=identified, library=library)
 
     def _new_track(self, track_id, x, P, t) -> _SindyTrack:
         return _SindyTrack(track_id, x, P, t, history=[(t, x[:2].copy(), P[:2, :2].copy(), np.zeros(2), np.nan)])
@@ -294,8 +351,40 @@ class SindyTracker(KalmanTracker):
     def _forecast_psd(self, tr: _SindyTrack) -> float:
         return self.params.accel_psd if tr.motion.is_cv else self.params.model_accel_psd
 
+    def _fresh(self, tr: _SindyTrack) -> bool:
+        """Whether ``tr`` forecasts from its library fit: it has one, at most ``max_fit_age`` old."""
+        return tr.library is not None and tr.t - tr.library.t_ref <= self.params.max_fit_age + 1e-9
+
     def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
+        if self._fresh(tr):
+            f = self.params.interval_factors.get(tr.library.interval_key, 1.0)
+            return f, f
         return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
+
+    def _forecast(self, tr: _SindyTrack, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A library-identified track forecasts from its fit (motion_library.predict) at τ = t − t_ref + h,
+        with the white-acceleration noise of ``accel_psd`` over τ added; any other as ``kalman``."""
+        if not self._fresh(tr):
+            return super()._forecast(tr, h)
+        tau = (tr.t - tr.library.t_ref) + np.asarray(h, dtype=np.float64)
+        mean, cov = ml.predict(tr.library, tau)
+        return mean, cov + fc.cv_process_noise(tau, self.params.accel_psd)[:, :2, :2]
+
+    def _forecasts(self, trs: list, h: np.ndarray) -> list:
+        """The library-identified tracks' forecasts in one batch (motion_library.predict_many), the others
+        as ``kalman``'s (:meth:`_forecast`)."""
+        lib = [i for i, tr in enumerate(trs) if self._fresh(tr)]
+        out = [None if self._fresh(tr) else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
+        if lib:
+            tau = np.array([trs[i].t - trs[i].library.t_ref for i in lib])[:, None] + np.asarray(h, np.float64)[None]
+            mean, cov = ml.predict_many([trs[i].library for i in lib], tau)
+            cov = cov + fc.cv_process_noise(tau, self.params.accel_psd)[..., :2, :2]
+            for r, i in enumerate(lib):
+                out[i] = (mean[r], cov[r])
+        return out
+
+    def _label(self, tr: _SindyTrack) -> str:
+        return tr.library.label if self._fresh(tr) else tr.motion.label
 
     def _spread(self, tr: _SindyTrack) -> float:
         return self.params.member_spread
@@ -310,8 +399,28 @@ class SindyTracker(KalmanTracker):
             ready = tr.confirmed and not self._lost(tr) and len(tr.history) >= p.min_samples
             if ready and (tr.fitted_frame < 0 or stale >= p.refit_every):
                 due.append((-stale if tr.fitted_frame >= 0 else -np.inf, tr.id, tr))
-        for _, _, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]:
+        due = [tr for *_, tr in sorted(due, key=lambda d: (d[0], d[1]))[:p.max_fits_per_frame]]
+        if p.identification == "library":
+            self._identify_library(due)
+            return
+        for tr in due:
             self._identify(tr)
+
+    def _identify_library(self, due: list) -> None:
+        """Every due track identified at once over the manoeuvre library (motion_library.identify_batch)."""
+        if not due:
+            return
+        p = self.params
+        fits = ml.identify_batch([(np.array([h[0] for h in tr.history]), np.array([h[1] for h in tr.history]))
+                                  for tr in due], p.selection_level, ml.Envelope(p.max_speedup, p.max_lateral))
+        for tr, fit in zip(due, fits):
+            tr.fitted_frame, tr.identified = self._frame, None
+            speed = float(np.linalg.norm(tr.x[2:]))
+            if speed < p.min_speed:  # turn and acceleration unobservable: the Kalman CV forecast
+                tr.library, tr.motion = None, CV
+                continue
+            tr.library = fit
+            tr.motion = library_motion(fit, speed, p)
 
     def _identify(self, tr: _SindyTrack) -> None:
         p = self.params

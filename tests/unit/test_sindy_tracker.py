@@ -149,7 +149,8 @@ def test_radial_velocities_let_sindy_see_braking_behind_a_wandering_centroid():
         g /= np.linalg.norm(g, axis=1, keepdims=True)
         y = np.sum(g * st.velocity[:n], axis=1) + 0.1 * rng.standard_normal(n)
         for fit_radial in (False, True):
-            tr = SindyTracker({"min_evidence": 30.0, "identify_doppler": fit_radial, "seed": car})
+            tr = SindyTracker({"identification": "ensemble", "min_evidence": 30.0, "identify_doppler": fit_radial,
+                               "seed": car})
             for k in range(n):
                 out = tr.update(HiddenPoints(z[k][None], np.eye(2)[None], [0], [0], velocity=(y[k] * g[k])[None],
                                              velocity_cov=(0.01 * np.outer(g[k], g[k]))[None]), t[k])
@@ -162,7 +163,7 @@ def test_radial_velocities_let_sindy_see_braking_behind_a_wandering_centroid():
 
 
 def test_defaults_follow_braking_cars_early():
-    # The defaults identify from a track's 8th sample and refit every 2 frames (chosen on the sequence
+    # (ensemble SINDy, which fits the radial velocities) The defaults identify from a track's 8th sample and refit every 2 frames (chosen on the sequence
     # val split, configs/ablations/tracking.toml): of 12 braking cars (9 m/s, −2 m/s², 1 m position
     # noise, 0.1 m/s radial noise), 8 follow a model by their 14th frame (1.3 s); with the earlier
     # 12 samples / every 5 frames, 4 did. Until it is identified, a braking car is forecast as CV.
@@ -179,7 +180,7 @@ def test_defaults_follow_braking_cars_early():
         g = st.position - [60.0, 40.0]
         g /= np.linalg.norm(g, axis=1, keepdims=True)
         y = np.sum(g * st.velocity, axis=1) + 0.1 * rng.standard_normal(n)
-        tr = SindyTracker({"min_evidence": 30.0, "seed": car})
+        tr = SindyTracker({"identification": "ensemble", "min_evidence": 30.0, "seed": car})
         for k in range(14):
             out = tr.update(HiddenPoints(z[k][None], np.eye(2)[None], [0], [0], velocity=(y[k] * g[k])[None],
                                          velocity_cov=(0.01 * np.outer(g[k], g[k]))[None]), t[k])

@@ -16,7 +16,9 @@ from xnlos_core.motion import ConstantTurn
 
 CLASSES = {"nearest": NearestTracker, "kalman": KalmanTracker, "sindy": SindyTracker}
 PARAMS = {"nearest": {}, "kalman": {"region": [[0, 0], [5, 0], [5, 5], [0, 5]]},
-          "sindy": {"min_samples": 8, "refit_every": 4, "n_models": 3, "min_evidence": 0.0, "region": [[0, 0], [5, 0], [5, 5], [0, 5]]}}
+          "sindy": {"identification": "ensemble", "min_samples": 8, "refit_every": 4, "n_models": 3, "min_evidence": 0.0,
+                    "region": [[0, 0], [5, 0], [5, 5], [0, 5]]},
+          "sindy_library": {"min_samples": 8, "refit_every": 4, "region": [[0, 0], [5, 0], [5, 5], [0, 5]]}}
 DT = 0.1
 
 
@@ -77,6 +79,9 @@ def test_state_round_trip_through_json_gives_identical_outputs(name):
     if name == "sindy":  # the case that matters: a track follows an identified (non-CV) model at the cut
         assert any(tr["identified"] is not None and tr["motion"]["label"] != "cv" for tr in state["tracks"]), \
             [tr["motion"]["label"] for tr in state["tracks"]]
+    if name == "sindy_library":  # likewise with the manoeuvre library's fit in the checkpoint
+        assert any(tr["library"] is not None and tr["library"]["label"] != "cv" for tr in state["tracks"]), \
+            [tr["library"] and tr["library"]["label"] for tr in state["tracks"]]
 
 
 @pytest.mark.parametrize("name", list(CLASSES))

@@ -1,0 +1,455 @@
+"""Batched identification of many tracks' motion over a small library of manoeuvres, and its forecast.
+
+Every library entry is linear in its parameters θ once a few shape parameters are fixed on a grid,
+so one batched least-squares solve per entry (numpy einsum + ``numpy.linalg.solve`` over all tracks
+and grid values at once) identifies every due track of a frame. Times τ = t − t_ref [s] (τ ≤ 0 in the
+window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
+
+* ``cv``: p₀ + v₀τ (P = 4).
+* ``line``: p₀ + v₀τ + û βτ²/2 (P = 5): a constant acceleration β [m/s²] along the path's line û (the
+  principal axis of the window's positions). It is **braking** when the speed along û falls to zero in
+  the future (t* = −(ûᵀv₀)/β > 0: the forecast stops there, the car then stays), **reversing** when it
+  went through zero inside the window (t* between the first sample and now: the speed changed sign,
+  and the forecast carries on unclamped) and the car has since run back farther than twice the
+  residual SD (else it is braking that stopped at t*: it stays), **accelerating** otherwise.
+* ``turn``: p₀ + R(ω, τ) v₀ (P = 4 + ω): constant speed and turn rate ω [rad/s],
+  R = (sin ωτ/ω) I + ((1 − cos ωτ)/ω) J (J the +90° rotation).
+* ``turn_accel``: ``turn`` + M(ω, τ) a₀ (P = 6 + ω): an acceleration a₀ [m/s²] that turns with the
+  heading, M = ((1 − cos ωτ)/ω²) I + ((ωτ − sin ωτ)/ω²) J — a speed change in a turn.
+* ``lane``: p₀ + w û_φ τ + n_φ A σ((τ − τ_c)/s) (P = 4 + τ_c, φ): a **lane change**, driving at w [m/s]
+  along the lane û_φ (the principal axis turned by φ) with a lateral offset A [m] across it
+  (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.9 s (10–90 % of the offset
+  in 4 s, a typical lane change): the lateral velocity is bounded and dies out, where a turn's heading
+  keeps rotating.
+
+ω, τ_c and φ are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` × ``LANE_ANGLES``.
+
+Selection (the sparsest model that the data demand). Correlated errors count n_eff/n = (1 − ρ)/(1 + ρ)
+of their samples (ρ ≥ 0 the lag-1 autocorrelation of the best-fitting entry's residuals; as in
+:mod:`estimators.trackers.sindy_model`). An entry m with k_m parameters (its grid parameters included)
+replaces CV only when its profile likelihood-ratio statistic
+
+    D_m = f · N ln(RSS_cv / RSS_m)         (N = 2n rows, f = n_eff/n)                          (1)
+
+exceeds the χ² quantile with k_m − 4 degrees of freedom at level α/M (``level`` α, default 0.01,
+Bonferroni over the M = 4 alternatives): a straight track is given a manoeuvre model with probability
+≈ α at most (under white noise; grid parameters counted as parameters make the test conservative
+rather than exact). Among CV and the entries that pass, the least BIC_m = f N ln(RSS_m/N) + k_m ln(f N)
+wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters. Entries
+outside the road users' envelope (``Envelope``) do not compete.
+
+Hand-written on numpy rather than with pysindy: pysindy fits one system at a time (an sklearn estimator
+per fit, 6–17 ms a track with the ensemble's refits, ``benchmarks/tracking_speed.md``), where the batched
+normal equations here fit every track of a frame in one matrix product per entry; with a library this
+small every support is a candidate, so no sparse-regression path is needed to propose them.
+
+Forecast (:func:`predict`, :func:`predict_many` for many tracks at once): the selected entry's B(τ)θ with covariance B Σ_θ Bᵀ, Σ_θ = σ² (BᵀB)⁻¹ / f
+(σ² = RSS/(N − k)), plus the model-selection uncertainty Σ_j w_j (μ_j − μ)(μ_j − μ)ᵀ over the entries
+with BIC weights w_j ∝ exp(−BIC_j/2) (Schwarz weights; Burnham & Anderson 2002, §6.4). A braking
+entry's τ is cut at its stop.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from xnlos_core.errors import InputError
+from xnlos_core.numerics import simplest_within
+
+LIBRARY = ("cv", "line", "turn", "turn_accel", "lane")
+N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6}  # grid parameters included
+VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,)}  # 2-vectors of θ
+N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4}
+OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
+LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
+LANE_ANGLES = np.deg2rad(np.arange(-8.0, 8.1, 2.0))  # [rad] the lane's direction about the principal axis
+LANE_SCALES = np.array([0.9])                  # s [s]: 10–90 % of the offset in 4.4 s ≈ 4 s, a typical lane change
+LANE_MAX = 8.0                                   # [m] largest lateral offset of a lane change (two lanes)
+BETA_MAX = 10.0                                  # [m/s²] about 1 g
+MIN_SAMPLES = 8
+MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """The road users' envelope: a speed-up ≤ ``max_speedup`` [m/s²], a lateral acceleration
+    |ω|·speed (a lane change's peak A·0.096/s²) ≤ ``max_lateral`` [m/s²], |β| ≤ BETA_MAX."""
+
+    max_speedup: float = 3.0
+    max_lateral: float = 5.0
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One library entry fitted to one track: ``model`` (LIBRARY), ``hyper`` (5,) = (ω [rad/s], τ_c [s],
+    s [s], û (2,)), θ (P,) (p₀ [m] first), ``cov`` (P, P) of θ, BIC ``weight`` (Schwarz), ``stop`` [s]
+    (τ at which a braking entry stops; inf otherwise)."""
+
+    model: str
+    hyper: np.ndarray
+    theta: np.ndarray
+    cov: np.ndarray
+    weight: float
+    stop: float = float("inf")
+
+
+@dataclass(frozen=True)
+class LibraryFit:
+    """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change), t_ref [s]
+    (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
+    (the selected entry's per-axis residual SD), ``statistic`` D of Eq. (1) of the selected entry (0 for
+    CV), ``rates`` (β [m/s²] tangential, ω [rad/s]) for a linear filter."""
+
+    label: str
+    t_ref: float
+    entries: tuple
+    sigma: float
+    statistic: float
+    rates: np.ndarray
+
+    @property
+    def interval_key(self) -> str:
+        """The key of this fit's disc factor: its label, or ``cv_uncertain`` for a CV selection whose CV
+        entry holds less than half the BIC weight (a manoeuvre model fits better by BIC but fails the
+        test: the track may be starting one)."""
+        if self.label == "cv" and self.entries[0].weight < 0.5:
+            return "cv_uncertain"
+        return self.label
+
+    def to_dict(self) -> dict:
+        return {"label": self.label, "t_ref": float(self.t_ref), "sigma": float(self.sigma),
+                "statistic": float(self.statistic), "rates": self.rates.tolist(),
+                "entries": [{"model": e.model, "hyper": e.hyper.tolist(), "theta": e.theta.tolist(),
+                             "cov": e.cov.tolist(), "weight": float(e.weight),
+                             "stop": None if np.isinf(e.stop) else float(e.stop)} for e in self.entries]}
+
+    @classmethod
+    def from_reader(cls, r) -> "LibraryFit":
+        """From :meth:`to_dict` through an :class:`estimators.state.StateReader` (typed errors)."""
+        from estimators.state import StateReader
+
+        entries = []
+        for i, d in enumerate(r.items("entries")):
+            e = StateReader(d, f"{r.where}: entries[{i}]")
+            model = e.text("model")
+            if model not in LIBRARY:
+                raise InputError(f"{e.where}: model must be one of {LIBRARY}, got {model!r}")
+            p = N_LINEAR[model]
+            stop = d.get("stop") if isinstance(d, dict) else None
+            entries.append(Entry(model, e.array("hyper", (5,)), e.array("theta", (p,)), e.array("cov", (p, p)),
+                                 e.number("weight"), float("inf") if stop is None else e.number("stop")))
+        if not entries:
+            raise InputError(f"{r.where}: entries must hold at least the selected model")
+        return cls(r.text("label"), r.number("t_ref"), tuple(entries), r.number("sigma"), r.number("statistic"),
+                   r.array("rates", (2,)))
+
+
+def _kernels(omega, tau):
+    """a = sin(ωτ)/ω, b = (1 − cos ωτ)/ω, c = (1 − cos ωτ)/ω², d = (ωτ − sin ωτ)/ω² (broadcast), with
+    their limits at ω → 0 (τ, 0, τ²/2, 0)."""
+    x = omega * tau
+    a = tau * np.sinc(x / np.pi)
+    c = tau * tau / 2 * np.sinc(x / (2 * np.pi)) ** 2
+    b = omega * c
+    small = np.abs(x) < 1e-2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d_direct = (x - np.sin(x)) / (omega * omega)
+    d = np.where(small, tau * tau * (x / 6 - x ** 3 / 120), d_direct)
+    return a, b, c, d
+
+
+def basis(model: str, hyper, tau) -> np.ndarray:
+    """B (…, L, 2, P) of entry ``model`` at times tau (…, L) [s] for hyper (…, 5) (module docstring)."""
+    hyper = np.asarray(hyper, dtype=np.float64)
+    tau = np.asarray(tau, dtype=np.float64)
+    om, tc, s, ux, uy = (hyper[..., i, None] for i in range(5))
+    shape = np.broadcast_shapes(om.shape, tau.shape)
+    t = np.broadcast_to(tau, shape)
+    out = np.zeros(shape + (2, N_LINEAR[model]))
+    out[..., 0, 0] = out[..., 1, 1] = 1.0
+    if model in ("cv", "line"):
+        out[..., 0, 2] = out[..., 1, 3] = t
+    if model == "line":
+        out[..., 0, 4], out[..., 1, 4] = ux * t * t / 2, uy * t * t / 2
+    if model in ("turn", "turn_accel"):
+        a, b, c, d = _kernels(om, t)
+        out[..., 0, 2], out[..., 1, 2], out[..., 0, 3], out[..., 1, 3] = a, b, -b, a
+        if model == "turn_accel":
+            out[..., 0, 4], out[..., 1, 4], out[..., 0, 5], out[..., 1, 5] = c, d, -d, c
+    if model == "lane":
+        g = 0.5 * (1.0 + np.tanh((t - tc) / (2 * s)))  # the logistic σ((τ − τ_c)/s)
+        out[..., 0, 2], out[..., 1, 2] = ux * t, uy * t
+        out[..., 0, 3], out[..., 1, 3] = -uy * g, ux * g
+    return out
+
+
+
+
+@lru_cache(maxsize=8)
+def _grid(model: str) -> np.ndarray:
+    """hyper (G, 5) of entry ``model`` in a track's own frame (û = +x) (read-only: shared)."""
+    if model in ("turn", "turn_accel"):
+        h = np.zeros((len(OMEGA_GRID), 5))
+        h[:, 0] = OMEGA_GRID
+    elif model == "lane":
+        tc, s, phi = np.meshgrid(LANE_CENTRES, LANE_SCALES, LANE_ANGLES, indexing="ij")
+        h = np.zeros((tc.size, 5))
+        h[:, 1], h[:, 2], h[:, 3], h[:, 4] = tc.ravel(), s.ravel(), np.cos(phi.ravel()), np.sin(phi.ravel())
+        return _readonly(h)
+    else:
+        h = np.zeros((1, 5))
+    h[:, 3] = 1.0
+    return _readonly(h)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane", ("lane",)))
+
+
+@lru_cache(maxsize=32)
+def _shared(key: bytes):
+    """Per sample-time pattern τ (L,) (``key``: its bytes): for each full entry its design X (G, 2L, P) and
+    for each nested entry (BᵀB)⁻¹ (G, P', P') of its first P' columns. Tracks sampled at the same
+    relative times (every frame seen, the common case) share them, and successive frames repeat them."""
+    tau = np.frombuffer(key, dtype=np.float64)
+    out = {}
+    for full, models in FULL:
+        X = basis(full, _grid(full), tau[None, :])                   # (G, L, 2, P)
+        X = X.reshape(X.shape[0], 2 * len(tau), -1)
+        A = np.swapaxes(X, -1, -2) @ X
+        invs = {}
+        for m in models:
+            c = N_LINEAR[m]
+            scale = np.sqrt(np.einsum("...ii->...i", A[:, :c, :c]))
+            An = A[:, :c, :c] / scale[:, :, None] / scale[:, None, :] + 1e-12 * np.eye(c)
+            invs[m] = np.linalg.inv(An) / scale[:, :, None] / scale[:, None, :]
+        out[full] = (X, invs)
+    return out
+
+
+def _pick(rss: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Per track (T,) the grid index of least RSS (T, G), ties within a relative 1e-9 to the earliest in
+    ``order`` (the grid values by preference): the choice never follows a last-bit difference."""
+    r = rss[:, order]
+    best = r.min(axis=1, keepdims=True)
+    tied = r <= best + 1e-9 * np.abs(best) + 1e-300
+    return order[np.argmax(tied, axis=1)]
+
+
+def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
+    """Every entry of the library fitted to tracks sampled at the same τ (L,), local positions z (T, L, 2):
+    {model: (grid index (T,), θ (T, P), RSS (T,), (BᵀB)⁻¹ (T, P, P), residuals (T, 2L))}."""
+    shared = _shared(np.ascontiguousarray(tau).tobytes())
+    T = len(z)
+    zf = z.reshape(T, -1)
+    zz = np.sum(zf * zf, axis=1)
+    idx = np.arange(T)
+    out = {}
+    for full, models in FULL:
+        X, invs = shared[full]
+        G, K, P = X.shape
+        b = (zf @ X.transpose(1, 0, 2).reshape(K, G * P)).reshape(T, G, P)   # one BLAS product: BᵀWz
+        for m in models:
+            c = N_LINEAR[m]
+            bc = np.ascontiguousarray(b[..., :c].transpose(1, 2, 0))          # (G, c, T)
+            theta = (invs[m] @ bc).transpose(2, 0, 1)                         # (T, G, c)
+            rss = np.maximum(zz[:, None] - np.einsum("tgp,tgp->tg", theta, b[..., :c]), 0.0)
+            order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
+                     else np.arange(rss.shape[1]))
+            g = _pick(rss, order)
+            th = theta[idx, g]
+            resid = zf - np.einsum("tkp,tp->tk", X[g][:, :, :c], th)     # (T, 2L) at the chosen grid values
+            out[m] = (g, th, rss[idx, g], invs[m][g], resid)
+    return out
+
+
+def _effective_share(resid: np.ndarray) -> float:
+    """f = (1 − ρ)/(1 + ρ) of the residuals (n, 2) (ρ ≥ 0 their lag-1 autocorrelation over both axes), ≥ 1/n."""
+    num, den = float(np.sum(resid[:-1] * resid[1:])), float(np.sum(resid * resid))
+    rho = min(max(num / den, 0.0), 1.0) if den > 1e-24 * len(resid) else 0.0
+    return max((1 - rho) / (1 + rho), 1.0 / len(resid))
+
+
+@lru_cache(maxsize=64)
+def lr_threshold(dof: int, level: float, tests: int) -> float:
+    """χ²_dof quantile at 1 − level/tests (scipy.special here, not at import: cheap start-up)."""
+    from scipy.special import chdtri
+
+    return float(chdtri(dof, level / tests))
+
+
+def line_direction(z: np.ndarray) -> np.ndarray:
+    """Unit principal axis (2,) of a track's positions z (n, 2), sign-fixed so that the net displacement
+    runs along it (ties: +x)."""
+    d = z - z.mean(axis=0)
+    _, vec = np.linalg.eigh(d.T @ d)
+    u = vec[:, 1]
+    return u if float((z[-1] - z[0]) @ u) >= 0 else -u
+
+
+def _rotation(model: str, u: np.ndarray) -> np.ndarray:
+    """R (P, P) taking θ from a track's own frame (û = +x, n = +y) to the world: each 2-vector of θ
+    (p₀, v₀, a₀) rotates by û, the scalars (β, A) stay."""
+    rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+    R = np.eye(N_LINEAR[model])
+    for j in VECTORS[model]:
+        R[j:j + 2, j:j + 2] = rot
+    return R
+
+
+def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope()) -> list[LibraryFit]:
+    """Identify every track of ``tracks`` — a sequence of (t (n,) [s] increasing, z (n, 2) [m]), n ≥ 8 —
+    over the library at once (module docstring): a :class:`LibraryFit` per track.
+
+    Each track is fitted in its own frame (centred at its mean position, û along +x): every entry is
+    rotation-equivariant there, so tracks sampled at the same relative times share their designs and
+    normal matrices (:func:`_shared`), and one matrix product per entry fits them all."""
+    if not 0 < level < 1:
+        raise InputError(f"identify_batch: level must be in (0, 1), got {level}")
+    groups, local = {}, []
+    for i, (t, zi) in enumerate(tracks):
+        t, zi = np.asarray(t, np.float64), np.asarray(zi, np.float64)
+        if t.ndim != 1 or zi.shape != (len(t), 2) or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(zi)):
+            raise InputError(f"identify_batch: track {i} needs t (n,) strictly increasing [s] and finite z (n, 2) [m]")
+        if len(t) < MIN_SAMPLES:
+            raise InputError(f"identify_batch: track {i} needs ≥ {MIN_SAMPLES} samples, got {len(t)}")
+        centre = zi.mean(axis=0)
+        u = line_direction(zi)
+        zl = (zi - centre) @ np.array([[u[0], -u[1]], [u[1], u[0]]])   # rows: (ûᵀ(z − c), nᵀ(z − c))
+        tau = np.round((t - t[-1]) * 1e6) / 1e6                        # µs: one pattern for one frame grid
+        local.append((t[-1], centre, u, tau, zl))
+        groups.setdefault(tau.tobytes(), []).append(i)
+    out = [None] * len(local)
+    k = np.array([N_PARAMS[m] for m in LIBRARY])
+    thresholds = np.array([0.0] + [lr_threshold(int(kk - 4), level, len(LIBRARY) - 1) for kk in k[1:]])
+    for members in groups.values():
+        fits = _fit_group(local[members[0]][3], np.array([local[i][4] for i in members]))
+        for row, i in enumerate(members):
+            out[i] = _select(fits, row, local[i], k, thresholds, envelope)
+    return out
+
+
+def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope) -> LibraryFit:
+    """One track's selection and entries (module docstring, selection) from its group's fits."""
+    t_ref, centre, u, tau, zl = track
+    N = 2 * len(tau)
+    rss = np.array([fits[m][2][row] for m in LIBRARY])
+    rss = np.maximum(rss, 1e-18 * max(float(np.sum(zl * zl)), 1e-6))  # rounding-level RSS never chooses
+    local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
+    f = _effective_share(fits[LIBRARY[int(np.argmin(rss))]][4][row].reshape(-1, 2))
+    stat = f * N * np.log(rss[0] / rss)                                # Eq. (1)
+    bic = f * N * np.log(rss / N) + k * np.log(f * N)
+    sigma2 = rss / np.maximum(N - k, 1.0)
+    built, ok, described = [], np.ones(len(LIBRARY), bool), []
+    for j, (m, hyper, theta, inv) in enumerate(local):
+        R = _rotation(m, u)
+        th = R @ theta
+        th[:2] += centre
+        hyper = hyper.copy()
+        hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
+        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, math.sqrt(sigma2[j]))
+        ok[j] = inside
+        described.append((label, rates))
+        built.append((m, hyper, th, R, inv, stop))
+    passing = ok & (stat > thresholds)
+    passing[0] = True
+    cand = np.flatnonzero(passing)
+    best = int(cand[simplest_within(bic[cand], k[cand])])
+    wts = np.where(ok, np.exp(-0.5 * (bic - bic[ok].min())), 0.0)
+    wts /= wts.sum()
+    order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
+    ents = tuple(Entry(built[j][0], built[j][1], built[j][2], sigma2[j] / f * (built[j][3] @ built[j][4] @ built[j][3].T),
+                       float(wts[j]), built[j][5]) for j in order)
+    return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
+                      np.asarray(described[best][1], dtype=np.float64))
+
+
+def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: float = 0.0):
+    """(label, stop τ [s] or inf, rates (β, ω), inside the envelope) of a fitted entry (module docstring);
+    sigma [m] the entry's residual SD: a reversal must have run back farther than 2σ since its turning
+    point, else the window shows a car that stopped there (it stays)."""
+    v = theta[2:4]
+    speed = math.hypot(v[0], v[1])
+    if model == "cv":
+        return "cv", float("inf"), (0.0, 0.0), True
+    if model == "line":
+        s1, beta = float(hyper[3:5] @ v), float(theta[4])
+        if abs(beta) > BETA_MAX:
+            return "brake", float("inf"), (0.0, 0.0), False
+        if beta * s1 < 0:                                             # the speed along û falls to zero at t* > 0
+            return "brake", -s1 / beta, (-abs(beta), 0.0), True
+        t_star = -s1 / beta if beta != 0 else -np.inf
+        if tau_first < t_star <= 0:                                   # through zero inside the window
+            if 0.5 * abs(beta) * t_star ** 2 <= 2.0 * sigma:           # no farther back than the noise: stopped
+                return "brake", t_star, (-abs(beta), 0.0), True
+            return "reverse", float("inf"), (abs(beta), 0.0), True
+        return "accelerate", float("inf"), (abs(beta), 0.0), abs(beta) <= env.max_speedup
+    omega = float(hyper[0])
+    if model in ("turn", "turn_accel"):
+        beta = float(theta[4:6] @ v) / max(speed, 1e-9) if model == "turn_accel" else 0.0
+        inside = abs(omega) * speed <= env.max_lateral and beta <= env.max_speedup and abs(beta) <= BETA_MAX
+        return "turn", float("inf"), (beta, omega), inside
+    amp = float(theta[3])
+    inside = abs(amp) <= LANE_MAX and abs(amp) * 0.0962 / hyper[2] ** 2 <= env.max_lateral
+    return "lane_change", float("inf"), (0.0, 0.0), inside
+
+
+def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
+    """Mean (K, 2) [m] and covariance (K, 2, 2) [m²] of the position at tau (K,) ≥ 0 [s] after
+    ``fit.t_ref``: the selected entry's, plus the entries' BIC-weighted spread about it (module
+    docstring, forecast). No process noise here: the caller adds its own."""
+    tau = np.asarray(tau, dtype=np.float64)
+    means = []
+    for e in fit.entries:
+        B = basis(e.model, e.hyper, np.minimum(tau, e.stop))            # (K, 2, P)
+        means.append(B @ e.theta)
+        if len(means) == 1:
+            cov = np.einsum("kip,pq,kjq->kij", B, e.cov, B)
+    mu = means[0]
+    for e, m in zip(fit.entries[1:], means[1:]):
+        d = m - mu
+        cov = cov + e.weight * np.einsum("ki,kj->kij", d, d)
+    return mu, cov
+
+
+def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict` of many fits at once: means (T, K, 2) [m], covariances (T, K, 2, 2) [m²] at tau (T, K)
+    ≥ 0 [s] after each fit's ``t_ref`` — one basis evaluation per library entry over all tracks."""
+    tau = np.asarray(tau, dtype=np.float64)
+    T, K = tau.shape
+    mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
+    if T == 0:
+        return mean, cov
+    rows = [(i, j, e) for i, f in enumerate(fits) for j, e in enumerate(f.entries)]
+    mus = {}
+    for m in LIBRARY:
+        sel = [(i, j, e) for i, j, e in rows if e.model == m]
+        if not sel:
+            continue
+        idx = np.array([i for i, _, _ in sel])
+        hyper = np.array([e.hyper for *_, e in sel])
+        stop = np.array([e.stop for *_, e in sel])
+        B = basis(m, hyper, np.minimum(tau[idx], stop[:, None]))          # (E, K, 2, P)
+        theta = np.array([e.theta for *_, e in sel])
+        mu = np.einsum("ekcp,ep->ekc", B, theta)
+        first = np.array([j == 0 for _, j, _ in sel])
+        if first.any():
+            covs = np.array([e.cov for (_, j, e) in sel if j == 0])
+            Bf = B[first]
+            cov[idx[first]] = np.einsum("ekip,epq,ekjq->ekij", Bf, covs, Bf)
+        for r, (i, j, e) in enumerate(sel):
+            mus[(i, j)] = (mu[r], e.weight)
+    for i, f in enumerate(fits):
+        mean[i] = mus[(i, 0)][0]
+        for j in range(1, len(f.entries)):
+            m, w = mus[(i, j)]
+            d = m - mean[i]
+            cov[i] += w * d[:, :, None] * d[:, None, :]
+    return mean, cov

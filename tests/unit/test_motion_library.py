@@ -1,0 +1,102 @@
+"""The batched manoeuvre library (estimators/trackers/motion_library.py): lane changes and reversals are
+identified as such, straight noisy tracks stay constant velocity, and the batched fit equals a
+per-track least-squares fit."""
+import numpy as np
+import pytest
+
+from estimators.trackers import motion_library as ml
+from xnlos_core import InputError
+
+T = np.arange(30) * 0.1  # the tracker's 3 s window at 10 Hz
+
+
+def lane_change(t, speed=12.0, width=3.5, start=-1.0, duration=4.0):
+    """A hand-made lane change along +x: lateral offset width·(s − sin(2πs)/2π), s = (t − start)/duration
+    clipped to [0, 1] (lateral velocity 0 at both ends, zero lateral acceleration at the ends)."""
+    s = np.clip((t - start) / duration, 0.0, 1.0)
+    return np.c_[speed * t, width * (s - np.sin(2 * np.pi * s) / (2 * np.pi))]
+
+
+def test_a_lane_change_is_identified_as_a_lane_change_not_a_turn():
+    # 3.5 m in 4 s at 12 m/s, the window ending 0.8 of the way through (the lateral velocity dying out,
+    # its heading turning back: no constant turn fits); 0.05 m noise
+    rng = np.random.default_rng(0)
+    t = T + 0.2
+    z = lane_change(t, start=-0.2) + 0.05 * rng.standard_normal((len(t), 2))
+    fit = ml.identify_batch([(t, z)])[0]
+    assert fit.label == "lane_change" and fit.entries[0].model == "lane"
+    mean, _ = ml.predict(fit, [2.0])
+    truth = lane_change(np.array([t[-1] + 2.0]), start=-0.2)[0]
+    line = np.polyfit(t[-11:] - t[-1], z[-11:], 1)           # the CV line over the last 1 s: ≈ 2.1 m off
+    assert np.linalg.norm(mean[0] - truth) < 0.35 * np.linalg.norm(line[1] + 2.0 * line[0] - truth)
+
+
+def test_a_reversing_car_gets_a_model_through_zero_speed():
+    # 3 m/s forward, −2 m/s² through zero at t = 1.5 s, observed over [0, 2.9] s (0.1 m noise): the
+    # reversal, not a braking to a stop; its forecast keeps going backwards past the turning point
+    rng = np.random.default_rng(1)
+    heading = np.array([np.cos(0.7), np.sin(0.7)])
+    s = 3.0 * T - T ** 2
+    z = s[:, None] * heading + 0.1 * rng.standard_normal((len(T), 2))
+    fit = ml.identify_batch([(T, z)])[0]
+    assert fit.label == "reverse"
+    e = fit.entries[0]
+    assert np.isinf(e.stop)                                # not clamped at a stop
+    h = T[-1] + 1.0
+    mean, _ = ml.predict(fit, [1.0])
+    assert mean[0] @ heading == pytest.approx(3.0 * h - h ** 2, abs=0.3)  # s(4.9 s) = −9.3 m
+    # the velocity along the path changes sign between the window's start and the forecast
+    v = [(ml.predict(fit, [tt + 0.01])[0][0] - ml.predict(fit, [tt])[0][0]) @ heading / 0.01 for tt in (-T[-1], 1.0)]
+    assert v[0] > 2.0 and v[1] < -3.0
+
+
+def test_straight_noisy_tracks_stay_constant_velocity():
+    # 200 straight tracks (5–15 m/s, 0.3–0.5 m white noise): a manoeuvre model for ≈ level α = 1 % at most
+    rng = np.random.default_rng(2)
+    tracks = []
+    for _ in range(200):
+        v = rng.uniform(5, 15) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+        tracks.append((T, T[:, None] * v + rng.uniform(0.3, 0.5) * rng.standard_normal((len(T), 2))))
+    labels = [f.label for f in ml.identify_batch(tracks)]
+    assert labels.count("cv") >= 194                       # ≤ 3 %: binomial(200, 0.01) exceeds 6 with p < 0.5 %
+
+
+def test_batched_fit_equals_the_per_track_least_squares_fit():
+    # tracks with different sample times (a missed frame) and headings, fitted together and alone, and
+    # each selected entry's θ equal to numpy.linalg.lstsq on its own design
+    rng = np.random.default_rng(3)
+    t_gap = np.delete(T, 12)
+    tracks = [(T, lane_change(T) @ np.array([[0.6, 0.8], [-0.8, 0.6]]) + 0.1 * rng.standard_normal((30, 2))),
+              (t_gap, np.c_[10 * t_gap - 1.5 * t_gap ** 2, 0 * t_gap] + 0.3 * rng.standard_normal((29, 2))),
+              (T, np.c_[8 * np.sin(0.3 * T) / 0.3, 8 * (1 - np.cos(0.3 * T)) / 0.3] + 0.2 * rng.standard_normal((30, 2)))]
+    together = ml.identify_batch(tracks)
+    for (t, z), fit in zip(tracks, together):
+        alone = ml.identify_batch([(t, z)])[0]
+        assert alone.label == fit.label
+        for a, b in zip(alone.entries, fit.entries):
+            assert a.model == b.model and np.allclose(a.theta, b.theta, rtol=1e-8, atol=1e-8)
+            B = ml.basis(b.model, b.hyper, t - t[-1]).reshape(-1, len(b.theta))
+            ref = np.linalg.lstsq(B, z.ravel(), rcond=None)[0]
+            assert np.allclose(b.theta, ref, rtol=1e-6, atol=1e-6)
+
+
+def test_bad_tracks_are_typed_errors():
+    with pytest.raises(InputError, match="samples"):
+        ml.identify_batch([(T[:5], np.zeros((5, 2)))])
+    with pytest.raises(InputError, match="strictly increasing"):
+        ml.identify_batch([(T[::-1], np.zeros((30, 2)))])
+    with pytest.raises(InputError, match="level"):
+        ml.identify_batch([(T, np.zeros((30, 2)))], level=1.5)
+
+
+def test_batched_forecasts_equal_one_at_a_time():
+    rng = np.random.default_rng(4)
+    tracks = [(T, lane_change(T) + 0.1 * rng.standard_normal((30, 2))),
+              (T, np.c_[10 * T - 1.5 * T ** 2, 0 * T] + 0.3 * rng.standard_normal((30, 2))),
+              (T, np.c_[8 * T, 0 * T] + 0.4 * rng.standard_normal((30, 2)))]
+    fits = ml.identify_batch(tracks)
+    tau = np.array([[0.5, 2.0, 3.0], [0.1, 2.1, 3.1], [0.0, 1.0, 9.0]])
+    mean, cov = ml.predict_many(fits, tau)
+    for i, f in enumerate(fits):
+        m1, c1 = ml.predict(f, tau[i])
+        assert np.allclose(mean[i], m1) and np.allclose(cov[i], c1)
