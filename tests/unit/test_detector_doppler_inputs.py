@@ -159,3 +159,18 @@ def test_previous_frames_repeat_the_oldest_there_is_and_a_detector_resets_them(t
     np.testing.assert_array_equal(det.output(frames[0]), first)   # after a reset: as the first frame
     plain = get_registry().create("detector", "swin_unet", {"checkpoint": "none", "device": "cpu"})
     assert not plain.carries_state
+
+
+def test_the_shipped_doppler_model_records_its_inputs_and_refuses_a_map_without_doppler():
+    from plugins.detectors.learned import MODELS_DIR
+    from plugins.training.checkpoint import load_checkpoint
+
+    _, meta, _ = load_checkpoint(MODELS_DIR / "swin_unet_doppler.pt", "swin_unet")
+    assert tuple(meta["features"]["channels"]) == RA_CHANNELS + DOPPLER_CHANNELS
+    assert meta["hparams"]["in_channels"] == 7
+    assert meta["training"]["command"].startswith("xnlos train configs/training/swin_unet_doppler.toml")
+    radar = RadarConfig(**{k: v for k, v in meta["trained_on"]["radar"].items() if v is not None})
+    det = get_registry().create("detector", "swin_unet", {"model": "swin_unet_doppler", "device": "cpu"})
+    assert det.needs_doppler and not det.carries_state
+    with pytest.raises(InputError, match=r"model 'swin_unet_doppler'.*Doppler channels.*RAMap.velocity is None"):
+        det.detect(synthetic_frame(radar))
