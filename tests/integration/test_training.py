@@ -302,7 +302,7 @@ def as_written_from(cfg, folder: Path, root: Path):
 
 def test_shipped_models_keep_the_digest_of_their_training_config():
     """Each shipped model's training config still hashes to the digest in its metadata, and the
-    options added later (data.flip_azimuth, data.doppler: they count only when set) change it when toggled."""
+    options added later (data.flip_azimuth, data.doppler, data.previous_frames: they count only when set) change it when toggled."""
     from plugins.detectors.learned import MODELS_DIR
 
     for name in ("swin_unet", "unet", "further_than_cfar", "rtn"):
@@ -316,7 +316,8 @@ def test_shipped_models_keep_the_digest_of_their_training_config():
         assert toggled.digest() != cfg.digest()
         plain = toggled if cfg.data.flip_azimuth else cfg  # without the option: hashed as before it existed
         dump = plain.model_dump(exclude={"out", "export", "threads"})
-        del dump["data"]["flip_azimuth"], dump["data"]["doppler"]  # the late options, unset
+        for key in ("flip_azimuth", "doppler", "previous_frames"):  # the late options, unset
+            del dump["data"][key]
         assert plain.digest() == hashlib.sha256(json.dumps(dump, sort_keys=True, default=str).encode()).hexdigest()
 
 
