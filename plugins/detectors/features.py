@@ -104,12 +104,11 @@ def doppler_features(ra_map, level: np.ndarray, name: str = "RAMap") -> np.ndarr
     kappa = np.asarray(ra_map.data).astype(np.complex128)
     w = np.where(above, kappa.real**2 + kappa.imag**2, 0.0)
     w = w / w.max() if w.max() > 0 else w  # scale-free; the spread is a ratio of sums of w
-    phasor = w * np.exp(1j * np.pi * v / vmax)
-    pad = ((1, 1), (1, 1))
-    sw, sp = np.pad(w, pad), np.pad(phasor, pad)
-    h, wd = v.shape
-    tot_w = sum(sw[i:i + h, j:j + wd] for i in range(3) for j in range(3))
-    tot_p = sum(sp[i:i + h, j:j + wd] for i in range(3) for j in range(3))
+    from scipy.signal import convolve2d
+
+    box = np.ones((3, 3))  # sums over each cell's 3 × 3 neighbourhood, zeros beyond the map
+    tot_w = convolve2d(w, box, mode="same")
+    tot_p = convolve2d(w * np.exp(1j * np.pi * v / vmax), box, mode="same")
     spread = 1.0 - np.abs(tot_p) / np.where(tot_w > 0, tot_w, 1.0)
     out[2] = np.where(above & (tot_w > 0), np.clip(spread, 0.0, 1.0), 0.0)
     return out

@@ -353,9 +353,9 @@ class LearnedDetector(Detector, FrameState):
     @property
     def needs_doppler(self) -> bool:
         """Whether the model's inputs include Doppler channels (it refuses maps without them)."""
-        from .features import DOPPLER_CHANNELS
+        from .features import parse_layout
 
-        return any(c in DOPPLER_CHANNELS for c in self.input_channels)
+        return parse_layout(self.input_channels)[0]
 
     @property
     def previous_frames(self) -> int:
