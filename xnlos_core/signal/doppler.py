@@ -187,6 +187,7 @@ def _shift_modulation(n: int) -> np.ndarray:
 
 FOLD_SNR = 20.0  # 13 dB: the Doppler bin's best beam over its noise floor above which its fold is tested
 FOLD_MARGIN = 1.1  # a velocity outside the unambiguous span must beam this much higher than the one inside
+FOLD_COHERENCE = 0.9  # ... and one plane wave must explain this share of the bin's signal under it (kernels._coherence)
 REFINE_SNR = 10.0  # 10 dB: a cell's peak-bin power over its noise floor above which its velocity is refined
 REFINE_HALF = 4  # the refinement's likelihood takes 2·4 + 1 unwindowed Doppler bins around the peak
 NEWTON_STEPS = 4
@@ -244,7 +245,7 @@ class _DopplerPlan:
     azimuths the kernel computes and their mirrors (:func:`~xnlos_core.signal.kernels.azimuth_pairs`);
     wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
     N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]; velocity_axis (n_chirps,) [m/s] and
-    consts (13,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
+    consts (14,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
     for a cube that needs no rescaling); slot (n_channels,) int64: each channel's TX slot; kappas,
     hyps: :func:`_fold_hypotheses`. Arrays read-only (shared by calls).
     """
@@ -313,7 +314,8 @@ def _doppler_plan(radar: RadarConfig, window: str, folds: int = 1) -> _DopplerPl
                   velocity_axis=np.array(radar.velocity_axis, dtype=np.float64),
                   consts=np.array([1.0 / enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
                                    radar.max_unambiguous_velocity, sigma_cell, crb, FOLD_SNR, REFINE_SNR,
-                                   2.0 * psl, lobe, min(REFINE_HALF, (d - 1) // 2), radar.n_tdm, NEWTON_STEPS]),
+                                   2.0 * psl, lobe, min(REFINE_HALF, (d - 1) // 2), radar.n_tdm, NEWTON_STEPS,
+                                   FOLD_COHERENCE]),
                   slot=np.repeat(np.arange(radar.n_tdm, dtype=np.int64), radar.n_channels // radar.n_tdm),
                   kappas=kappas, hyps=hyps, priors=priors)
     for a in arrays.values():
@@ -433,7 +435,10 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     strongest bin and whose best beam is :data:`FOLD_SNR` (13 dB) over its floor, every κ of
     :func:`_fold_hypotheses` (``folds``: κ within ±(2·folds + 1)·v_max; the −v_max bin also as +v_max) is
     beamformed over all azimuths and the highest peak wins, a κ outside the span only when it beats the
-    one inside by :data:`FOLD_MARGIN` (10 %); the bins of that peak's main lobe take its κ, their beams are
+    one inside by :data:`FOLD_MARGIN` (10 %) and one plane wave explains at least :data:`FOLD_COHERENCE`
+    (90 %) of the bin's signal under it (Eq. F1 of :func:`xnlos_core.signal.kernels._coherence`: a wall's
+    static echoes from several azimuths in one bin can beam higher under a neighbouring κ by chance, and
+    were then reported at ±2·v_max); the bins of that peak's main lobe take its κ, their beams are
     recomputed, and their velocities are reported unfolded (elsewhere folded into [−v_max, v_max)). κ ≡ κ'
     mod N_tx cannot be told apart (one TX: no test).
 

@@ -96,11 +96,12 @@ def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, ve
     comp_r, comp_i (d, k) float64: TDM compensation (real, imaginary); wa = [w_r | w_i], wb = [w_i | w_r]
     (k, 2H) float32: the weights of the H computed azimuths; ipos (H,), ineg (H,) int64: the map
     column of each computed azimuth and of its mirror (−1: none); wt_r, wt_i (A, k) float64: all
-    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (13,)
+    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (14,)
     float64 (:func:`xnlos_core.signal.doppler._doppler_plan`): 1/ENBW, tan(π/N)/(π/N), Δv [m/s],
     v_max [m/s], σ_cell [W], λ₀/(4π·T_s)·√(6/(N(N²−1))) [m/s], the fold test's and the refinement's
     SNR thresholds (peak-bin power over its noise floor), the window's relative sidelobe cut, its main
-    lobe's half width [bins], the refinement's half span L [bins], n_tdm, Newton steps; slot (k,) int64:
+    lobe's half width [bins], the refinement's half span L [bins], n_tdm, Newton steps, the fold test's
+    least coherence; slot (k,) int64:
     each channel's TX slot i; kappas (F,) int64: fold hypotheses κ; hyps (d, F) int64: the indices into
     kappas tested per Doppler bin (−1: none), the first κ = 0.
     Written, each (r, A) float64: power Σ_d|b|²/ENBW [W], peak_power max_d|b|² [W], velocity [m/s],
@@ -268,19 +269,51 @@ def _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, out):  # pragma: no c
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
+def _coherence(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, noise, beam):  # pragma: no cover - compiled
+    """ρ of Doppler bin m under fold hypothesis κ: the share of the channels' signal energy that one plane
+    wave explains, noise removed. With b̂ the highest beam (at azimuth θ̂, weights w = w(θ̂)), E = Σ_c|y_c|²,
+    σ² = noise/‖w‖² the noise per channel and τ = (Σ_c|w_c|)²/(K·‖w‖²) the taper's efficiency,
+
+        ρ = (|b̂|²/‖w‖² − σ²) / (τ·(E − K·σ²))                                               (F1)
+
+    ≈ 1 for one echo seen with the right κ (Cauchy–Schwarz, with equality for a plane wave), ≈ 0.85 with a
+    neighbouring κ on the default 4-TX array (the slot phases a staircase), and lower where echoes from
+    several azimuths share the range–Doppler bin (a wall's static returns). beam (A,) is scratch."""
+    n_az, k = wt_r.shape
+    _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, beam)
+    a = int(np.argmax(beam))
+    wn = 0.0
+    wabs = 0.0
+    for c in range(k):
+        q = wt_r[a, c] * wt_r[a, c] + wt_i[a, c] * wt_i[a, c]
+        wn += q
+        wabs += np.sqrt(q)
+    energy = 0.0
+    for c in range(k):
+        energy += np.float64(yr[m, c]) * np.float64(yr[m, c]) + np.float64(yi[m, c]) * np.float64(yi[m, c])
+    sigma2 = noise / wn
+    den = (wabs * wabs / (k * wn)) * (energy - k * sigma2)
+    if den <= 0.0:
+        return 0.0
+    return (beam[a] / wn - sigma2) / den
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
 def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsum, fold, known):  # pragma: no cover
     """The fold test of one range bin (:func:`xnlos_core.signal.doppler.doppler_ra_maps`): at each Doppler
     bin m that is a local maximum of rowsum (d,) = Σ_θ|b|² above the window's sidelobes of the range
     bin's strongest bin, and whose best beam max_θ|b|² is above the fold threshold, each hypothesis κ
     of hyps[m] is beamformed over the whole azimuth grid; the highest beam times the hypothesis' prior
-    wins (κ = 0 unless another is higher by more than 1e-5, relatively); it holds for the bins of that
+    wins (κ = 0 unless another is higher by more than 1e-5, relatively), a κ ≠ 0 only when one plane
+    wave explains the bin under it (:func:`_coherence` ≥ consts[13]); it holds for the bins of that
     peak's main lobe (κ ± 1 across the spectrum's wrap). fold (d,) and known (d,) are written; returns
     whether any fold is not 0."""
     d = rowsum.shape[0]
     n_az = wt_r.shape[0]
     n_tdm = int(consts[11])
     d_h = int(consts[9])
-    thr = consts[6] * consts[4] / (consts[0] * d)  # the fold threshold on max_θ|b|² [W]: × σ_cell·ENBW/N
+    noise = consts[4] / (consts[0] * d)  # a beam's noise power [W]: σ_cell·ENBW/N
+    thr = consts[6] * noise  # the fold threshold on max_θ|b|² [W]
     top = rowsum.max()
     cut = max(thr, consts[8] * top)
     cand = np.empty(d, np.int64)
@@ -312,6 +345,8 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
             if val > best_val * (1.0 + 1e-5):  # beyond single-precision rounding of the beams
                 best_val = val
                 best = kappas[f]
+        if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, slot, best, n_tdm, noise, beam) < consts[13]:
+            best = 0  # no single plane wave under κ: several echoes share the bin, the fold is not readable
         for o in range(-d_h, d_h + 1):
             mm = m + o
             adj = 0
