@@ -70,6 +70,10 @@ class MirrorParams(BaseModel):
                                          "as the frame's n_gated; false: report every mirror image")
     behind_radar: bool = Field(False, description="with gate: accept hidden points behind the radar (x < 0), "
                                                   "which only a wall facing the radar across its boresight shows")
+    wedge_margin: float | None = Field(0.0, ge=0, le=1e3, description="with gate: how far [m] beyond each wall's "
+                                       "observed extent its bounce point may lie (None: extent_margin). 0: the "
+                                       "part the LOS detections showed; past it, most mirror images were ghosts "
+                                       "(benchmarks/doppler_detector.md)")
     wall_echo: float = Field(1.0, ge=0, le=100, description="with gate and Doppler: an mNLOS detection within this "
                              "[m] of an estimated wall and at rest is that wall's own echo, not a hidden road user")
     static_speed: float = Field(0.3, ge=0, le=100, description="with gate and Doppler: radial speed [m/s] below which "
@@ -141,7 +145,7 @@ class MirrorReconstructor(Reconstructor):
     def visible(self, hidden: np.ndarray, virtual: np.ndarray, walls: list[WallPosterior], choice: np.ndarray,
                 src: np.ndarray, detections: Detections) -> np.ndarray:
         """(M,) bool: the hidden points (M, 2) [m] that pass the visibility gate
-        (:func:`plugins.mirror.visibility.visibility` with ``extent_margin``, ``behind_radar``,
+        (:func:`plugins.mirror.visibility.visibility` with ``wedge_margin`` (else ``extent_margin``), ``behind_radar``,
         ``wall_echo``, ``static_speed`` and the radial velocities of the detections ``src`` when they carry
         Doppler); all True without ``gate``. The gated ones are logged by rule with their detection indices."""
         if not self.params.gate or len(hidden) == 0:
@@ -149,7 +153,8 @@ class MirrorReconstructor(Reconstructor):
         p = self.params
         vel = None if detections.velocity is None else detections.velocity[src]
         var = None if detections.velocity_var is None else detections.velocity_var[src]
-        reason = visibility(hidden, virtual, walls, choice, p.extent_margin, None if p.behind_radar else 0.0,
+        margin = p.extent_margin if p.wedge_margin is None else p.wedge_margin
+        reason = visibility(hidden, virtual, walls, choice, margin, None if p.behind_radar else 0.0,
                             vel, var, p.wall_echo, p.static_speed)
         line = describe_gated(reason, src)
         if line:

@@ -8,7 +8,9 @@ specular reflection off a finite wall can put o only in some places:
    lengthened by ``margin`` [m] at both ends (an arc: the ray's hit on the arc, its coordinate along
    the tangent line inside the extent's ± margin; a wall without extent is an unbounded line).
    By the mirror symmetry this is the same as o lying in the wedge that the wall segment subtends
-   from the mirrored radar R_Π(0): the region the wall lets the radar see.
+   from the mirrored radar R_Π(0): the region the wall lets the radar see. The reconstructors take
+   ``margin`` from their ``wedge_margin`` (else their anchoring ``extent_margin``): a bounce point past
+   the last LOS point the wall showed is where the facade may have ended (a corner, a gap).
 2. **In front of the mirror.** o lies on the radar's side of the wall (δ(o) has the sign of δ(0)),
    and o' beyond it (q between the radar and o'): a mirror shows what stands in front of it.
 3. **Ahead of the radar.** o lies ahead of the radar's aperture (x ≥ ``ahead`` [m] in the radar

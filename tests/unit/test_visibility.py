@@ -99,6 +99,15 @@ def test_mirror_reconstructor_leaves_ghosts_out_and_lists_them(gate):
         assert hidden.mean[:, 0].min() < -17  # the ghost behind the radar, as the ungated path gave it
 
 
+@pytest.mark.parametrize("wedge_margin, kept, gated", [(None, [0, 1], []), (1.5, [0, 1], []), (0.0, [0], [1])])
+def test_the_wedge_margin_is_the_gates_own(wedge_margin, kept, gated):
+    # o' = (25.6, 8) crosses y = 5 at x = 16: 1 m past the facade's seen end. Anchoring takes the facade
+    # (within extent_margin = 2 m); the gate keeps it only where wedge_margin (None: extent_margin) reaches.
+    det = _detections([[10.0, 8.0], [25.6, 8.0]], [MNLOS, MNLOS])
+    hidden = MirrorReconstructor({"wedge_margin": wedge_margin}).reconstruct(det, [FACADE])
+    assert hidden.source_index.tolist() == kept and hidden.gated.tolist() == gated
+
+
 def test_frame_record_counts_gated(tmp_path):
     from xnlos_core.app.results_schema import validate_record
     from xnlos_core.frame_record import hidden_from_record, hidden_record

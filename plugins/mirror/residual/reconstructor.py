@@ -48,6 +48,10 @@ class ResidualMirrorParams(MirrorParams):
     support_distance: float | None = Field(None, gt=0, le=100, description="LOS points within this distance "
                                            "[m] of a wall support it (default: the checkpoint's)")
     residual_cov: bool = Field(True, description="add the residual's predicted covariance Σ_Δ to Σ_o")
+    wedge_margin: float | None = Field(None, ge=0, le=1e3, description="with gate: how far [m] beyond each wall's "
+                                       "observed extent its bounce point may lie; None (here the default): "
+                                       "extent_margin, since the residual corrects walls whose fitted line and "
+                                       "extent are off (a bent facade fitted as one line), as its training data had")
 
 
 @lru_cache(maxsize=8)
