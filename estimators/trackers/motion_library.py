@@ -59,13 +59,15 @@ import numpy as np
 from xnlos_core.errors import InputError
 from xnlos_core.numerics import simplest_within
 
-LIBRARY = ("cv", "line", "turn", "turn_accel", "lane")
-N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6}  # grid parameters included
-VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,)}  # 2-vectors of θ
-N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4}
+LIBRARY = ("cv", "line", "turn", "turn_accel", "lane", "ramp", "kink")
+N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6, "ramp": 6, "kink": 7}  # grid parameters included
+VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,), "ramp": (0, 2),
+           "kink": (0, 2, 4)}  # 2-vectors of θ
+N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4, "ramp": 5, "kink": 6}
 OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
 LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
 LANE_ANGLES = np.deg2rad(np.arange(-8.0, 8.1, 2.0))  # [rad] the lane's direction about the principal axis
+KINK_TIMES = np.arange(-2.5, -0.49, 0.25)          # τ_k [s]: when a settled track's velocity last changed
 LANE_SCALES = np.array([0.9])                  # s [s]: 10–90 % of the offset in 4.4 s ≈ 4 s, a typical lane change
 LANE_MAX = 8.0                                   # [m] largest lateral offset of a lane change (two lanes)
 BETA_MAX = 10.0                                  # [m/s²] about 1 g
@@ -86,7 +88,8 @@ class Envelope:
 class Entry:
     """One library entry fitted to one track: ``model`` (LIBRARY), ``hyper`` (5,) = (ω [rad/s], τ_c [s],
     s [s], û (2,)), θ (P,) (p₀ [m] first), ``cov`` (P, P) of θ, BIC ``weight`` (Schwarz), ``stop`` [s]
-    (τ at which a braking entry stops; inf otherwise)."""
+    (τ at which a braking entry stops; inf otherwise), ``coast`` [s] (τ after which a ``line`` entry's speed is
+    held: 0 for a reversal; inf otherwise)."""
 
     model: str
     hyper: np.ndarray
@@ -94,6 +97,7 @@ class Entry:
     cov: np.ndarray
     weight: float
     stop: float = float("inf")
+    coast: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -124,7 +128,8 @@ class LibraryFit:
                 "statistic": float(self.statistic), "rates": self.rates.tolist(),
                 "entries": [{"model": e.model, "hyper": e.hyper.tolist(), "theta": e.theta.tolist(),
                              "cov": e.cov.tolist(), "weight": float(e.weight),
-                             "stop": None if np.isinf(e.stop) else float(e.stop)} for e in self.entries]}
+                             "stop": None if np.isinf(e.stop) else float(e.stop),
+                             "coast": None if np.isinf(e.coast) else float(e.coast)} for e in self.entries]}
 
     @classmethod
     def from_reader(cls, r) -> "LibraryFit":
@@ -139,8 +144,10 @@ class LibraryFit:
                 raise InputError(f"{e.where}: model must be one of {LIBRARY}, got {model!r}")
             p = N_LINEAR[model]
             stop = d.get("stop") if isinstance(d, dict) else None
+            coast = d.get("coast") if isinstance(d, dict) else None
             entries.append(Entry(model, e.array("hyper", (5,)), e.array("theta", (p,)), e.array("cov", (p, p)),
-                                 e.number("weight"), float("inf") if stop is None else e.number("stop")))
+                                 e.number("weight"), float("inf") if stop is None else e.number("stop"),
+                                 float("inf") if coast is None else e.number("coast")))
         if not entries:
             raise InputError(f"{r.where}: entries must hold at least the selected model")
         return cls(r.text("label"), r.number("t_ref"), tuple(entries), r.number("sigma"), r.number("statistic"),
@@ -179,6 +186,14 @@ def basis(model: str, hyper, tau) -> np.ndarray:
         out[..., 0, 2], out[..., 1, 2], out[..., 0, 3], out[..., 1, 3] = a, b, -b, a
         if model == "turn_accel":
             out[..., 0, 4], out[..., 1, 4], out[..., 0, 5], out[..., 1, 5] = c, d, -d, c
+    if model == "ramp":
+        m = np.minimum(t - tc, 0.0)
+        out[..., 0, 2] = out[..., 1, 3] = t
+        out[..., 0, 4], out[..., 1, 4] = ux * m * m / 2, uy * m * m / 2
+    if model == "kink":
+        m = np.minimum(t - tc, 0.0)
+        out[..., 0, 2] = out[..., 1, 3] = t
+        out[..., 0, 4] = out[..., 1, 5] = m
     if model == "lane":
         g = 0.5 * (1.0 + np.tanh((t - tc) / (2 * s)))  # the logistic σ((τ − τ_c)/s)
         out[..., 0, 2], out[..., 1, 2] = ux * t, uy * t
@@ -199,6 +214,9 @@ def _grid(model: str) -> np.ndarray:
         h = np.zeros((tc.size, 5))
         h[:, 1], h[:, 2], h[:, 3], h[:, 4] = tc.ravel(), s.ravel(), np.cos(phi.ravel()), np.sin(phi.ravel())
         return _readonly(h)
+    elif model in ("kink", "ramp"):
+        h = np.zeros((len(KINK_TIMES), 5))
+        h[:, 1] = KINK_TIMES
     else:
         h = np.zeros((1, 5))
     h[:, 3] = 1.0
@@ -210,7 +228,8 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane", ("lane",)))
+FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane", ("lane",)), ("ramp", ("ramp",)),
+        ("kink", ("kink",)))
 
 
 @lru_cache(maxsize=32)
@@ -355,9 +374,10 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
         hyper = hyper.copy()
         hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
         label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, math.sqrt(sigma2[j]))
+        coast = 0.0 if label == "reverse" else float("inf")
         ok[j] = inside
         described.append((label, rates))
-        built.append((m, hyper, th, R, inv, stop))
+        built.append((m, hyper, th, R, inv, stop, coast))
     passing = ok & (stat > thresholds)
     passing[0] = True
     cand = np.flatnonzero(passing)
@@ -366,7 +386,7 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
     wts /= wts.sum()
     order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
     ents = tuple(Entry(built[j][0], built[j][1], built[j][2], sigma2[j] / f * (built[j][3] @ built[j][4] @ built[j][3].T),
-                       float(wts[j]), built[j][5]) for j in order)
+                       float(wts[j]), built[j][5], built[j][6]) for j in order)
     return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
                       np.asarray(described[best][1], dtype=np.float64))
 
@@ -391,6 +411,8 @@ def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: 
                 return "brake", t_star, (-abs(beta), 0.0), True
             return "reverse", float("inf"), (abs(beta), 0.0), True
         return "accelerate", float("inf"), (abs(beta), 0.0), abs(beta) <= env.max_speedup
+    if model in ("kink", "ramp"):
+        return "settled", float("inf"), (0.0, 0.0), True
     omega = float(hyper[0])
     if model in ("turn", "turn_accel"):
         beta = float(theta[4:6] @ v) / max(speed, 1e-9) if model == "turn_accel" else 0.0
@@ -401,6 +423,23 @@ def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: 
     return "lane_change", float("inf"), (0.0, 0.0), inside
 
 
+def forecast_basis(model: str, hyper, tau, stop, coast) -> np.ndarray:
+    """B (…, K, 2, P) of a forecast at tau (…, K) [s]: the entry's basis at min(τ, stop) (a braking entry
+    stays at its stop), continued beyond ``coast`` c (a ``line`` entry only) at the speed it has there,
+    B(c) + (τ − c) dB/dτ(c) — a reversal is forecast at its present (backward) speed, not accelerating on."""
+    tau = np.minimum(np.asarray(tau, dtype=np.float64), stop)
+    c = np.minimum(tau, coast)
+    B = basis(model, hyper, c)
+    extra = tau - c
+    if model == "line" and np.any(extra > 0):
+        h = np.asarray(hyper, dtype=np.float64)
+        B[..., 0, 2] += extra
+        B[..., 1, 3] += extra
+        B[..., 0, 4] += h[..., 3, None] * c * extra
+        B[..., 1, 4] += h[..., 4, None] * c * extra
+    return B
+
+
 def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     """Mean (K, 2) [m] and covariance (K, 2, 2) [m²] of the position at tau (K,) ≥ 0 [s] after
     ``fit.t_ref``: the selected entry's, plus the entries' BIC-weighted spread about it (module
@@ -408,7 +447,7 @@ def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     tau = np.asarray(tau, dtype=np.float64)
     means = []
     for e in fit.entries:
-        B = basis(e.model, e.hyper, np.minimum(tau, e.stop))            # (K, 2, P)
+        B = forecast_basis(e.model, e.hyper, tau, e.stop, e.coast)      # (K, 2, P)
         means.append(B @ e.theta)
         if len(means) == 1:
             cov = np.einsum("kip,pq,kjq->kij", B, e.cov, B)
@@ -436,7 +475,8 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
         idx = np.array([i for i, _, _ in sel])
         hyper = np.array([e.hyper for *_, e in sel])
         stop = np.array([e.stop for *_, e in sel])
-        B = basis(m, hyper, np.minimum(tau[idx], stop[:, None]))          # (E, K, 2, P)
+        coast = np.array([e.coast for *_, e in sel])
+        B = forecast_basis(m, hyper, tau[idx], stop[:, None], coast[:, None])  # (E, K, 2, P)
         theta = np.array([e.theta for *_, e in sel])
         mu = np.einsum("ekcp,ep->ekc", B, theta)
         first = np.array([j == 0 for _, j, _ in sel])

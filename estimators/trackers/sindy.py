@@ -93,7 +93,7 @@ MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh 
 # reverse (1 forecast) and lane_change (2) had fewer than the 9 a 90 % split-conformal quantile needs: they take the
 # largest of the others.
 INTERVAL_FACTORS = {"cv": 0.86, "cv_uncertain": 1.80, "brake": 2.01, "accelerate": 1.05, "reverse": 2.01, "turn": 1.85,
-                    "lane_change": 2.01}
+                    "lane_change": 2.01, "settled": 1.8}
 
 
 class SindyParams(KalmanParams):
@@ -121,7 +121,8 @@ class SindyParams(KalmanParams):
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
                                                                  "model with probability ≈ α")
-    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change"],
+    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change",
+                                 "settled"],
                            Scale] = Field(
         default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
         "library-identified track by its model ('cv_uncertain': CV selected with less than half the BIC weight, "
@@ -416,7 +417,7 @@ class SindyTracker(KalmanTracker):
         for tr, fit in zip(due, fits):
             tr.fitted_frame, tr.identified = self._frame, None
             speed = float(np.linalg.norm(tr.x[2:]))
-            if speed < p.min_speed:  # turn and acceleration unobservable: the Kalman CV forecast
+            if speed < p.min_speed and fit.label in ("turn", "lane_change"):  # a heading's turn is unobservable
                 tr.library, tr.motion = None, CV
                 continue
             tr.library = fit
