@@ -18,8 +18,8 @@ window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
   heading, M = ((1 − cos ωτ)/ω²) I + ((ωτ − sin ωτ)/ω²) J — a speed change in a turn.
 * ``lane``: p₀ + w û_φ τ + n_φ A σ((τ − τ_c)/s) (P = 4 + τ_c, φ): a **lane change**, driving at w [m/s]
   along the lane û_φ (the principal axis turned by φ) with a lateral offset A [m] across it
-  (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.9 s (10–90 % of the offset
-  in 4 s, a typical lane change): the lateral velocity is bounded and dies out, where a turn's heading
+  (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.5 s (10–90 % of the offset
+  in 2.2 s: the middle of a 4–5 s lane change, chosen on the calibration split): the lateral velocity is bounded and dies out, where a turn's heading
   keeps rotating.
 
 ω, τ_c and φ are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` × ``LANE_ANGLES``.
@@ -68,10 +68,11 @@ OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
 LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
 LANE_ANGLES = np.deg2rad(np.arange(-8.0, 8.1, 2.0))  # [rad] the lane's direction about the principal axis
 KINK_TIMES = np.arange(-2.5, -0.49, 0.25)          # τ_k [s]: when a settled track's velocity last changed
-LANE_SCALES = np.array([0.9])                  # s [s]: 10–90 % of the offset in 4.4 s ≈ 4 s, a typical lane change
+LANE_SCALES = np.array([0.5])  # s [s]: 10–90 % of the offset in 4.4 s = 2.2 s, the middle of a 4–5 s lane change
 LANE_MAX = 8.0                                   # [m] largest lateral offset of a lane change (two lanes)
 BETA_MAX = 10.0                                  # [m/s²] about 1 g
 MIN_SAMPLES = 8
+MIN_BEFORE = 4     # samples a ramp or kink needs before its τ_k
 MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
 
 
@@ -236,20 +237,27 @@ FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane
 def _shared(key: bytes):
     """Per sample-time pattern τ (L,) (``key``: its bytes): for each full entry its design X (G, 2L, P) and
     for each nested entry (BᵀB)⁻¹ (G, P', P') of its first P' columns. Tracks sampled at the same
-    relative times (every frame seen, the common case) share them, and successive frames repeat them."""
+    relative times (every frame seen, the common case) share them, and successive frames repeat them.
+    Also per full entry the grid values it may take (G,): a ``ramp`` or ``kink`` needs ``MIN_BEFORE``
+    samples before its τ_k (else its extra columns vanish or fit a sample or two)."""
     tau = np.frombuffer(key, dtype=np.float64)
     out = {}
     for full, models in FULL:
-        X = basis(full, _grid(full), tau[None, :])                   # (G, L, 2, P)
+        grid = _grid(full)
+        valid = np.ones(len(grid), bool)
+        if full in ("ramp", "kink"):
+            valid = np.sum(tau[None, :] < grid[:, 1, None] - 1e-9, axis=1) >= MIN_BEFORE
+        X = basis(full, grid, tau[None, :])                          # (G, L, 2, P)
         X = X.reshape(X.shape[0], 2 * len(tau), -1)
         A = np.swapaxes(X, -1, -2) @ X
         invs = {}
         for m in models:
             c = N_LINEAR[m]
             scale = np.sqrt(np.einsum("...ii->...i", A[:, :c, :c]))
+            scale = np.where(scale > 0, scale, 1.0)                  # a vanishing column (an invalid grid value)
             An = A[:, :c, :c] / scale[:, :, None] / scale[:, None, :] + 1e-12 * np.eye(c)
             invs[m] = np.linalg.inv(An) / scale[:, :, None] / scale[:, None, :]
-        out[full] = (X, invs)
+        out[full] = (X, invs, valid)
     return out
 
 
@@ -272,7 +280,7 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
     idx = np.arange(T)
     out = {}
     for full, models in FULL:
-        X, invs = shared[full]
+        X, invs, valid = shared[full]
         G, K, P = X.shape
         b = (zf @ X.transpose(1, 0, 2).reshape(K, G * P)).reshape(T, G, P)   # one BLAS product: BᵀWz
         for m in models:
@@ -280,6 +288,7 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
             bc = np.ascontiguousarray(b[..., :c].transpose(1, 2, 0))          # (G, c, T)
             theta = (invs[m] @ bc).transpose(2, 0, 1)                         # (T, G, c)
             rss = np.maximum(zz[:, None] - np.einsum("tgp,tgp->tg", theta, b[..., :c]), 0.0)
+            rss = np.where(valid, rss, zz[:, None])                           # an invalid grid value fits nothing
             order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
                      else np.arange(rss.shape[1]))
             g = _pick(rss, order)

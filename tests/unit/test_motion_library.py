@@ -33,7 +33,8 @@ def test_a_lane_change_is_identified_as_a_lane_change_not_a_turn():
 
 def test_a_reversing_car_gets_a_model_through_zero_speed():
     # 3 m/s forward, −2 m/s² through zero at t = 1.5 s, observed over [0, 2.9] s (0.1 m noise): the
-    # reversal, not a braking to a stop; its forecast keeps going backwards past the turning point
+    # reversal, not a braking to a stop; its forecast keeps going backwards past the turning point, at
+    # its present speed (a reversing car does not speed up backwards for ever)
     rng = np.random.default_rng(1)
     heading = np.array([np.cos(0.7), np.sin(0.7)])
     s = 3.0 * T - T ** 2
@@ -42,12 +43,12 @@ def test_a_reversing_car_gets_a_model_through_zero_speed():
     assert fit.label == "reverse"
     e = fit.entries[0]
     assert np.isinf(e.stop)                                # not clamped at a stop
-    h = T[-1] + 1.0
-    mean, _ = ml.predict(fit, [1.0])
-    assert mean[0] @ heading == pytest.approx(3.0 * h - h ** 2, abs=0.3)  # s(4.9 s) = −9.3 m
+    now, speed = 3.0 * T[-1] - T[-1] ** 2, 3.0 - 2.0 * T[-1]            # s(2.9 s) = 0.29 m, v = −2.8 m/s
+    mean, _ = ml.predict(fit, [1.0, 2.0])
+    assert mean[:, :] @ heading == pytest.approx([now + speed, now + 2 * speed], abs=0.3)
     # the velocity along the path changes sign between the window's start and the forecast
     v = [(ml.predict(fit, [tt + 0.01])[0][0] - ml.predict(fit, [tt])[0][0]) @ heading / 0.01 for tt in (-T[-1], 1.0)]
-    assert v[0] > 2.0 and v[1] < -3.0
+    assert v[0] > 2.0 and v[1] == pytest.approx(speed, abs=0.3)
 
 
 def test_straight_noisy_tracks_stay_constant_velocity():
