@@ -65,7 +65,7 @@ VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4)
            "kink": (0, 2, 4)}  # 2-vectors of θ
 N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4, "ramp": 5, "kink": 6}
 OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
-LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
+LANE_CENTRES = np.arange(-3.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
 LANE_ANGLES = np.deg2rad(np.arange(-8.0, 8.1, 2.0))  # [rad] the lane's direction about the principal axis
 KINK_TIMES = np.arange(-2.5, -0.49, 0.25)          # τ_k [s]: when a settled track's velocity last changed
 LANE_SCALES = np.array([0.5])  # s [s]: 10–90 % of the offset in 4.4 s = 2.2 s, the middle of a 4–5 s lane change
@@ -73,6 +73,8 @@ LANE_MAX = 8.0                                   # [m] largest lateral offset of
 BETA_MAX = 10.0                                  # [m/s²] about 1 g
 MIN_SAMPLES = 8
 MIN_BEFORE = 4     # samples a ramp or kink needs before its τ_k
+TURN_OVER_LANE = 6.0  # BIC margin a turn needs over a passing lane change ("strong", Kass & Raftery 1995)
+CV_SURE = 0.5  # BIC weight below which a CV selection forecasts with the "cv_uncertain" disc factor
 MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
 
 
@@ -120,7 +122,7 @@ class LibraryFit:
         """The key of this fit's disc factor: its label, or ``cv_uncertain`` for a CV selection whose CV
         entry holds less than half the BIC weight (a manoeuvre model fits better by BIC but fails the
         test: the track may be starting one)."""
-        if self.label == "cv" and self.entries[0].weight < 0.5:
+        if self.label == "cv" and self.entries[0].weight < CV_SURE:
             return "cv_uncertain"
         return self.label
 
@@ -322,10 +324,9 @@ def line_direction(z: np.ndarray) -> np.ndarray:
     return u if float((z[-1] - z[0]) @ u) >= 0 else -u
 
 
-def _rotation(model: str, u: np.ndarray) -> np.ndarray:
+def _rotation(model: str, rot: np.ndarray) -> np.ndarray:
     """R (P, P) taking θ from a track's own frame (û = +x, n = +y) to the world: each 2-vector of θ
-    (p₀, v₀, a₀) rotates by û, the scalars (β, A) stay."""
-    rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+    (p₀, v₀, a₀) rotates by ``rot`` (2, 2) = [û, Jû], the scalars (β, A) stay."""
     R = np.eye(N_LINEAR[model])
     for j in VECTORS[model]:
         R[j:j + 2, j:j + 2] = rot
@@ -375,27 +376,33 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
     stat = f * N * np.log(rss[0] / rss)                                # Eq. (1)
     bic = f * N * np.log(rss / N) + k * np.log(f * N)
     sigma2 = rss / np.maximum(N - k, 1.0)
-    built, ok, described = [], np.ones(len(LIBRARY), bool), []
-    for j, (m, hyper, theta, inv) in enumerate(local):
-        R = _rotation(m, u)
-        th = R @ theta
-        th[:2] += centre
-        hyper = hyper.copy()
-        hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
-        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, math.sqrt(sigma2[j]))
-        coast = 0.0 if label == "reverse" else float("inf")
+    ok, described = np.ones(len(LIBRARY), bool), []
+    for j, (m, hyper, theta, inv) in enumerate(local):  # in the track's own frame: labels and rates are invariant
+        label, stop, rates, inside = _describe(m, hyper, theta, float(tau[0]), env, math.sqrt(sigma2[j]))
         ok[j] = inside
-        described.append((label, rates))
-        built.append((m, hyper, th, R, inv, stop, coast))
+        described.append((label, rates, stop, 0.0 if label == "reverse" else float("inf")))
     passing = ok & (stat > thresholds)
     passing[0] = True
     cand = np.flatnonzero(passing)
     best = int(cand[simplest_within(bic[cand], k[cand])])
+    lane = LIBRARY.index("lane")
+    if LIBRARY[best] in ("turn", "turn_accel") and passing[lane] and bic[lane] <= bic[best] + TURN_OVER_LANE:
+        best = lane                                                    # a turn needs strong evidence over a lane change
     wts = np.where(ok, np.exp(-0.5 * (bic - bic[ok].min())), 0.0)
     wts /= wts.sum()
     order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
-    ents = tuple(Entry(built[j][0], built[j][1], built[j][2], sigma2[j] / f * (built[j][3] @ built[j][4] @ built[j][3].T),
-                       float(wts[j]), built[j][5], built[j][6]) for j in order)
+    rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+    ents = []
+    for j in order:                                                    # to the world: the entries kept only
+        m, hyper, theta, inv = local[j]
+        R = _rotation(m, rot)
+        th = R @ theta
+        th[:2] += centre
+        hyper = hyper.copy()
+        hyper[3:5] = rot @ hyper[3:5]                                  # the line's direction in the world
+        ents.append(Entry(m, hyper, th, sigma2[j] / f * (R @ inv @ R.T), float(wts[j]), described[j][2],
+                          described[j][3]))
+    ents = tuple(ents)
     return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
                       np.asarray(described[best][1], dtype=np.float64))
 
