@@ -482,12 +482,12 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
     mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
     if T == 0:
         return mean, cov
-    rows = [(i, j, e) for i, f in enumerate(fits) for j, e in enumerate(f.entries)]
-    mus = {}
-    for m in LIBRARY:
-        sel = [(i, j, e) for i, j, e in rows if e.model == m]
-        if not sel:
-            continue
+    buckets = {}
+    for i, f in enumerate(fits):
+        for j, e in enumerate(f.entries):
+            buckets.setdefault(e.model, []).append((i, j, e))
+    others = []                                                        # (track, weight, mean (K, 2))
+    for m, sel in buckets.items():
         idx = np.array([i for i, _, _ in sel])
         hyper = np.array([e.hyper for *_, e in sel])
         stop = np.array([e.stop for *_, e in sel])
@@ -500,12 +500,11 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
             covs = np.array([e.cov for (_, j, e) in sel if j == 0])
             Bf = B[first]
             cov[idx[first]] = np.einsum("ekip,epq,ekjq->ekij", Bf, covs, Bf)
-        for r, (i, j, e) in enumerate(sel):
-            mus[(i, j)] = (mu[r], e.weight)
-    for i, f in enumerate(fits):
-        mean[i] = mus[(i, 0)][0]
-        for j in range(1, len(f.entries)):
-            m, w = mus[(i, j)]
-            d = m - mean[i]
-            cov[i] += w * d[:, :, None] * d[:, None, :]
+            mean[idx[first]] = mu[first]
+        others += [(i, e.weight, mu[r]) for r, (i, j, e) in enumerate(sel) if j > 0]
+    if others:                                                         # the selected entries' spread, Σ w d dᵀ
+        i = np.array([o[0] for o in others])
+        d = np.array([o[2] for o in others]) - mean[i]                 # (O, K, 2)
+        w = np.array([o[1] for o in others])
+        np.add.at(cov, i, w[:, None, None, None] * d[..., :, None] * d[..., None, :])
     return mean, cov
