@@ -9,9 +9,11 @@ window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
 * ``line``: p₀ + v₀τ + û βτ²/2 (P = 5): a constant acceleration β [m/s²] along the path's line û (the
   principal axis of the window's positions). It is **braking** when the speed along û falls to zero in
   the future (t* = −(ûᵀv₀)/β > 0: the forecast stops there, the car then stays), **reversing** when it
-  went through zero inside the window (t* between the first sample and now: the speed changed sign,
-  and the forecast carries on unclamped) and the car has since run back farther than twice the
-  residual SD (else it is braking that stopped at t*: it stays), **accelerating** otherwise.
+  went through zero inside the window (t* between the first sample and now: the speed changed sign)
+  and the car has since run back farther than twice the residual SD (else it is braking that stopped
+  at t*: it stays), **accelerating** otherwise. A reversal is forecast at its present (backward) speed
+  (``Entry.coast`` = 0: a reversing car settles at a low reverse speed; the quadratic would have it
+  speed up backwards for ever).
 * ``turn``: p₀ + R(ω, τ) v₀ (P = 4 + ω): constant speed and turn rate ω [rad/s],
   R = (sin ωτ/ω) I + ((1 − cos ωτ)/ω) J (J the +90° rotation).
 * ``turn_accel``: ``turn`` + M(ω, τ) a₀ (P = 6 + ω): an acceleration a₀ [m/s²] that turns with the
@@ -21,8 +23,15 @@ window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
   (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.5 s (10–90 % of the offset
   in 2.2 s: the middle of a 4–5 s lane change, chosen on the calibration split): the lateral velocity is bounded and dies out, where a turn's heading
   keeps rotating.
+* ``ramp``: p₀ + v₀τ + û β min(τ − τ_k, 0)²/2 (P = 5 + τ_k): a speed change along the line that **ended**
+  at τ_k < 0 (a braking, speeding up or reversal that has settled): the forecast goes on at v₀.
+* ``kink``: p₀ + v₀τ + d min(τ − τ_k, 0) (P = 6 + τ_k): a velocity that changed by −d [m/s] at τ_k < 0
+  (the end of a turn or lane change, as a step): the forecast goes on at v₀, fitted on the window's
+  recent part only, where CV over the whole window would follow the old heading.
+  ``ramp`` and ``kink`` are reported as ``settled``; τ_k needs ``MIN_BEFORE`` samples before it.
 
-ω, τ_c and φ are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` × ``LANE_ANGLES``.
+ω, τ_c, φ and τ_k are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` ×
+``LANE_ANGLES``, ``KINK_TIMES``.
 
 Selection (the sparsest model that the data demand). Correlated errors count n_eff/n = (1 − ρ)/(1 + ρ)
 of their samples (ρ ≥ 0 the lag-1 autocorrelation of the best-fitting entry's residuals; as in
@@ -32,11 +41,15 @@ replaces CV only when its profile likelihood-ratio statistic
     D_m = f · N ln(RSS_cv / RSS_m)         (N = 2n rows, f = n_eff/n)                          (1)
 
 exceeds the χ² quantile with k_m − 4 degrees of freedom at level α/M (``level`` α, default 0.01,
-Bonferroni over the M = 4 alternatives): a straight track is given a manoeuvre model with probability
+Bonferroni over the M = 6 alternatives): a straight track is given a manoeuvre model with probability
 ≈ α at most (under white noise; grid parameters counted as parameters make the test conservative
 rather than exact). Among CV and the entries that pass, the least BIC_m = f N ln(RSS_m/N) + k_m ln(f N)
-wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters. Entries
-outside the road users' envelope (``Envelope``) do not compete.
+wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters — except
+that a turn needs a BIC ``TURN_OVER_LANE`` (6, "strong" evidence; Kass & Raftery 1995) below a passing
+lane change's: in the first half of a lane change both fit the window alike, and a turn wrongly
+followed extrapolates a rotation that the lane change's heading gives back (the margin chosen on the
+calibration split, seed 1, of ``benchmarks/bicycle_forecasts.py``). Entries outside the road users'
+envelope (``Envelope``) do not compete.
 
 Hand-written on numpy rather than with pysindy: pysindy fits one system at a time (an sklearn estimator
 per fit, 6–17 ms a track with the ensemble's refits, ``benchmarks/tracking_speed.md``), where the batched
@@ -46,7 +59,7 @@ small every support is a candidate, so no sparse-regression path is needed to pr
 Forecast (:func:`predict`, :func:`predict_many` for many tracks at once): the selected entry's B(τ)θ with covariance B Σ_θ Bᵀ, Σ_θ = σ² (BᵀB)⁻¹ / f
 (σ² = RSS/(N − k)), plus the model-selection uncertainty Σ_j w_j (μ_j − μ)(μ_j − μ)ᵀ over the entries
 with BIC weights w_j ∝ exp(−BIC_j/2) (Schwarz weights; Burnham & Anderson 2002, §6.4). A braking
-entry's τ is cut at its stop.
+entry's τ is cut at its stop; a reversal's goes on at its present speed (:func:`forecast_basis`).
 """
 from __future__ import annotations
 
@@ -105,8 +118,8 @@ class Entry:
 
 @dataclass(frozen=True)
 class LibraryFit:
-    """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change), t_ref [s]
-    (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
+    """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change, settled),
+    t_ref [s] (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
     (the selected entry's per-axis residual SD), ``statistic`` D of Eq. (1) of the selected entry (0 for
     CV), ``rates`` (β [m/s²] tangential, ω [rad/s]) for a linear filter."""
 

@@ -4,14 +4,16 @@ update), with each confirmed track's motion model identified over a manoeuvre li
 Identification ``library`` (the default): every track due in a frame (≥ ``min_samples`` in the window,
 last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`` caps them) is
 identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
-speeding up, reversing, turn (with or without a speed change), lane change — selected by a
-likelihood-ratio test at ``selection_level`` against constant velocity and then by BIC, from the
-positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
+speeding up, reversing, turn (with or without a speed change), lane change, a settled speed change or
+velocity step — selected by a likelihood-ratio test at ``selection_level`` against constant velocity
+and then by BIC, from the positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
 plus ``accel_psd`` white acceleration noise from the fit's last sample), its disc radii scaled by
 ``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
 its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
-lane change or a reversal); the reported ``model`` is the manoeuvre's name. Below ``min_speed`` a track
-stays CV. Identification ``ensemble``: steps 2–6 below.
+lane change, a reversal or a settled track); the reported ``model`` is the manoeuvre's name. Below
+``min_speed`` a track's filter stays CV, and a turn or lane change fit is not followed (a heading is
+unobservable there); a straight-line fit (braking, reversing through zero speed) still forecasts.
+Identification ``ensemble``: steps 2–6 below.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
