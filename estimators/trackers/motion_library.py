@@ -272,7 +272,9 @@ def _shared(key: bytes):
             scale = np.where(scale > 0, scale, 1.0)                  # a vanishing column (an invalid grid value)
             An = A[:, :c, :c] / scale[:, :, None] / scale[:, None, :] + 1e-12 * np.eye(c)
             invs[m] = np.linalg.inv(An) / scale[:, :, None] / scale[:, None, :]
-        out[full] = (X, invs, valid)
+        G, K, P = X.shape
+        flat = np.ascontiguousarray(X.transpose(1, 0, 2).reshape(K, G * P))  # (2L, G·P): one BLAS product fits all
+        out[full] = (X, invs, valid, flat)
     return out
 
 
@@ -295,9 +297,9 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
     idx = np.arange(T)
     out = {}
     for full, models in FULL:
-        X, invs, valid = shared[full]
+        X, invs, valid, flat = shared[full]
         G, K, P = X.shape
-        b = (zf @ X.transpose(1, 0, 2).reshape(K, G * P)).reshape(T, G, P)   # one BLAS product: BᵀWz
+        b = (zf @ flat).reshape(T, G, P)                                       # one BLAS product: BᵀWz
         for m in models:
             c = N_LINEAR[m]
             bc = np.ascontiguousarray(b[..., :c].transpose(1, 2, 0))          # (G, c, T)
@@ -311,13 +313,6 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
             resid = zf - np.einsum("tkp,tp->tk", X[g][:, :, :c], th)     # (T, 2L) at the chosen grid values
             out[m] = (g, th, rss[idx, g], invs[m][g], resid)
     return out
-
-
-def _effective_share(resid: np.ndarray) -> float:
-    """f = (1 − ρ)/(1 + ρ) of the residuals (n, 2) (ρ ≥ 0 their lag-1 autocorrelation over both axes), ≥ 1/n."""
-    num, den = float(np.sum(resid[:-1] * resid[1:])), float(np.sum(resid * resid))
-    rho = min(max(num / den, 0.0), 1.0) if den > 1e-24 * len(resid) else 0.0
-    return max((1 - rho) / (1 + rho), 1.0 / len(resid))
 
 
 @lru_cache(maxsize=64)
@@ -372,23 +367,42 @@ def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope())
     k = np.array([N_PARAMS[m] for m in LIBRARY])
     thresholds = np.array([0.0] + [lr_threshold(int(kk - 4), level, len(LIBRARY) - 1) for kk in k[1:]])
     for members in groups.values():
-        fits = _fit_group(local[members[0]][3], np.array([local[i][4] for i in members]))
+        z = np.array([local[i][4] for i in members])
+        fits = _fit_group(local[members[0]][3], z)
+        stats = _criteria(fits, z, k)
         for row, i in enumerate(members):
-            out[i] = _select(fits, row, local[i], k, thresholds, envelope)
+            out[i] = _select(fits, row, local[i], k, thresholds, envelope, [a[row] for a in stats])
     return out
 
 
-def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope) -> LibraryFit:
-    """One track's selection and entries (module docstring, selection) from its group's fits."""
-    t_ref, centre, u, tau, zl = track
-    N = 2 * len(tau)
-    rss = np.array([fits[m][2][row] for m in LIBRARY])
-    rss = np.maximum(rss, 1e-18 * max(float(np.sum(zl * zl)), 1e-6))  # rounding-level RSS never chooses
-    local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
-    f = _effective_share(fits[LIBRARY[int(np.argmin(rss))]][4][row].reshape(-1, 2))
-    stat = f * N * np.log(rss[0] / rss)                                # Eq. (1)
-    bic = f * N * np.log(rss / N) + k * np.log(f * N)
+def _criteria(fits: dict, z: np.ndarray, k: np.ndarray) -> tuple:
+    """Per track of a group (z (T, L, 2) its local positions) and entry: f (T,), the statistic D of
+    Eq. (1), BIC and σ² (T, M+1) — the selection's arithmetic for all tracks at once."""
+    T, L = z.shape[:2]
+    N = 2 * L
+    rss = np.stack([fits[m][2] for m in LIBRARY], axis=1)             # (T, M+1)
+    floor = 1e-18 * np.maximum(np.sum(z.reshape(T, -1) ** 2, axis=1), 1e-6)
+    rss = np.maximum(rss, floor[:, None])                              # rounding-level RSS never chooses
+    best = np.argmin(rss, axis=1)
+    resid = np.stack([fits[m][4] for m in LIBRARY])[best, np.arange(T)].reshape(T, L, 2)
+    num = np.sum(resid[:, :-1] * resid[:, 1:], axis=(1, 2))
+    den = np.sum(resid * resid, axis=(1, 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(den > 1e-24 * L, np.clip(num / den, 0.0, 1.0), 0.0)
+    f = np.maximum((1 - rho) / (1 + rho), 1.0 / L)                     # f = (1 − ρ)/(1 + ρ), ≥ 1/n
+    stat = f[:, None] * N * np.log(rss[:, :1] / rss)                   # Eq. (1)
+    bic = f[:, None] * N * np.log(rss / N) + k * np.log(f[:, None] * N)
     sigma2 = rss / np.maximum(N - k, 1.0)
+    return f, stat, bic, sigma2
+
+
+def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope, crit) -> LibraryFit:
+    """One track's selection and entries (module docstring, selection) from its group's fits and its
+    row of :func:`_criteria`."""
+    t_ref, centre, u, tau, zl = track
+    f, stat, bic, sigma2 = crit
+    f = float(f)
+    local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
     ok, described = np.ones(len(LIBRARY), bool), []
     for j, (m, hyper, theta, inv) in enumerate(local):  # in the track's own frame: labels and rates are invariant
         label, stop, rates, inside = _describe(m, hyper, theta, float(tau[0]), env, math.sqrt(sigma2[j]))
