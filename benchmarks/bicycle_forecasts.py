@@ -38,8 +38,12 @@ machine as it is ("quiet") and with two CPU-bound processes started by the bench
 ``--calibrate`` runs one track at a time on the calibration split (seed 1; the results use seed 0) and
 prints the split-conformal factor per model key (``LibraryFit.interval_key``): the ⌈0.9(n + 1)⌉-th
 smallest of error / (unscaled 90 % radius) over that key's forecasts in the phases the intervals are
-for — straight cars, and the other classes during their manoeuvre (Vovk et al. 2005; Lei et al. 2018)
-— stored as ``INTERVAL_FACTORS`` in estimators/trackers/sindy.py. Forecasts whose 2 s straddle a
+for — the manoeuvring classes during their manoeuvre; a key seen fewer than 9 times there adds the
+straight cars' forecasts (Vovk et al. 2005; Lei et al. 2018) — stored as ``INTERVAL_FACTORS`` in
+estimators/trackers/sindy.py. A straight car's CV forecast is far more accurate than a CV forecast
+during a manoeuvre that the window does not show yet, and nothing in the window tells them apart
+(neither the CV's BIC weight nor its residuals' autocorrelation): one factor covers both, so straight
+cars' discs are wider than 90 % needs. Forecasts whose 2 s straddle a
 manoeuvre's onset or end are not calibrated for: nothing in the track's past announces them.
 """
 from __future__ import annotations
@@ -285,8 +289,12 @@ def calibrate(per_class: int, seed: int = 1) -> dict:
     rows = [x for x in evaluate(per_class, seed, sizes=(1,))[1]["rows"] if x["during"] or x["cls"] == "straight"]
     out = {}
     for label in sorted({x["sindy_key"] for x in rows} - {"lost"}):
-        s = np.sort([x["sindy"] / (x["sindy_r90"] / factors.get(label, 1.0)) for x in rows
-                     if x["sindy_key"] == label and np.isfinite(x["sindy"])])
+        def scores(rs):
+            return np.sort([x["sindy"] / (x["sindy_r90"] / factors.get(label, 1.0)) for x in rs
+                            if x["sindy_key"] == label and np.isfinite(x["sindy"])])
+        s = scores([x for x in rows if x["cls"] != "straight"])
+        if len(s) < 9:                                   # too few during manoeuvres: straight cars too
+            s = scores(rows)
         q = min(int(np.ceil(0.9 * (len(s) + 1))), len(s)) - 1
         out[label] = (round(float(s[q]), 2), len(s))
     return out

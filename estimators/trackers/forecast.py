@@ -65,8 +65,15 @@ class LinearMotion:
         return not self.members.any() and not self.xi.any()
 
     def transition(self, h) -> np.ndarray:
-        """Φ(h) (…, 4, 4) of the point estimate for h (…) [s]."""
-        return self._phi(self.xi, np.asarray(h, dtype=np.float64))
+        """Φ(h) (…, 4, 4) of the point estimate for h (…) [s], cached per h (the frame interval repeats;
+        a copy: the caller may change it)."""
+        h = np.asarray(h, dtype=np.float64)
+        key = ("point", h.shape, h.tobytes())
+        if key not in self._cache:
+            if len(self._cache) > 64:
+                self._cache.clear()
+            self._cache[key] = self._phi(self.xi, h)
+        return self._cache[key].copy()
 
     def member_transitions(self, h) -> np.ndarray:
         """Φ_m(h) (M, K, 4, 4) for h (K,) [s], cached per h (horizons and the grid step repeat)."""

@@ -9,20 +9,29 @@ window, t_ref its last sample), positions p(τ) = B(τ) θ with B (2, P):
 * ``line``: p₀ + v₀τ + û βτ²/2 (P = 5): a constant acceleration β [m/s²] along the path's line û (the
   principal axis of the window's positions). It is **braking** when the speed along û falls to zero in
   the future (t* = −(ûᵀv₀)/β > 0: the forecast stops there, the car then stays), **reversing** when it
-  went through zero inside the window (t* between the first sample and now: the speed changed sign,
-  and the forecast carries on unclamped) and the car has since run back farther than twice the
-  residual SD (else it is braking that stopped at t*: it stays), **accelerating** otherwise.
+  went through zero inside the window (t* between the first sample and now: the speed changed sign)
+  and the car has since run back farther than twice the residual SD (else it is braking that stopped
+  at t*: it stays), **accelerating** otherwise. A reversal is forecast at its present (backward) speed
+  (``Entry.coast`` = 0: a reversing car settles at a low reverse speed; the quadratic would have it
+  speed up backwards for ever).
 * ``turn``: p₀ + R(ω, τ) v₀ (P = 4 + ω): constant speed and turn rate ω [rad/s],
   R = (sin ωτ/ω) I + ((1 − cos ωτ)/ω) J (J the +90° rotation).
 * ``turn_accel``: ``turn`` + M(ω, τ) a₀ (P = 6 + ω): an acceleration a₀ [m/s²] that turns with the
   heading, M = ((1 − cos ωτ)/ω²) I + ((ωτ − sin ωτ)/ω²) J — a speed change in a turn.
 * ``lane``: p₀ + w û_φ τ + n_φ A σ((τ − τ_c)/s) (P = 4 + τ_c, φ): a **lane change**, driving at w [m/s]
   along the lane û_φ (the principal axis turned by φ) with a lateral offset A [m] across it
-  (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.9 s (10–90 % of the offset
-  in 4 s, a typical lane change): the lateral velocity is bounded and dies out, where a turn's heading
+  (n_φ = Jû_φ) completed along a logistic σ of centre τ_c [s] and width s = 0.5 s (10–90 % of the offset
+  in 2.2 s: the middle of a 4–5 s lane change, chosen on the calibration split): the lateral velocity is bounded and dies out, where a turn's heading
   keeps rotating.
+* ``ramp``: p₀ + v₀τ + û β min(τ − τ_k, 0)²/2 (P = 5 + τ_k): a speed change along the line that **ended**
+  at τ_k < 0 (a braking, speeding up or reversal that has settled): the forecast goes on at v₀.
+* ``kink``: p₀ + v₀τ + d min(τ − τ_k, 0) (P = 6 + τ_k): a velocity that changed by −d [m/s] at τ_k < 0
+  (the end of a turn or lane change, as a step): the forecast goes on at v₀, fitted on the window's
+  recent part only, where CV over the whole window would follow the old heading.
+  ``ramp`` and ``kink`` are reported as ``settled``; τ_k needs ``MIN_BEFORE`` samples before it.
 
-ω, τ_c and φ are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` × ``LANE_ANGLES``.
+ω, τ_c, φ and τ_k are grid parameters: ``OMEGA_GRID`` (step 0.01 rad/s), ``LANE_CENTRES`` ×
+``LANE_ANGLES``, ``KINK_TIMES``.
 
 Selection (the sparsest model that the data demand). Correlated errors count n_eff/n = (1 − ρ)/(1 + ρ)
 of their samples (ρ ≥ 0 the lag-1 autocorrelation of the best-fitting entry's residuals; as in
@@ -32,11 +41,15 @@ replaces CV only when its profile likelihood-ratio statistic
     D_m = f · N ln(RSS_cv / RSS_m)         (N = 2n rows, f = n_eff/n)                          (1)
 
 exceeds the χ² quantile with k_m − 4 degrees of freedom at level α/M (``level`` α, default 0.01,
-Bonferroni over the M = 4 alternatives): a straight track is given a manoeuvre model with probability
+Bonferroni over the M = 6 alternatives): a straight track is given a manoeuvre model with probability
 ≈ α at most (under white noise; grid parameters counted as parameters make the test conservative
 rather than exact). Among CV and the entries that pass, the least BIC_m = f N ln(RSS_m/N) + k_m ln(f N)
-wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters. Entries
-outside the road users' envelope (``Envelope``) do not compete.
+wins, ties within :func:`xnlos_core.numerics.criterion_tolerance` to the fewest parameters — except
+that a turn needs a BIC ``TURN_OVER_LANE`` (6, "strong" evidence; Kass & Raftery 1995) below a passing
+lane change's: in the first half of a lane change both fit the window alike, and a turn wrongly
+followed extrapolates a rotation that the lane change's heading gives back (the margin chosen on the
+calibration split, seed 1, of ``benchmarks/bicycle_forecasts.py``). Entries outside the road users'
+envelope (``Envelope``) do not compete.
 
 Hand-written on numpy rather than with pysindy: pysindy fits one system at a time (an sklearn estimator
 per fit, 6–17 ms a track with the ensemble's refits, ``benchmarks/tracking_speed.md``), where the batched
@@ -46,7 +59,7 @@ small every support is a candidate, so no sparse-regression path is needed to pr
 Forecast (:func:`predict`, :func:`predict_many` for many tracks at once): the selected entry's B(τ)θ with covariance B Σ_θ Bᵀ, Σ_θ = σ² (BᵀB)⁻¹ / f
 (σ² = RSS/(N − k)), plus the model-selection uncertainty Σ_j w_j (μ_j − μ)(μ_j − μ)ᵀ over the entries
 with BIC weights w_j ∝ exp(−BIC_j/2) (Schwarz weights; Burnham & Anderson 2002, §6.4). A braking
-entry's τ is cut at its stop.
+entry's τ is cut at its stop; a reversal's goes on at its present speed (:func:`forecast_basis`).
 """
 from __future__ import annotations
 
@@ -59,17 +72,22 @@ import numpy as np
 from xnlos_core.errors import InputError
 from xnlos_core.numerics import simplest_within
 
-LIBRARY = ("cv", "line", "turn", "turn_accel", "lane")
-N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6}  # grid parameters included
-VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,)}  # 2-vectors of θ
-N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4}
+LIBRARY = ("cv", "line", "turn", "turn_accel", "lane", "ramp", "kink")
+N_PARAMS = {"cv": 4, "line": 5, "turn": 5, "turn_accel": 7, "lane": 6, "ramp": 6, "kink": 7}  # grid parameters included
+VECTORS = {"cv": (0, 2), "line": (0, 2), "turn": (0, 2), "turn_accel": (0, 2, 4), "lane": (0,), "ramp": (0, 2),
+           "kink": (0, 2, 4)}  # 2-vectors of θ
+N_LINEAR = {"cv": 4, "line": 5, "turn": 4, "turn_accel": 6, "lane": 4, "ramp": 5, "kink": 6}
 OMEGA_GRID = np.linspace(-1.2, 1.2, 241)         # [rad/s], step 0.01
-LANE_CENTRES = np.arange(-2.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
+LANE_CENTRES = np.arange(-3.5, 1.01, 0.25)       # τ_c [s]: the lane change's midpoint, past to 1 s ahead
 LANE_ANGLES = np.deg2rad(np.arange(-8.0, 8.1, 2.0))  # [rad] the lane's direction about the principal axis
-LANE_SCALES = np.array([0.9])                  # s [s]: 10–90 % of the offset in 4.4 s ≈ 4 s, a typical lane change
+KINK_TIMES = np.arange(-2.5, -0.49, 0.25)          # τ_k [s]: when a settled track's velocity last changed
+LANE_SCALES = np.array([0.5])  # s [s]: 10–90 % of the offset in 4.4 s = 2.2 s, the middle of a 4–5 s lane change
 LANE_MAX = 8.0                                   # [m] largest lateral offset of a lane change (two lanes)
 BETA_MAX = 10.0                                  # [m/s²] about 1 g
 MIN_SAMPLES = 8
+MIN_BEFORE = 4     # samples a ramp or kink needs before its τ_k
+TURN_OVER_LANE = 6.0  # BIC margin a turn needs over a passing lane change ("strong", Kass & Raftery 1995)
+CV_SURE = 0.5  # BIC weight below which a CV selection forecasts with the "cv_uncertain" disc factor
 MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
 
 
@@ -86,7 +104,8 @@ class Envelope:
 class Entry:
     """One library entry fitted to one track: ``model`` (LIBRARY), ``hyper`` (5,) = (ω [rad/s], τ_c [s],
     s [s], û (2,)), θ (P,) (p₀ [m] first), ``cov`` (P, P) of θ, BIC ``weight`` (Schwarz), ``stop`` [s]
-    (τ at which a braking entry stops; inf otherwise)."""
+    (τ at which a braking entry stops; inf otherwise), ``coast`` [s] (τ after which a ``line`` entry's speed is
+    held: 0 for a reversal; inf otherwise)."""
 
     model: str
     hyper: np.ndarray
@@ -94,12 +113,13 @@ class Entry:
     cov: np.ndarray
     weight: float
     stop: float = float("inf")
+    coast: float = float("inf")
 
 
 @dataclass(frozen=True)
 class LibraryFit:
-    """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change), t_ref [s]
-    (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
+    """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change, settled),
+    t_ref [s] (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
     (the selected entry's per-axis residual SD), ``statistic`` D of Eq. (1) of the selected entry (0 for
     CV), ``rates`` (β [m/s²] tangential, ω [rad/s]) for a linear filter."""
 
@@ -115,7 +135,7 @@ class LibraryFit:
         """The key of this fit's disc factor: its label, or ``cv_uncertain`` for a CV selection whose CV
         entry holds less than half the BIC weight (a manoeuvre model fits better by BIC but fails the
         test: the track may be starting one)."""
-        if self.label == "cv" and self.entries[0].weight < 0.5:
+        if self.label == "cv" and self.entries[0].weight < CV_SURE:
             return "cv_uncertain"
         return self.label
 
@@ -124,7 +144,8 @@ class LibraryFit:
                 "statistic": float(self.statistic), "rates": self.rates.tolist(),
                 "entries": [{"model": e.model, "hyper": e.hyper.tolist(), "theta": e.theta.tolist(),
                              "cov": e.cov.tolist(), "weight": float(e.weight),
-                             "stop": None if np.isinf(e.stop) else float(e.stop)} for e in self.entries]}
+                             "stop": None if np.isinf(e.stop) else float(e.stop),
+                             "coast": None if np.isinf(e.coast) else float(e.coast)} for e in self.entries]}
 
     @classmethod
     def from_reader(cls, r) -> "LibraryFit":
@@ -139,8 +160,10 @@ class LibraryFit:
                 raise InputError(f"{e.where}: model must be one of {LIBRARY}, got {model!r}")
             p = N_LINEAR[model]
             stop = d.get("stop") if isinstance(d, dict) else None
+            coast = d.get("coast") if isinstance(d, dict) else None
             entries.append(Entry(model, e.array("hyper", (5,)), e.array("theta", (p,)), e.array("cov", (p, p)),
-                                 e.number("weight"), float("inf") if stop is None else e.number("stop")))
+                                 e.number("weight"), float("inf") if stop is None else e.number("stop"),
+                                 float("inf") if coast is None else e.number("coast")))
         if not entries:
             raise InputError(f"{r.where}: entries must hold at least the selected model")
         return cls(r.text("label"), r.number("t_ref"), tuple(entries), r.number("sigma"), r.number("statistic"),
@@ -179,6 +202,14 @@ def basis(model: str, hyper, tau) -> np.ndarray:
         out[..., 0, 2], out[..., 1, 2], out[..., 0, 3], out[..., 1, 3] = a, b, -b, a
         if model == "turn_accel":
             out[..., 0, 4], out[..., 1, 4], out[..., 0, 5], out[..., 1, 5] = c, d, -d, c
+    if model == "ramp":
+        m = np.minimum(t - tc, 0.0)
+        out[..., 0, 2] = out[..., 1, 3] = t
+        out[..., 0, 4], out[..., 1, 4] = ux * m * m / 2, uy * m * m / 2
+    if model == "kink":
+        m = np.minimum(t - tc, 0.0)
+        out[..., 0, 2] = out[..., 1, 3] = t
+        out[..., 0, 4] = out[..., 1, 5] = m
     if model == "lane":
         g = 0.5 * (1.0 + np.tanh((t - tc) / (2 * s)))  # the logistic σ((τ − τ_c)/s)
         out[..., 0, 2], out[..., 1, 2] = ux * t, uy * t
@@ -199,6 +230,9 @@ def _grid(model: str) -> np.ndarray:
         h = np.zeros((tc.size, 5))
         h[:, 1], h[:, 2], h[:, 3], h[:, 4] = tc.ravel(), s.ravel(), np.cos(phi.ravel()), np.sin(phi.ravel())
         return _readonly(h)
+    elif model in ("kink", "ramp"):
+        h = np.zeros((len(KINK_TIMES), 5))
+        h[:, 1] = KINK_TIMES
     else:
         h = np.zeros((1, 5))
     h[:, 3] = 1.0
@@ -210,27 +244,37 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane", ("lane",)))
+FULL = (("line", ("cv", "line")), ("turn_accel", ("turn", "turn_accel")), ("lane", ("lane",)), ("ramp", ("ramp",)),
+        ("kink", ("kink",)))
 
 
 @lru_cache(maxsize=32)
 def _shared(key: bytes):
     """Per sample-time pattern τ (L,) (``key``: its bytes): for each full entry its design X (G, 2L, P) and
     for each nested entry (BᵀB)⁻¹ (G, P', P') of its first P' columns. Tracks sampled at the same
-    relative times (every frame seen, the common case) share them, and successive frames repeat them."""
+    relative times (every frame seen, the common case) share them, and successive frames repeat them.
+    Also per full entry the grid values it may take (G,): a ``ramp`` or ``kink`` needs ``MIN_BEFORE``
+    samples before its τ_k (else its extra columns vanish or fit a sample or two)."""
     tau = np.frombuffer(key, dtype=np.float64)
     out = {}
     for full, models in FULL:
-        X = basis(full, _grid(full), tau[None, :])                   # (G, L, 2, P)
+        grid = _grid(full)
+        valid = np.ones(len(grid), bool)
+        if full in ("ramp", "kink"):
+            valid = np.sum(tau[None, :] < grid[:, 1, None] - 1e-9, axis=1) >= MIN_BEFORE
+        X = basis(full, grid, tau[None, :])                          # (G, L, 2, P)
         X = X.reshape(X.shape[0], 2 * len(tau), -1)
         A = np.swapaxes(X, -1, -2) @ X
         invs = {}
         for m in models:
             c = N_LINEAR[m]
             scale = np.sqrt(np.einsum("...ii->...i", A[:, :c, :c]))
+            scale = np.where(scale > 0, scale, 1.0)                  # a vanishing column (an invalid grid value)
             An = A[:, :c, :c] / scale[:, :, None] / scale[:, None, :] + 1e-12 * np.eye(c)
             invs[m] = np.linalg.inv(An) / scale[:, :, None] / scale[:, None, :]
-        out[full] = (X, invs)
+        G, K, P = X.shape
+        flat = np.ascontiguousarray(X.transpose(1, 0, 2).reshape(K, G * P))  # (2L, G·P): one BLAS product fits all
+        out[full] = (X, invs, valid, flat)
     return out
 
 
@@ -253,14 +297,15 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
     idx = np.arange(T)
     out = {}
     for full, models in FULL:
-        X, invs = shared[full]
+        X, invs, valid, flat = shared[full]
         G, K, P = X.shape
-        b = (zf @ X.transpose(1, 0, 2).reshape(K, G * P)).reshape(T, G, P)   # one BLAS product: BᵀWz
+        b = (zf @ flat).reshape(T, G, P)                                       # one BLAS product: BᵀWz
         for m in models:
             c = N_LINEAR[m]
             bc = np.ascontiguousarray(b[..., :c].transpose(1, 2, 0))          # (G, c, T)
             theta = (invs[m] @ bc).transpose(2, 0, 1)                         # (T, G, c)
             rss = np.maximum(zz[:, None] - np.einsum("tgp,tgp->tg", theta, b[..., :c]), 0.0)
+            rss = np.where(valid, rss, zz[:, None])                           # an invalid grid value fits nothing
             order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
                      else np.arange(rss.shape[1]))
             g = _pick(rss, order)
@@ -268,13 +313,6 @@ def _fit_group(tau: np.ndarray, z: np.ndarray) -> dict:
             resid = zf - np.einsum("tkp,tp->tk", X[g][:, :, :c], th)     # (T, 2L) at the chosen grid values
             out[m] = (g, th, rss[idx, g], invs[m][g], resid)
     return out
-
-
-def _effective_share(resid: np.ndarray) -> float:
-    """f = (1 − ρ)/(1 + ρ) of the residuals (n, 2) (ρ ≥ 0 their lag-1 autocorrelation over both axes), ≥ 1/n."""
-    num, den = float(np.sum(resid[:-1] * resid[1:])), float(np.sum(resid * resid))
-    rho = min(max(num / den, 0.0), 1.0) if den > 1e-24 * len(resid) else 0.0
-    return max((1 - rho) / (1 + rho), 1.0 / len(resid))
 
 
 @lru_cache(maxsize=64)
@@ -294,10 +332,9 @@ def line_direction(z: np.ndarray) -> np.ndarray:
     return u if float((z[-1] - z[0]) @ u) >= 0 else -u
 
 
-def _rotation(model: str, u: np.ndarray) -> np.ndarray:
+def _rotation(model: str, rot: np.ndarray) -> np.ndarray:
     """R (P, P) taking θ from a track's own frame (û = +x, n = +y) to the world: each 2-vector of θ
-    (p₀, v₀, a₀) rotates by û, the scalars (β, A) stay."""
-    rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+    (p₀, v₀, a₀) rotates by ``rot`` (2, 2) = [û, Jû], the scalars (β, A) stay."""
     R = np.eye(N_LINEAR[model])
     for j in VECTORS[model]:
         R[j:j + 2, j:j + 2] = rot
@@ -330,43 +367,69 @@ def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope())
     k = np.array([N_PARAMS[m] for m in LIBRARY])
     thresholds = np.array([0.0] + [lr_threshold(int(kk - 4), level, len(LIBRARY) - 1) for kk in k[1:]])
     for members in groups.values():
-        fits = _fit_group(local[members[0]][3], np.array([local[i][4] for i in members]))
+        z = np.array([local[i][4] for i in members])
+        fits = _fit_group(local[members[0]][3], z)
+        stats = _criteria(fits, z, k)
         for row, i in enumerate(members):
-            out[i] = _select(fits, row, local[i], k, thresholds, envelope)
+            out[i] = _select(fits, row, local[i], k, thresholds, envelope, [a[row] for a in stats])
     return out
 
 
-def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope) -> LibraryFit:
-    """One track's selection and entries (module docstring, selection) from its group's fits."""
-    t_ref, centre, u, tau, zl = track
-    N = 2 * len(tau)
-    rss = np.array([fits[m][2][row] for m in LIBRARY])
-    rss = np.maximum(rss, 1e-18 * max(float(np.sum(zl * zl)), 1e-6))  # rounding-level RSS never chooses
-    local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
-    f = _effective_share(fits[LIBRARY[int(np.argmin(rss))]][4][row].reshape(-1, 2))
-    stat = f * N * np.log(rss[0] / rss)                                # Eq. (1)
-    bic = f * N * np.log(rss / N) + k * np.log(f * N)
+def _criteria(fits: dict, z: np.ndarray, k: np.ndarray) -> tuple:
+    """Per track of a group (z (T, L, 2) its local positions) and entry: f (T,), the statistic D of
+    Eq. (1), BIC and σ² (T, M+1) — the selection's arithmetic for all tracks at once."""
+    T, L = z.shape[:2]
+    N = 2 * L
+    rss = np.stack([fits[m][2] for m in LIBRARY], axis=1)             # (T, M+1)
+    floor = 1e-18 * np.maximum(np.sum(z.reshape(T, -1) ** 2, axis=1), 1e-6)
+    rss = np.maximum(rss, floor[:, None])                              # rounding-level RSS never chooses
+    best = np.argmin(rss, axis=1)
+    resid = np.stack([fits[m][4] for m in LIBRARY])[best, np.arange(T)].reshape(T, L, 2)
+    num = np.sum(resid[:, :-1] * resid[:, 1:], axis=(1, 2))
+    den = np.sum(resid * resid, axis=(1, 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.where(den > 1e-24 * L, np.clip(num / den, 0.0, 1.0), 0.0)
+    f = np.maximum((1 - rho) / (1 + rho), 1.0 / L)                     # f = (1 − ρ)/(1 + ρ), ≥ 1/n
+    stat = f[:, None] * N * np.log(rss[:, :1] / rss)                   # Eq. (1)
+    bic = f[:, None] * N * np.log(rss / N) + k * np.log(f[:, None] * N)
     sigma2 = rss / np.maximum(N - k, 1.0)
-    built, ok, described = [], np.ones(len(LIBRARY), bool), []
-    for j, (m, hyper, theta, inv) in enumerate(local):
-        R = _rotation(m, u)
-        th = R @ theta
-        th[:2] += centre
-        hyper = hyper.copy()
-        hyper[3:5] = R[:2, :2] @ hyper[3:5]                            # the line's direction in the world
-        label, stop, rates, inside = _describe(m, hyper, th, float(tau[0]), env, math.sqrt(sigma2[j]))
+    return f, stat, bic, sigma2
+
+
+def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope, crit) -> LibraryFit:
+    """One track's selection and entries (module docstring, selection) from its group's fits and its
+    row of :func:`_criteria`."""
+    t_ref, centre, u, tau, zl = track
+    f, stat, bic, sigma2 = crit
+    f = float(f)
+    local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
+    ok, described = np.ones(len(LIBRARY), bool), []
+    for j, (m, hyper, theta, inv) in enumerate(local):  # in the track's own frame: labels and rates are invariant
+        label, stop, rates, inside = _describe(m, hyper, theta, float(tau[0]), env, math.sqrt(sigma2[j]))
         ok[j] = inside
-        described.append((label, rates))
-        built.append((m, hyper, th, R, inv, stop))
+        described.append((label, rates, stop, 0.0 if label == "reverse" else float("inf")))
     passing = ok & (stat > thresholds)
     passing[0] = True
     cand = np.flatnonzero(passing)
     best = int(cand[simplest_within(bic[cand], k[cand])])
+    lane = LIBRARY.index("lane")
+    if LIBRARY[best] in ("turn", "turn_accel") and passing[lane] and bic[lane] <= bic[best] + TURN_OVER_LANE:
+        best = lane                                                    # a turn needs strong evidence over a lane change
     wts = np.where(ok, np.exp(-0.5 * (bic - bic[ok].min())), 0.0)
     wts /= wts.sum()
     order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
-    ents = tuple(Entry(built[j][0], built[j][1], built[j][2], sigma2[j] / f * (built[j][3] @ built[j][4] @ built[j][3].T),
-                       float(wts[j]), built[j][5]) for j in order)
+    rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+    ents = []
+    for j in order:                                                    # to the world: the entries kept only
+        m, hyper, theta, inv = local[j]
+        R = _rotation(m, rot)
+        th = R @ theta
+        th[:2] += centre
+        hyper = hyper.copy()
+        hyper[3:5] = rot @ hyper[3:5]                                  # the line's direction in the world
+        ents.append(Entry(m, hyper, th, sigma2[j] / f * (R @ inv @ R.T), float(wts[j]), described[j][2],
+                          described[j][3]))
+    ents = tuple(ents)
     return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
                       np.asarray(described[best][1], dtype=np.float64))
 
@@ -391,6 +454,8 @@ def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: 
                 return "brake", t_star, (-abs(beta), 0.0), True
             return "reverse", float("inf"), (abs(beta), 0.0), True
         return "accelerate", float("inf"), (abs(beta), 0.0), abs(beta) <= env.max_speedup
+    if model in ("kink", "ramp"):
+        return "settled", float("inf"), (0.0, 0.0), True
     omega = float(hyper[0])
     if model in ("turn", "turn_accel"):
         beta = float(theta[4:6] @ v) / max(speed, 1e-9) if model == "turn_accel" else 0.0
@@ -401,6 +466,23 @@ def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: 
     return "lane_change", float("inf"), (0.0, 0.0), inside
 
 
+def forecast_basis(model: str, hyper, tau, stop, coast) -> np.ndarray:
+    """B (…, K, 2, P) of a forecast at tau (…, K) [s]: the entry's basis at min(τ, stop) (a braking entry
+    stays at its stop), continued beyond ``coast`` c (a ``line`` entry only) at the speed it has there,
+    B(c) + (τ − c) dB/dτ(c) — a reversal is forecast at its present (backward) speed, not accelerating on."""
+    tau = np.minimum(np.asarray(tau, dtype=np.float64), stop)
+    c = np.minimum(tau, coast)
+    B = basis(model, hyper, c)
+    extra = tau - c
+    if model == "line" and np.any(extra > 0):
+        h = np.asarray(hyper, dtype=np.float64)
+        B[..., 0, 2] += extra
+        B[..., 1, 3] += extra
+        B[..., 0, 4] += h[..., 3, None] * c * extra
+        B[..., 1, 4] += h[..., 4, None] * c * extra
+    return B
+
+
 def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     """Mean (K, 2) [m] and covariance (K, 2, 2) [m²] of the position at tau (K,) ≥ 0 [s] after
     ``fit.t_ref``: the selected entry's, plus the entries' BIC-weighted spread about it (module
@@ -408,7 +490,7 @@ def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     tau = np.asarray(tau, dtype=np.float64)
     means = []
     for e in fit.entries:
-        B = basis(e.model, e.hyper, np.minimum(tau, e.stop))            # (K, 2, P)
+        B = forecast_basis(e.model, e.hyper, tau, e.stop, e.coast)      # (K, 2, P)
         means.append(B @ e.theta)
         if len(means) == 1:
             cov = np.einsum("kip,pq,kjq->kij", B, e.cov, B)
@@ -427,16 +509,17 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
     mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
     if T == 0:
         return mean, cov
-    rows = [(i, j, e) for i, f in enumerate(fits) for j, e in enumerate(f.entries)]
-    mus = {}
-    for m in LIBRARY:
-        sel = [(i, j, e) for i, j, e in rows if e.model == m]
-        if not sel:
-            continue
+    buckets = {}
+    for i, f in enumerate(fits):
+        for j, e in enumerate(f.entries):
+            buckets.setdefault(e.model, []).append((i, j, e))
+    others = []                                                        # (track, weight, mean (K, 2))
+    for m, sel in buckets.items():
         idx = np.array([i for i, _, _ in sel])
         hyper = np.array([e.hyper for *_, e in sel])
         stop = np.array([e.stop for *_, e in sel])
-        B = basis(m, hyper, np.minimum(tau[idx], stop[:, None]))          # (E, K, 2, P)
+        coast = np.array([e.coast for *_, e in sel])
+        B = forecast_basis(m, hyper, tau[idx], stop[:, None], coast[:, None])  # (E, K, 2, P)
         theta = np.array([e.theta for *_, e in sel])
         mu = np.einsum("ekcp,ep->ekc", B, theta)
         first = np.array([j == 0 for _, j, _ in sel])
@@ -444,12 +527,11 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
             covs = np.array([e.cov for (_, j, e) in sel if j == 0])
             Bf = B[first]
             cov[idx[first]] = np.einsum("ekip,epq,ekjq->ekij", Bf, covs, Bf)
-        for r, (i, j, e) in enumerate(sel):
-            mus[(i, j)] = (mu[r], e.weight)
-    for i, f in enumerate(fits):
-        mean[i] = mus[(i, 0)][0]
-        for j in range(1, len(f.entries)):
-            m, w = mus[(i, j)]
-            d = m - mean[i]
-            cov[i] += w * d[:, :, None] * d[:, None, :]
+            mean[idx[first]] = mu[first]
+        others += [(i, e.weight, mu[r]) for r, (i, j, e) in enumerate(sel) if j > 0]
+    if others:                                                         # the selected entries' spread, Σ w d dᵀ
+        i = np.array([o[0] for o in others])
+        d = np.array([o[2] for o in others]) - mean[i]                 # (O, K, 2)
+        w = np.array([o[1] for o in others])
+        np.add.at(cov, i, w[:, None, None, None] * d[..., :, None] * d[..., None, :])
     return mean, cov

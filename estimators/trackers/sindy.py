@@ -4,14 +4,16 @@ update), with each confirmed track's motion model identified over a manoeuvre li
 Identification ``library`` (the default): every track due in a frame (≥ ``min_samples`` in the window,
 last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`` caps them) is
 identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
-speeding up, reversing, turn (with or without a speed change), lane change — selected by a
-likelihood-ratio test at ``selection_level`` against constant velocity and then by BIC, from the
-positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
+speeding up, reversing, turn (with or without a speed change), lane change, a settled speed change or
+velocity step — selected by a likelihood-ratio test at ``selection_level`` against constant velocity
+and then by BIC, from the positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
 plus ``accel_psd`` white acceleration noise from the fit's last sample), its disc radii scaled by
 ``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
 its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
-lane change or a reversal); the reported ``model`` is the manoeuvre's name. Below ``min_speed`` a track
-stays CV. Identification ``ensemble``: steps 2–6 below.
+lane change, a reversal or a settled track); the reported ``model`` is the manoeuvre's name. Below
+``min_speed`` a track's filter stays CV, and a turn or lane change fit is not followed (a heading is
+unobservable there); a straight-line fit (braking, reversing through zero speed) still forecasts.
+Identification ``ensemble``: steps 2–6 below.
 
 Per frame, on top of :mod:`estimators.trackers.kalman`:
 1. Every confirmed track keeps its history of (t, z, R, ĝ, y) — the measurements it was updated with —
@@ -88,12 +90,12 @@ MEMBER_SPREAD = 0.0
 MAX_SPEEDUP = 3.0  # [m/s²] ≈ 0.3 g: the upper range of everyday driving's acceleration (module docstring, 3)
 MAX_LATERAL = 5.0  # [m/s²] ≈ 0.5 g: a brisk junction turn; beyond it, harsh cornering
 # Per-model disc factors of library forecasts: split-conformal on the calibration split (seed 1, 20 cars per class,
-# straight cars and the others during their manoeuvre; `benchmarks/bicycle_forecasts.py --calibrate --per-class 20`:
-# cv 0.86 of 327 forecasts, cv_uncertain 1.80 of 106, accelerate 1.05 of 150, brake 2.01 of 137, turn 1.85 of 190).
-# reverse (1 forecast) and lane_change (2) had fewer than the 9 a 90 % split-conformal quantile needs: they take the
-# largest of the others.
-INTERVAL_FACTORS = {"cv": 0.86, "cv_uncertain": 1.80, "brake": 2.01, "accelerate": 1.05, "reverse": 2.01, "turn": 1.85,
-                    "lane_change": 2.01}
+# the manoeuvring cars during their manoeuvre; `benchmarks/bicycle_forecasts.py --calibrate --per-class 20`:
+# cv 2.69 of 63 forecasts, cv_uncertain 1.99 of 68, accelerate 0.88 of 138, brake 1.62 of 129, turn 1.28 of 129,
+# lane_change 2.12 of 50, settled 3.19 of 52). reverse (5 forecasts) had fewer than the 9 a 90 % split-conformal
+# quantile needs: it takes the largest of the others.
+INTERVAL_FACTORS = {"cv": 2.69, "cv_uncertain": 1.99, "brake": 1.62, "accelerate": 0.88, "reverse": 3.19, "turn": 1.28,
+                    "lane_change": 2.12, "settled": 3.19}
 
 
 class SindyParams(KalmanParams):
@@ -121,7 +123,8 @@ class SindyParams(KalmanParams):
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
                                                                  "model with probability ≈ α")
-    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change"],
+    interval_factors: dict[Literal["cv", "cv_uncertain", "brake", "accelerate", "reverse", "turn", "lane_change",
+                                 "settled"],
                            Scale] = Field(
         default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
         "library-identified track by its model ('cv_uncertain': CV selected with less than half the BIC weight, "
@@ -416,7 +419,7 @@ class SindyTracker(KalmanTracker):
         for tr, fit in zip(due, fits):
             tr.fitted_frame, tr.identified = self._frame, None
             speed = float(np.linalg.norm(tr.x[2:]))
-            if speed < p.min_speed:  # turn and acceleration unobservable: the Kalman CV forecast
+            if speed < p.min_speed and fit.label in ("turn", "lane_change"):  # a heading's turn is unobservable
                 tr.library, tr.motion = None, CV
                 continue
             tr.library = fit

@@ -110,3 +110,24 @@ def test_interval_scale_multiplies_the_disc_radii():
     np.testing.assert_allclose(scaled.radius50, 0.5 * base.radius50)
     np.testing.assert_allclose(scaled.radius90, 2.0 * base.radius90)
     np.testing.assert_array_equal(scaled.forecast, base.forecast)
+
+
+def test_disc_radius_from_its_table_start_solves_eq_1_for_any_shape_and_probability():
+    # λ₂/λ₁ from 0 (a line) to 1 (isotropic), probabilities from the table (two) and more than it holds
+    # (the bracket-midpoint start): P(|X| ≤ r) of Eq. (1) equals the probability asked for
+    lam1 = np.array([4.0, 4.0, 1.0, 9.0, 0.25, 2.0])
+    lam2 = np.array([0.0, 1e-6, 0.3, 9.0, 0.2, 1.0])
+    cov = np.zeros((6, 2, 2))
+    cov[:, 0, 0], cov[:, 1, 1] = lam1, lam2
+    for prob in (np.array([0.5, 0.9])[:, None], np.linspace(0.05, 0.95, 19)[:, None]):
+        r = disc_radius(cov[None], prob)
+        assert np.allclose(disc_probability(r, lam1, lam2), np.broadcast_to(prob, r.shape), atol=1e-10)
+
+
+def test_a_motions_cached_transition_is_a_copy():
+    from estimators.trackers.forecast import LinearMotion
+
+    m = LinearMotion(np.array([[0.0, -0.3], [0.3, 0.0]]), np.zeros((1, 2, 2)))
+    a = m.transition(0.1)
+    a[:] = 0.0
+    assert np.allclose(m.transition(0.1)[:2, :2], np.eye(2))
