@@ -450,9 +450,13 @@ def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope(),
         fits = _fit_group(tau, z)
         T = len(members)
         radial = {"rss": np.zeros((T, len(LIBRARY))), "m": np.zeros(T), "lam": np.zeros(T), "resid": [None] * T}
+        patterns = {}                                                  # Doppler tracks by their samples' indices
         for row, i in enumerate(members):
             if local[i][5] is not None:
-                _fit_doppler(fits, radial, row, tau, z[row], local[i][5], k)
+                patterns.setdefault(local[i][5][0].tobytes(), []).append(row)
+        for rows in patterns.values():
+            rows = np.array(rows)
+            _fit_doppler(fits, radial, rows, tau, z[rows], [local[members[r]][5] for r in rows], k)
         stats = _criteria(fits, z, k, radial, radial_share)
         for row, i in enumerate(members):
             out[i] = _select(fits, row, local[i], k, thresholds, envelope, [a[row] for a in stats])
@@ -476,62 +480,99 @@ def _radial_rows(i: int, track, n: int, rot: np.ndarray, floor: float):
     if len(ok) < MIN_RADIAL:
         return None
     sigma_r = max(_radial_sigma(y), floor)
-    return ok, (g[ok] / norm[:, None]) @ rot, y[ok], sigma_r, floor
+    return ok.astype(np.int64), (g[ok] / norm[:, None]) @ rot, y[ok], sigma_r, floor
 
 
-def _fit_doppler(fits: dict, radial: dict, row: int, tau: np.ndarray, z: np.ndarray, rows, k: np.ndarray) -> None:
-    """Refit track ``row`` of a group (local positions z (L, 2)) with its radial rows λ(ĝᵀ Ḃ(τ) θ − y)
-    stacked under the position rows, over every grid value at once; its entries in ``fits`` and
-    ``radial`` (RSS_r, m, λ, the radial residuals) are replaced. λ = σ_p/σ_r [s] (module docstring,
-    Doppler) as in :mod:`estimators.trackers.sindy_model`: first σ_p of the best position-only fit and σ_r
-    of the radial velocities' successive differences; then, refitted, the residual RMS of each kind of
-    the entry that fits best (σ_r at least the floor)."""
-    idx, g, y, sigma_r, floor = rows
-    L = len(tau)
-    N, n_r = 2 * L, len(idx)
-    rss_pos = np.array([fits[m][2][row] for m in LIBRARY])
-    j = int(np.argmin(rss_pos))
-    tiny = 1e-18 * max(float(np.sum(z * z)), 1e-6) / N
-    lam = math.sqrt(max(rss_pos[j] / max(N - k[j], 1.0), tiny)) / sigma_r
-    zf = z.reshape(-1)
-    shared = _shared(np.ascontiguousarray(tau).tobytes())
-    designs = {}
+@lru_cache(maxsize=32)
+def _radial_basis(tau_key: bytes, idx_key: bytes) -> dict:
+    """Per full entry dB/dτ (G, m, 2, P) at the samples ``idx`` of the sample-time pattern τ (keys: their
+    bytes), and XᵀX (G, P, P) of its position design: shared by the tracks of that pattern (read-only)."""
+    tau = np.frombuffer(tau_key, dtype=np.float64)
+    idx = np.frombuffer(idx_key, dtype=np.int64)
+    shared = _shared(tau_key)
+    out = {}
     for full, _ in FULL:
-        D = velocity_basis(full, _grid(full), tau[idx][None, :])
-        designs[full] = np.einsum("mc,gmcp->gmp", g, D)                # (G, m, P): ĝᵀ dB/dτ
+        X = shared[full][0]
+        out[full] = (_readonly(velocity_basis(full, _grid(full), tau[idx][None, :])),
+                     _readonly(np.swapaxes(X, -1, -2) @ X))
+    return out
+
+
+def _fit_doppler(fits: dict, radial: dict, rows: np.ndarray, tau: np.ndarray, z: np.ndarray, samples: list,
+                 k: np.ndarray) -> None:
+    """Refit the tracks ``rows`` of a group (local positions z (T', L, 2); their Doppler samples
+    ``samples``, all at the same sample indices) with their radial rows λ(ĝᵀ Ḃ(τ) θ − y) stacked under
+    the position rows, over every grid value and track at once; their entries in ``fits`` and ``radial``
+    (RSS_r, m, λ, the radial residuals) are replaced. λ = σ_p/σ_r [s] (module docstring, Doppler) as in
+    :mod:`estimators.trackers.sindy_model`: first σ_p of the best position-only fit and σ_r of the radial
+    velocities' successive differences; then, refitted, the residual RMS of each kind of the best joint
+    fit (σ_r at least the floor)."""
+    idx = samples[0][0]
+    g = np.array([r[1] for r in samples])                              # (T', m, 2)
+    y = np.array([r[2] for r in samples])                              # (T', m)
+    sigma_r = np.array([r[3] for r in samples])
+    floor = samples[0][4]
+    Tn, L = z.shape[:2]
+    N, n_r = 2 * L, len(idx)
+    ar = np.arange(Tn)
+    zf = z.reshape(Tn, -1)
+    zz, yy = np.sum(zf * zf, axis=1), np.sum(y * y, axis=1)
+    rss_pos = np.stack([fits[m][2][rows] for m in LIBRARY], axis=1)   # (T', M+1)
+    j = np.argmin(rss_pos, axis=1)
+    tiny = 1e-18 * np.maximum(zz, 1e-6) / N
+    lam = np.sqrt(np.maximum(rss_pos[ar, j] / np.maximum(N - k[j], 1.0), tiny)) / sigma_r
+    shared = _shared(np.ascontiguousarray(tau).tobytes())
+    basis_r = _radial_basis(np.ascontiguousarray(tau).tobytes(), np.ascontiguousarray(idx, np.int64).tobytes())
+    parts = {}
+    for full, _ in FULL:
+        X, _, valid, flat = shared[full]
+        Vb, XtX = basis_r[full]
+        G, K, P = X.shape
+        D = np.einsum("tmc,gmcp->tgmp", g, Vb, optimize=True)          # (T', G, m, P): ĝᵀ dB/dτ
+        parts[full] = (X, valid, XtX, (zf @ flat).reshape(Tn, G, P), D, np.einsum("tgmp,tgmq->tgpq", D, D, optimize=True),
+                       np.einsum("tgmp,tm->tgp", D, y, optimize=True))
     for first in (True, False):
         used, out = lam, {}
+        l2 = (lam * lam)[:, None, None]
         for full, models in FULL:
-            X, _, valid, _ = shared[full]
-            D = designs[full]
+            X, valid, XtX, Xz, D, DtD, Dy = parts[full]
             for m in models:
                 c = N_LINEAR[m]
-                Xc, Dc = X[..., :c], D[..., :c]
-                A = np.swapaxes(Xc, -1, -2) @ Xc + lam * lam * np.swapaxes(Dc, -1, -2) @ Dc
-                b = np.einsum("gkp,k->gp", Xc, zf) + lam * lam * np.einsum("gmp,m->gp", Dc, y)
+                A = XtX[None, :, :c, :c] + l2[..., None] * DtD[..., :c, :c]   # (T', G, c, c)
+                bz, by = Xz[..., :c], Dy[..., :c]
                 scale = np.sqrt(np.einsum("...ii->...i", A))
                 scale = np.where(scale > 0, scale, 1.0)
-                inv = np.linalg.inv(A / scale[:, :, None] / scale[:, None, :] + 1e-12 * np.eye(c))
-                inv = inv / scale[:, :, None] / scale[:, None, :]
-                theta = np.einsum("gpq,gq->gp", inv, b)
-                rp = zf[None] - np.einsum("gkp,gp->gk", Xc, theta)
-                rr = y[None] - np.einsum("gmp,gp->gm", Dc, theta)
-                rss_p = np.where(valid, np.sum(rp * rp, axis=1), float(zf @ zf))  # an invalid grid value fits nothing
-                rss_r = np.where(valid, np.sum(rr * rr, axis=1), float(y @ y))
+                inv = np.linalg.inv(A / scale[..., :, None] / scale[..., None, :] + 1e-12 * np.eye(c))
+                inv = inv / scale[..., :, None] / scale[..., None, :]
+                theta = np.einsum("tgpq,tgq->tgp", inv, bz + l2 * by)
+                rss_p = zz[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, bz) + np.einsum(
+                    "tgp,gpq,tgq->tg", theta, XtX[:, :c, :c], theta, optimize=True)
+                rss_r = yy[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, by) + np.einsum(
+                    "tgp,tgpq,tgq->tg", theta, DtD[..., :c, :c], theta, optimize=True)
+                rss_p = np.where(valid, np.maximum(rss_p, 0.0), zz[:, None])  # an invalid grid value fits nothing
+                rss_r = np.where(valid, np.maximum(rss_r, 0.0), yy[:, None])
                 order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
                          else np.arange(len(valid)))
-                gi = int(_pick((rss_p + lam * lam * rss_r)[None], order)[0])
-                out[m] = (gi, theta[gi], rss_p[gi], inv[gi], rp[gi], rss_r[gi], rr[gi])
+                gi = _pick(rss_p + (lam * lam)[:, None] * rss_r, order)
+                th = theta[ar, gi]
+                rp = zf - np.einsum("tkp,tp->tk", X[gi][:, :, :c], th)
+                rr = y - np.einsum("tmp,tp->tm", D[ar, gi][..., :c], th)
+                out[m] = (gi, th, np.sum(rp * rp, axis=1), inv[ar, gi], rp, np.sum(rr * rr, axis=1), rr)
         if first:                                                      # λ from the best joint fit's residuals
-            best = min(LIBRARY, key=lambda m: out[m][2] + lam * lam * out[m][5])
-            lam = math.sqrt(max(out[best][2] / N, tiny)) / max(math.sqrt(out[best][5] / n_r), floor)
+            obj = np.stack([out[m][2] + lam * lam * out[m][5] for m in LIBRARY], axis=1)
+            best = np.argmin(obj, axis=1)
+            rp_best = np.stack([out[m][2] for m in LIBRARY], axis=1)[ar, best]
+            rr_best = np.stack([out[m][5] for m in LIBRARY], axis=1)[ar, best]
+            lam = np.sqrt(np.maximum(rp_best / N, tiny)) / np.maximum(np.sqrt(rr_best / n_r), floor)
     for m in LIBRARY:
         gi, th, rss_p, inv, rp, rss_r, rr = out[m]
-        fits[m][0][row], fits[m][1][row], fits[m][2][row], fits[m][3][row], fits[m][4][row] = gi, th, rss_p, inv, rp
-        radial["rss"][row, LIBRARY.index(m)] = rss_r
-        radial.setdefault("all", {})[(row, m)] = rr
-    radial["m"][row], radial["lam"][row] = n_r, used
-    radial["resid"][row] = idx
+        fits[m][0][rows], fits[m][1][rows], fits[m][2][rows], fits[m][3][rows], fits[m][4][rows] = gi, th, rss_p, inv, rp
+        radial["rss"][rows, LIBRARY.index(m)] = rss_r
+        for r, row in enumerate(rows):
+            radial.setdefault("all", {})[(int(row), m)] = rr[r]
+    radial["m"][rows], radial["lam"][rows] = n_r, used
+    for row in rows:
+        radial["resid"][int(row)] = idx
 
 
 def _criteria(fits: dict, z: np.ndarray, k: np.ndarray, radial: dict | None = None, radial_share: str = "ar1") -> tuple:
