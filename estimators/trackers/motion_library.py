@@ -542,9 +542,8 @@ def _fit_doppler(fits: dict, radial: dict, rows: np.ndarray, tau: np.ndarray, z:
                 bz, by = Xz[..., :c], Dy[..., :c]
                 scale = np.sqrt(np.einsum("...ii->...i", A))
                 scale = np.where(scale > 0, scale, 1.0)
-                inv = np.linalg.inv(A / scale[..., :, None] / scale[..., None, :] + 1e-12 * np.eye(c))
-                inv = inv / scale[..., :, None] / scale[..., None, :]
-                theta = np.einsum("tgpq,tgq->tgp", inv, bz + l2 * by)
+                An = A / scale[..., :, None] / scale[..., None, :] + 1e-12 * np.eye(c)
+                theta = np.linalg.solve(An, ((bz + l2 * by) / scale)[..., None])[..., 0] / scale
                 rss_p = zz[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, bz) + np.einsum(
                     "tgp,gpq,tgq->tg", theta, XtX[:, :c, :c], theta, optimize=True)
                 rss_r = yy[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, by) + np.einsum(
@@ -557,7 +556,9 @@ def _fit_doppler(fits: dict, radial: dict, rows: np.ndarray, tau: np.ndarray, z:
                 th = theta[ar, gi]
                 rp = zf - np.einsum("tkp,tp->tk", X[gi][:, :, :c], th)
                 rr = y - np.einsum("tmp,tp->tm", D[ar, gi][..., :c], th)
-                out[m] = (gi, th, np.sum(rp * rp, axis=1), inv[ar, gi], rp, np.sum(rr * rr, axis=1), rr)
+                sc = scale[ar, gi]                                     # (BᵀB + λ²DᵀD)⁻¹ at the chosen values only
+                inv = np.linalg.inv(An[ar, gi]) / sc[:, :, None] / sc[:, None, :]
+                out[m] = (gi, th, np.sum(rp * rp, axis=1), inv, rp, np.sum(rr * rr, axis=1), rr)
         if first:                                                      # λ from the best joint fit's residuals
             obj = np.stack([out[m][2] + lam * lam * out[m][5] for m in LIBRARY], axis=1)
             best = np.argmin(obj, axis=1)
