@@ -752,8 +752,13 @@ def predict_many(fits, tau, anchor=None) -> tuple[np.ndarray, np.ndarray]:
 
         μ(τ₀ + h) = p + v h + S(τ₀ + h) − S(τ₀) − S′(τ₀) h                                       (3)
 
-    — the CV entry forecasts exactly p + v h. A track whose p is not finite keeps its fit's own path. The
-    covariance stays the fit's."""
+    — the CV entry forecasts exactly p + v h. A braking entry (β along û, its speed falling to zero)
+    takes the filter's velocity into its own model instead, its stop from that velocity:
+
+        μ(τ₀ + h) = p + v h_e + û β h_e²/2,  h_e = min(h, max(−ûᵀv/β, 0))                            (4)
+
+    (Eq. 3 would carry on at the difference of the two velocities past the fit's stop). A track whose p
+    is not finite keeps its fit's own path. The covariance stays the fit's."""
     tau = np.asarray(tau, dtype=np.float64)
     T, K = tau.shape
     mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
@@ -780,6 +785,14 @@ def predict_many(fits, tau, anchor=None) -> tuple[np.ndarray, np.ndarray]:
             s0, v0 = np.einsum("ecp,ep->ec", B0, theta), np.einsum("ecp,ep->ec", D0, theta)
             shift = (p - s0)[:, None, :] + (v - v0)[:, None, :] * h[..., None]
             mu = mu + np.where(np.isfinite(shift), shift, 0.0)
+            if m == "line":                                            # braking: Eq. (4), its stop from v
+                brakes = np.isfinite(stop) & np.all(np.isfinite(p), axis=1)
+                u, beta = hyper[:, 3:5], theta[:, 4]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t_star = np.maximum(-np.sum(u * v, axis=1) / beta, 0.0)
+                he = np.minimum(h, t_star[:, None])
+                own = p[:, None, :] + v[:, None, :] * he[..., None] + u[:, None, :] * (beta[:, None] * he * he / 2)[..., None]
+                mu = np.where(brakes[:, None, None], own, mu)
         first = np.array([j == 0 for _, j, _ in sel])
         if first.any():
             covs = np.array([e.cov for (_, j, e) in sel if j == 0])

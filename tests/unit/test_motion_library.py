@@ -200,8 +200,9 @@ def test_radial_velocity_rows_keep_straight_tracks_constant_velocity():
 
 
 def test_an_anchored_forecast_takes_the_filter_state_and_keeps_the_shape():
-    # Eq. (3): a CV selection forecasts exactly p + v·h from the given state; a braking entry keeps its
-    # path's bend about its tangent (the difference to its own forecast is p − S(τ₀) + (v − S′(τ₀))·h)
+    # Eq. (3): a CV selection forecasts exactly p + v·h from the given state; a turn keeps its path's bend
+    # about its tangent (the difference to its own forecast is p − S(τ₀) + (v − S′(τ₀))·h); Eq. (4): a
+    # braking one takes v into its model and stops where that speed runs out at its deceleration
     t = T
     z_cv = np.c_[10.0 * t, 2.0 * t] + 0.01 * np.sin(7 * t)[:, None]
     f_cv = ml.identify_batch([(t, z_cv)])[0]
@@ -209,13 +210,23 @@ def test_an_anchored_forecast_takes_the_filter_state_and_keeps_the_shape():
     p, v, h = np.array([30.0, 5.0]), np.array([9.0, 3.0]), np.array([0.5, 1.0, 2.0])
     mean, _ = ml.predict_many([f_cv], 0.1 + h[None], (p[None], v[None], np.array([0.1])))
     assert mean[0] == pytest.approx(p + h[:, None] * v, abs=1e-9)
-    z_br = np.c_[12.0 * t - 1.5 * t ** 2, 0.0 * t] + 0.01 * np.cos(5 * t)[:, None]
-    f_br = ml.identify_batch([(t, z_br)])[0]
-    assert f_br.label == "brake"
-    own, _ = ml.predict_many([f_br], h[None])
-    at0, _ = ml.predict_many([f_br], np.array([[0.0, 1e-4]]))
-    s0, v0 = at0[0, 0], (at0[0, 1] - at0[0, 0]) / 1e-4
-    mean, _ = ml.predict_many([f_br], h[None], (p[None], v[None], np.array([0.0])))
+    w = 0.3
+    z_turn = 10.0 / w * np.c_[np.sin(w * t), 1 - np.cos(w * t)] + 0.01 * np.cos(5 * t)[:, None]
+    f_turn = ml.identify_batch([(t, z_turn)])[0]
+    assert f_turn.label == "turn"
+    own, _ = ml.predict_many([f_turn], h[None])
+    at0, _ = ml.predict_many([f_turn], np.array([[0.0, 1e-5]]))
+    s0, v0 = at0[0, 0], (at0[0, 1] - at0[0, 0]) / 1e-5
+    mean, _ = ml.predict_many([f_turn], h[None], (p[None], v[None], np.array([0.0])))
     assert mean[0] == pytest.approx(own[0] + (p - s0) + h[:, None] * (v - v0), abs=1e-3)
     nan = np.full((1, 2), np.nan)                                  # not anchored: the fit's own forecast
-    assert ml.predict_many([f_br], h[None], (nan, nan, np.array([0.0])))[0] == pytest.approx(own)
+    assert ml.predict_many([f_turn], h[None], (nan, nan, np.array([0.0])))[0] == pytest.approx(own)
+    z_br = np.c_[12.0 * t - 1.5 * t ** 2, 0.0 * t] + 0.01 * np.cos(5 * t)[:, None]
+    f_br = ml.identify_batch([(t, z_br)])[0]
+    assert f_br.label == "brake" and f_br.rates[0] == pytest.approx(-3.0, abs=0.05)
+    vb = np.array([4.5, 0.0])                                      # the filter's: 1.5 s to a standstill at −3 m/s²
+    mean, _ = ml.predict_many([f_br], h[None], (p[None], vb[None], np.array([0.0])))
+    u, beta = f_br.entries[0].hyper[3:5], f_br.entries[0].theta[4]
+    he = np.minimum(h, max(-(u @ vb) / beta, 0.0))
+    assert mean[0] == pytest.approx(p + he[:, None] * vb + u * (beta * he ** 2 / 2)[:, None], abs=1e-9)
+    assert mean[0, -1] == pytest.approx(p + [4.5 ** 2 / 6, 0.0], abs=0.05)  # at rest after 4.5²/(2·3) m
