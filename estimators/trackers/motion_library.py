@@ -752,13 +752,15 @@ def predict_many(fits, tau, anchor=None) -> tuple[np.ndarray, np.ndarray]:
 
         μ(τ₀ + h) = p + v h + S(τ₀ + h) − S(τ₀) − S′(τ₀) h                                       (3)
 
-    — the CV entry forecasts exactly p + v h. A braking entry (β along û, its speed falling to zero)
-    takes the filter's velocity into its own model instead, its stop from that velocity:
+    — the CV entry forecasts exactly p + v h. An entry that brakes to a standstill (``line`` with a stop,
+    β along û; ``turn_accel`` whose a₀ has a part β < 0 along v₀) reaches it when the filter's speed runs
+    out, and stays there (Eq. 3 would carry on at the difference of the two velocities past the fit's
+    stop, and a braking turn's basis would reverse):
 
-        μ(τ₀ + h) = p + v h_e + û β h_e²/2,  h_e = min(h, max(−ûᵀv/β, 0))                            (4)
+        μ(τ₀ + h) = μ₃(τ₀ + h_e),  h_e = min(h, t*),  t* = max(−ûᵀv/β, 0) (line), |v|/|β| (turn)    (4)
 
-    (Eq. 3 would carry on at the difference of the two velocities past the fit's stop). A track whose p
-    is not finite keeps its fit's own path. The covariance stays the fit's."""
+    with μ₃ Eq. (3) on the entry's basis without its own stop (for ``line``: p + v h_e + û β h_e²/2). A
+    track whose p is not finite keeps its fit's own path. The covariance stays the fit's."""
     tau = np.asarray(tau, dtype=np.float64)
     T, K = tau.shape
     mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
@@ -785,14 +787,25 @@ def predict_many(fits, tau, anchor=None) -> tuple[np.ndarray, np.ndarray]:
             s0, v0 = np.einsum("ecp,ep->ec", B0, theta), np.einsum("ecp,ep->ec", D0, theta)
             shift = (p - s0)[:, None, :] + (v - v0)[:, None, :] * h[..., None]
             mu = mu + np.where(np.isfinite(shift), shift, 0.0)
-            if m == "line":                                            # braking: Eq. (4), its stop from v
-                brakes = np.isfinite(stop) & np.all(np.isfinite(p), axis=1)
-                u, beta = hyper[:, 3:5], theta[:, 4]
+            if m in ("line", "turn_accel"):                            # braking: Eq. (4), its stop from v
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    t_star = np.maximum(-np.sum(u * v, axis=1) / beta, 0.0)
-                he = np.minimum(h, t_star[:, None])
-                own = p[:, None, :] + v[:, None, :] * he[..., None] + u[:, None, :] * (beta[:, None] * he * he / 2)[..., None]
-                mu = np.where(brakes[:, None, None], own, mu)
+                    if m == "line":
+                        u, beta = hyper[:, 3:5], theta[:, 4]
+                        brakes = np.isfinite(stop)
+                        t_star = np.maximum(-np.sum(u * v, axis=1) / beta, 0.0)
+                    else:                                              # the tangential part of a₀ along v₀
+                        beta = np.sum(theta[:, 4:6] * theta[:, 2:4], axis=1) / np.linalg.norm(theta[:, 2:4], axis=1)
+                        brakes = beta < 0
+                        t_star = np.linalg.norm(v, axis=1) / -beta
+                brakes &= np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(v), axis=1)
+                if brakes.any():
+                    he = np.minimum(h, np.where(brakes, t_star, 0.0)[:, None])
+                    Bu = basis(m, hyper, t0[:, None] + he)             # (E, K, 2, P), without the fit's own stop
+                    B0u, D0u = basis(m, hyper, t0[:, None])[:, 0], velocity_basis(m, hyper, t0[:, None])[:, 0]
+                    bend = (np.einsum("ekcp,ep->ekc", Bu, theta) - np.einsum("ecp,ep->ec", B0u, theta)[:, None]
+                            - np.einsum("ecp,ep->ec", D0u, theta)[:, None] * he[..., None])
+                    own = p[:, None, :] + v[:, None, :] * he[..., None] + bend
+                    mu = np.where(brakes[:, None, None], own, mu)
         first = np.array([j == 0 for _, j, _ in sel])
         if first.any():
             covs = np.array([e.cov for (_, j, e) in sel if j == 0])

@@ -230,3 +230,21 @@ def test_an_anchored_forecast_takes_the_filter_state_and_keeps_the_shape():
     he = np.minimum(h, max(-(u @ vb) / beta, 0.0))
     assert mean[0] == pytest.approx(p + he[:, None] * vb + u * (beta * he ** 2 / 2)[:, None], abs=1e-9)
     assert mean[0, -1] == pytest.approx(p + [4.5 ** 2 / 6, 0.0], abs=0.05)  # at rest after 4.5²/(2·3) m
+
+
+def test_an_anchored_braking_turn_comes_to_rest_instead_of_reversing():
+    # Eq. (4) for a turn with a speed change: 10 m/s at 0.3 rad/s braking at 3 m/s²; from a filter state at
+    # 3 m/s the forecast comes to rest after 1 s (its basis alone would run the turn backwards)
+    dt = 0.001
+    tt = np.arange(0, 2.9 + dt / 2, dt)
+    speed, psi = 10.0 - 3.0 * tt, 0.3 * tt
+    path = np.cumsum(np.c_[speed * np.cos(psi), speed * np.sin(psi)] * dt, axis=0)
+    z = path[::100] + 0.01 * np.cos(5 * T)[:, None]
+    fit = ml.identify_batch([(T, z)])[0]
+    assert fit.entries[0].model == "turn_accel" and fit.rates[0] == pytest.approx(-3.0, abs=0.3)
+    p, v = z[-1], 3.0 * np.array([np.cos(0.87), np.sin(0.87)])
+    h = np.array([0.5, 1.0, 1.5, 2.0])
+    mean, _ = ml.predict_many([fit], h[None], (p[None], v[None], np.array([0.0])))
+    assert mean[0, 2] == pytest.approx(mean[0, 1], abs=1e-9) and mean[0, 3] == pytest.approx(mean[0, 1], abs=1e-9)
+    d = mean[0, 1] - p                                               # about 3²/(2·3) = 1.5 m ahead, at rest
+    assert 1.2 < np.linalg.norm(d) < 1.6 and d @ v / (np.linalg.norm(d) * 3.0) > 0.9
