@@ -12,7 +12,7 @@ velocities of the track's updates (motion_library, Doppler; ``radial_share``, σ
 (``braking_evidence`` for braking) is demoted to CV (:func:`estimators.trackers.motion_library.demote`),
 as in step 3 below. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict_many`,
 plus ``accel_psd`` white acceleration noise from the fit's last sample) — started from the filter's
-position and velocity, the fit's path kept about its tangent (Eq. 3 there: the CV entry forecasts as
+position and velocity, the fit's path kept about its tangent (Eqs. 3–4 there: the CV entry forecasts as
 ``kalman``), where ``library_origin`` says so ("doppler", the default: when the track has radial
 velocities in its window, whose filter measures the velocity directly; the window fit's own level and
 slope carry a reconstructed car's wandering centroid) — its disc radii scaled by
