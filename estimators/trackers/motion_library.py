@@ -51,6 +51,25 @@ followed extrapolates a rotation that the lane change's heading gives back (the 
 calibration split, seed 1, of ``benchmarks/bicycle_forecasts.py``). Entries outside the road users'
 envelope (``Envelope``) do not compete.
 
+Doppler (a track given as (t, z, ĝ, y)). A hidden point's radial velocity y_i = ĝ_iᵀ dp/dτ(τ_i) + noise
+(ĝ_i the unit mirrored line of sight; NaN: none) is linear in θ for every entry, through the derivative
+of its basis (:func:`velocity_basis`): the rows λ(ĝ_iᵀ Ḃ(τ_i)θ − y_i) are stacked under the position rows
+(at least ``MIN_RADIAL`` of them), and every grid value of every entry is refitted with them at once.
+The weight λ = σ_p/σ_r [s] is :mod:`estimators.trackers.sindy_model`'s: first σ_p of the best
+position-only fit over σ_r of the radial velocities' successive differences (robust), then, refitted,
+the residual RMS of each kind of the best joint fit; σ_r is floored at the caller's ``radial_floor``
+(the tracker's ``doppler_floor``, the least radial SD its filter assumes). A track's velocity then comes
+from measured radial velocities where the positions give it only through differences of a wandering
+centroid (a braking's deceleration shows in the radial velocities' ramp). The selection adds the radial
+terms with their own variance profiled out, f_r the share of independent radial residuals (``radial_share``:
+"ar1" from their lag-1 autocorrelation over adjacent samples, "full" 1, as in sindy_model):
+
+    D_m = f N ln(RSS_cv/RSS_m) + f_r m ln(RSS_r,cv/RSS_r,m),
+    BIC_m = f N ln(RSS_m/N) + f_r m ln(RSS_r,m/m) + k_m ln(f N + f_r m)                        (2)
+
+(RSS_r the radial residuals' sum of squares [m²/s²], m their number), and Σ_θ = σ² (AᵀA)⁻¹/f of the
+weighted design A with σ² = (RSS + λ² RSS_r)/(N + m − k).
+
 Hand-written on numpy rather than with pysindy: pysindy fits one system at a time (an sklearn estimator
 per fit, 6–17 ms a track with the ensemble's refits, ``benchmarks/tracking_speed.md``), where the batched
 normal equations here fit every track of a frame in one matrix product per entry; with a library this
@@ -60,6 +79,11 @@ Forecast (:func:`predict`, :func:`predict_many` for many tracks at once): the se
 (σ² = RSS/(N − k)), plus the model-selection uncertainty Σ_j w_j (μ_j − μ)(μ_j − μ)ᵀ over the entries
 with BIC weights w_j ∝ exp(−BIC_j/2) (Schwarz weights; Burnham & Anderson 2002, §6.4). A braking
 entry's τ is cut at its stop; a reversal's goes on at its present speed (:func:`forecast_basis`).
+Anchored (``predict_many``'s ``anchor``: a filter's position p and velocity v at the forecast's origin
+τ₀): each entry's path keeps its shape about its own tangent at τ₀ and starts from (p, v), Eq. (3) of
+:func:`predict_many` — the CV entry then forecasts exactly p + v h. A tracker whose filter measures the
+velocity directly (Doppler) starts the forecast from its state, where the window fit's level and slope
+carry the wander of a reconstructed car's points.
 """
 from __future__ import annotations
 
@@ -121,7 +145,8 @@ class LibraryFit:
     """A track's identification: ``label`` (cv, brake, accelerate, reverse, turn, lane_change, settled),
     t_ref [s] (its last sample), ``entries`` (the selected one first, then the others for the mixture), sigma [m]
     (the selected entry's per-axis residual SD), ``statistic`` D of Eq. (1) of the selected entry (0 for
-    CV), ``rates`` (β [m/s²] tangential, ω [rad/s]) for a linear filter."""
+    CV), ``rates`` (β [m/s²] tangential, ω [rad/s]) for a linear filter, ``evidence`` BIC(CV) − BIC(selected)
+    (0 for CV)."""
 
     label: str
     t_ref: float
@@ -129,6 +154,7 @@ class LibraryFit:
     sigma: float
     statistic: float
     rates: np.ndarray
+    evidence: float = 0.0
 
     @property
     def interval_key(self) -> str:
@@ -141,7 +167,7 @@ class LibraryFit:
 
     def to_dict(self) -> dict:
         return {"label": self.label, "t_ref": float(self.t_ref), "sigma": float(self.sigma),
-                "statistic": float(self.statistic), "rates": self.rates.tolist(),
+                "statistic": float(self.statistic), "rates": self.rates.tolist(), "evidence": float(self.evidence),
                 "entries": [{"model": e.model, "hyper": e.hyper.tolist(), "theta": e.theta.tolist(),
                              "cov": e.cov.tolist(), "weight": float(e.weight),
                              "stop": None if np.isinf(e.stop) else float(e.stop),
@@ -166,8 +192,9 @@ class LibraryFit:
                                  float("inf") if coast is None else e.number("coast")))
         if not entries:
             raise InputError(f"{r.where}: entries must hold at least the selected model")
+        evidence = r.number("evidence") if r.data.get("evidence") is not None else 0.0  # absent in older checkpoints
         return cls(r.text("label"), r.number("t_ref"), tuple(entries), r.number("sigma"), r.number("statistic"),
-                   r.array("rates", (2,)))
+                   r.array("rates", (2,)), evidence)
 
 
 def _kernels(omega, tau):
@@ -216,6 +243,40 @@ def basis(model: str, hyper, tau) -> np.ndarray:
         out[..., 0, 3], out[..., 1, 3] = -uy * g, ux * g
     return out
 
+
+
+def velocity_basis(model: str, hyper, tau) -> np.ndarray:
+    """dB/dτ (…, L, 2, P) [1/s on the p₀ columns: 0] of entry ``model`` at tau (…, L) [s]: the velocity
+    dp/dτ = (dB/dτ) θ, the rows of a radial velocity y = ĝᵀ dp/dτ (module docstring, Doppler). Closed
+    forms of the derivatives of :func:`basis` (a′ = cos ωτ, b′ = sin ωτ, c′ = a, d′ = b; the logistic's
+    σ(1 − σ)/s; min(τ − τ_k, 0)′ = [τ < τ_k])."""
+    hyper = np.asarray(hyper, dtype=np.float64)
+    tau = np.asarray(tau, dtype=np.float64)
+    om, tc, s, ux, uy = (hyper[..., i, None] for i in range(5))
+    shape = np.broadcast_shapes(om.shape, tau.shape)
+    t = np.broadcast_to(tau, shape)
+    out = np.zeros(shape + (2, N_LINEAR[model]))
+    if model in ("cv", "line", "ramp", "kink"):
+        out[..., 0, 2] = out[..., 1, 3] = 1.0
+    if model == "line":
+        out[..., 0, 4], out[..., 1, 4] = ux * t, uy * t
+    if model in ("turn", "turn_accel"):
+        a, b, _, _ = _kernels(om, t)
+        co, si = np.cos(om * t), np.sin(om * t)
+        out[..., 0, 2], out[..., 1, 2], out[..., 0, 3], out[..., 1, 3] = co, si, -si, co
+        if model == "turn_accel":
+            out[..., 0, 4], out[..., 1, 4], out[..., 0, 5], out[..., 1, 5] = a, b, -b, a
+    if model == "ramp":
+        m = np.minimum(t - tc, 0.0)
+        out[..., 0, 4], out[..., 1, 4] = ux * m, uy * m
+    if model == "kink":
+        out[..., 0, 4] = out[..., 1, 5] = (t < tc).astype(np.float64)
+    if model == "lane":
+        g = 0.5 * (1.0 + np.tanh((t - tc) / (2 * s)))
+        dg = g * (1.0 - g) / s
+        out[..., 0, 2], out[..., 1, 2] = ux * np.ones_like(t), uy * np.ones_like(t)
+        out[..., 0, 3], out[..., 1, 3] = -uy * dg, ux * dg
+    return out
 
 
 
@@ -341,65 +402,221 @@ def _rotation(model: str, rot: np.ndarray) -> np.ndarray:
     return R
 
 
-def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope()) -> list[LibraryFit]:
-    """Identify every track of ``tracks`` — a sequence of (t (n,) [s] increasing, z (n, 2) [m]), n ≥ 8 —
-    over the library at once (module docstring): a :class:`LibraryFit` per track.
+RADIAL_SHARES = ("ar1", "full")
+MIN_RADIAL = 3  # radial velocities a track needs for its Doppler rows (a robust σ_r from their differences)
+
+
+def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope(), radial_share: str = "ar1",
+                   radial_floor: float = 0.1) -> list[LibraryFit]:
+    """Identify every track of ``tracks`` — a sequence of (t (n,) [s] increasing, z (n, 2) [m]), n ≥ 8,
+    optionally with its Doppler samples (…, ĝ (n, 2) unit directions, y (n,) [m/s] radial velocities,
+    NaN where a sample has none) — over the library at once (module docstring): a :class:`LibraryFit`
+    per track. ``radial_share`` ("ar1" or "full") and ``radial_floor`` [m/s] (the least σ_r): module
+    docstring, Doppler.
 
     Each track is fitted in its own frame (centred at its mean position, û along +x): every entry is
     rotation-equivariant there, so tracks sampled at the same relative times share their designs and
-    normal matrices (:func:`_shared`), and one matrix product per entry fits them all."""
+    normal matrices (:func:`_shared`), and one matrix product per entry fits them all; a track with
+    Doppler rows is then refitted with them, over every grid value at once (:func:`_fit_doppler`)."""
     if not 0 < level < 1:
         raise InputError(f"identify_batch: level must be in (0, 1), got {level}")
+    if radial_share not in RADIAL_SHARES:
+        raise InputError(f"identify_batch: radial_share must be one of {RADIAL_SHARES}, got {radial_share!r}")
+    if not (np.isfinite(radial_floor) and radial_floor > 0):
+        raise InputError(f"identify_batch: radial_floor must be a positive SD [m/s], got {radial_floor}")
     groups, local = {}, []
-    for i, (t, zi) in enumerate(tracks):
-        t, zi = np.asarray(t, np.float64), np.asarray(zi, np.float64)
+    for i, track in enumerate(tracks):
+        if len(track) not in (2, 4):
+            raise InputError(f"identify_batch: track {i} must be (t, z) or (t, z, ĝ, y)")
+        t, zi = np.asarray(track[0], np.float64), np.asarray(track[1], np.float64)
         if t.ndim != 1 or zi.shape != (len(t), 2) or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(zi)):
             raise InputError(f"identify_batch: track {i} needs t (n,) strictly increasing [s] and finite z (n, 2) [m]")
         if len(t) < MIN_SAMPLES:
             raise InputError(f"identify_batch: track {i} needs ≥ {MIN_SAMPLES} samples, got {len(t)}")
         centre = zi.mean(axis=0)
         u = line_direction(zi)
-        zl = (zi - centre) @ np.array([[u[0], -u[1]], [u[1], u[0]]])   # rows: (ûᵀ(z − c), nᵀ(z − c))
+        rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
+        zl = (zi - centre) @ rot                                       # rows: (ûᵀ(z − c), nᵀ(z − c))
         tau = np.round((t - t[-1]) * 1e6) / 1e6                        # µs: one pattern for one frame grid
-        local.append((t[-1], centre, u, tau, zl))
+        radial = _radial_rows(i, track, len(t), rot, radial_floor) if len(track) == 4 else None
+        local.append((t[-1], centre, u, tau, zl, radial))
         groups.setdefault(tau.tobytes(), []).append(i)
     out = [None] * len(local)
     k = np.array([N_PARAMS[m] for m in LIBRARY])
     thresholds = np.array([0.0] + [lr_threshold(int(kk - 4), level, len(LIBRARY) - 1) for kk in k[1:]])
     for members in groups.values():
         z = np.array([local[i][4] for i in members])
-        fits = _fit_group(local[members[0]][3], z)
-        stats = _criteria(fits, z, k)
+        tau = local[members[0]][3]
+        fits = _fit_group(tau, z)
+        T = len(members)
+        radial = {"rss": np.zeros((T, len(LIBRARY))), "m": np.zeros(T), "lam": np.zeros(T), "resid": [None] * T}
+        patterns = {}                                                  # Doppler tracks by their samples' indices
+        for row, i in enumerate(members):
+            if local[i][5] is not None:
+                patterns.setdefault(local[i][5][0].tobytes(), []).append(row)
+        for rows in patterns.values():
+            rows = np.array(rows)
+            _fit_doppler(fits, radial, rows, tau, z[rows], [local[members[r]][5] for r in rows], k)
+        stats = _criteria(fits, z, k, radial, radial_share)
         for row, i in enumerate(members):
             out[i] = _select(fits, row, local[i], k, thresholds, envelope, [a[row] for a in stats])
     return out
 
 
-def _criteria(fits: dict, z: np.ndarray, k: np.ndarray) -> tuple:
+def _radial_rows(i: int, track, n: int, rot: np.ndarray, floor: float):
+    """(idx (m,), ĝ (m, 2) in the track's own frame, y (m,) [m/s], σ_r [m/s]) of track ``i``'s Doppler
+    samples, or None with fewer than MIN_RADIAL; σ_r the robust SD of successive differences of y
+    (:func:`estimators.trackers.sindy_model._radial_sigma`), at least ``floor``."""
+    from .sindy_model import _radial_sigma
+
+    g, y = np.asarray(track[2], np.float64), np.asarray(track[3], np.float64)
+    if g.shape != (n, 2) or y.shape != (n,):
+        raise InputError(f"identify_batch: track {i}: ĝ must be (n, 2) and y (n,) with n = {n}")
+    ok = np.flatnonzero(np.isfinite(y))
+    norm = np.linalg.norm(g[ok], axis=1)
+    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
+        raise InputError(f"identify_batch: track {i}: each sample with a radial velocity needs a finite, "
+                         "nonzero direction ĝ (2,)")
+    if len(ok) < MIN_RADIAL:
+        return None
+    sigma_r = max(_radial_sigma(y), floor)
+    return ok.astype(np.int64), (g[ok] / norm[:, None]) @ rot, y[ok], sigma_r, floor
+
+
+@lru_cache(maxsize=32)
+def _radial_basis(tau_key: bytes, idx_key: bytes) -> dict:
+    """Per full entry dB/dτ (G, m, 2, P) at the samples ``idx`` of the sample-time pattern τ (keys: their
+    bytes), and XᵀX (G, P, P) of its position design: shared by the tracks of that pattern (read-only)."""
+    tau = np.frombuffer(tau_key, dtype=np.float64)
+    idx = np.frombuffer(idx_key, dtype=np.int64)
+    shared = _shared(tau_key)
+    out = {}
+    for full, _ in FULL:
+        X = shared[full][0]
+        out[full] = (_readonly(velocity_basis(full, _grid(full), tau[idx][None, :])),
+                     _readonly(np.swapaxes(X, -1, -2) @ X))
+    return out
+
+
+def _fit_doppler(fits: dict, radial: dict, rows: np.ndarray, tau: np.ndarray, z: np.ndarray, samples: list,
+                 k: np.ndarray) -> None:
+    """Refit the tracks ``rows`` of a group (local positions z (T', L, 2); their Doppler samples
+    ``samples``, all at the same sample indices) with their radial rows λ(ĝᵀ Ḃ(τ) θ − y) stacked under
+    the position rows, over every grid value and track at once; their entries in ``fits`` and ``radial``
+    (RSS_r, m, λ, the radial residuals) are replaced. λ = σ_p/σ_r [s] (module docstring, Doppler) as in
+    :mod:`estimators.trackers.sindy_model`: first σ_p of the best position-only fit and σ_r of the radial
+    velocities' successive differences; then, refitted, the residual RMS of each kind of the best joint
+    fit (σ_r at least the floor)."""
+    idx = samples[0][0]
+    g = np.array([r[1] for r in samples])                              # (T', m, 2)
+    y = np.array([r[2] for r in samples])                              # (T', m)
+    sigma_r = np.array([r[3] for r in samples])
+    floor = samples[0][4]
+    Tn, L = z.shape[:2]
+    N, n_r = 2 * L, len(idx)
+    ar = np.arange(Tn)
+    zf = z.reshape(Tn, -1)
+    zz, yy = np.sum(zf * zf, axis=1), np.sum(y * y, axis=1)
+    rss_pos = np.stack([fits[m][2][rows] for m in LIBRARY], axis=1)   # (T', M+1)
+    j = np.argmin(rss_pos, axis=1)
+    tiny = 1e-18 * np.maximum(zz, 1e-6) / N
+    lam = np.sqrt(np.maximum(rss_pos[ar, j] / np.maximum(N - k[j], 1.0), tiny)) / sigma_r
+    shared = _shared(np.ascontiguousarray(tau).tobytes())
+    basis_r = _radial_basis(np.ascontiguousarray(tau).tobytes(), np.ascontiguousarray(idx, np.int64).tobytes())
+    parts = {}
+    for full, _ in FULL:
+        X, _, valid, flat = shared[full]
+        Vb, XtX = basis_r[full]
+        G, K, P = X.shape
+        D = np.einsum("tmc,gmcp->tgmp", g, Vb, optimize=True)          # (T', G, m, P): ĝᵀ dB/dτ
+        parts[full] = (X, valid, XtX, (zf @ flat).reshape(Tn, G, P), D, np.einsum("tgmp,tgmq->tgpq", D, D, optimize=True),
+                       np.einsum("tgmp,tm->tgp", D, y, optimize=True))
+    for first in (True, False):
+        used, out = lam, {}
+        l2 = (lam * lam)[:, None, None]
+        for full, models in FULL:
+            X, valid, XtX, Xz, D, DtD, Dy = parts[full]
+            for m in models:
+                c = N_LINEAR[m]
+                A = XtX[None, :, :c, :c] + l2[..., None] * DtD[..., :c, :c]   # (T', G, c, c)
+                bz, by = Xz[..., :c], Dy[..., :c]
+                scale = np.sqrt(np.einsum("...ii->...i", A))
+                scale = np.where(scale > 0, scale, 1.0)
+                An = A / scale[..., :, None] / scale[..., None, :] + 1e-12 * np.eye(c)
+                theta = np.linalg.solve(An, ((bz + l2 * by) / scale)[..., None])[..., 0] / scale
+                rss_p = zz[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, bz) + np.einsum(
+                    "tgp,gpq,tgq->tg", theta, XtX[:, :c, :c], theta, optimize=True)
+                rss_r = yy[:, None] - 2 * np.einsum("tgp,tgp->tg", theta, by) + np.einsum(
+                    "tgp,tgpq,tgq->tg", theta, DtD[..., :c, :c], theta, optimize=True)
+                rss_p = np.where(valid, np.maximum(rss_p, 0.0), zz[:, None])  # an invalid grid value fits nothing
+                rss_r = np.where(valid, np.maximum(rss_r, 0.0), yy[:, None])
+                order = (np.argsort(np.abs(OMEGA_GRID), kind="stable") if m in ("turn", "turn_accel")
+                         else np.arange(len(valid)))
+                gi = _pick(rss_p + (lam * lam)[:, None] * rss_r, order)
+                th = theta[ar, gi]
+                rp = zf - np.einsum("tkp,tp->tk", X[gi][:, :, :c], th)
+                rr = y - np.einsum("tmp,tp->tm", D[ar, gi][..., :c], th)
+                sc = scale[ar, gi]                                     # (BᵀB + λ²DᵀD)⁻¹ at the chosen values only
+                inv = np.linalg.inv(An[ar, gi]) / sc[:, :, None] / sc[:, None, :]
+                out[m] = (gi, th, np.sum(rp * rp, axis=1), inv, rp, np.sum(rr * rr, axis=1), rr)
+        if first:                                                      # λ from the best joint fit's residuals
+            obj = np.stack([out[m][2] + lam * lam * out[m][5] for m in LIBRARY], axis=1)
+            best = np.argmin(obj, axis=1)
+            rp_best = np.stack([out[m][2] for m in LIBRARY], axis=1)[ar, best]
+            rr_best = np.stack([out[m][5] for m in LIBRARY], axis=1)[ar, best]
+            lam = np.sqrt(np.maximum(rp_best / N, tiny)) / np.maximum(np.sqrt(rr_best / n_r), floor)
+    for m in LIBRARY:
+        gi, th, rss_p, inv, rp, rss_r, rr = out[m]
+        fits[m][0][rows], fits[m][1][rows], fits[m][2][rows], fits[m][3][rows], fits[m][4][rows] = gi, th, rss_p, inv, rp
+        radial["rss"][rows, LIBRARY.index(m)] = rss_r
+        for r, row in enumerate(rows):
+            radial.setdefault("all", {})[(int(row), m)] = rr[r]
+    radial["m"][rows], radial["lam"][rows] = n_r, used
+    for row in rows:
+        radial["resid"][int(row)] = idx
+
+
+def _criteria(fits: dict, z: np.ndarray, k: np.ndarray, radial: dict | None = None, radial_share: str = "ar1") -> tuple:
     """Per track of a group (z (T, L, 2) its local positions) and entry: f (T,), the statistic D of
-    Eq. (1), BIC and σ² (T, M+1) — the selection's arithmetic for all tracks at once."""
+    Eq. (1), BIC and σ² (T, M+1) — the selection's arithmetic for all tracks at once; with ``radial``
+    (from :func:`_fit_doppler`) the radial terms of the module docstring's Doppler section added."""
     T, L = z.shape[:2]
     N = 2 * L
     rss = np.stack([fits[m][2] for m in LIBRARY], axis=1)             # (T, M+1)
     floor = 1e-18 * np.maximum(np.sum(z.reshape(T, -1) ** 2, axis=1), 1e-6)
     rss = np.maximum(rss, floor[:, None])                              # rounding-level RSS never chooses
-    best = np.argmin(rss, axis=1)
-    resid = np.stack([fits[m][4] for m in LIBRARY])[best, np.arange(T)].reshape(T, L, 2)
+    m = np.zeros(T) if radial is None else radial["m"]
+    lam = np.zeros(T) if radial is None else radial["lam"]
+    rss_r = np.zeros_like(rss) if radial is None else radial["rss"]
+    has = m > 0
+    rss_r = np.where(has[:, None], np.maximum(rss_r, 1e-18), 1.0)
+    best = np.argmin(rss + (lam * lam)[:, None] * rss_r, axis=1)
+    resid = np.stack([fits[mm][4] for mm in LIBRARY])[best, np.arange(T)].reshape(T, L, 2)
     num = np.sum(resid[:, :-1] * resid[:, 1:], axis=(1, 2))
     den = np.sum(resid * resid, axis=(1, 2))
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(den > 1e-24 * L, np.clip(num / den, 0.0, 1.0), 0.0)
     f = np.maximum((1 - rho) / (1 + rho), 1.0 / L)                     # f = (1 − ρ)/(1 + ρ), ≥ 1/n
-    stat = f[:, None] * N * np.log(rss[:, :1] / rss)                   # Eq. (1)
-    bic = f[:, None] * N * np.log(rss / N) + k * np.log(f[:, None] * N)
-    sigma2 = rss / np.maximum(N - k, 1.0)
+    f_r = np.ones(T)
+    if radial is not None and radial_share == "ar1":
+        for row in np.flatnonzero(has):                                # the best entry's radial residuals
+            r = radial["all"][(row, LIBRARY[best[row]])]
+            adj = np.flatnonzero(np.diff(radial["resid"][row]) == 1)
+            d = float(r @ r)
+            rho_r = float(np.clip(r[adj] @ r[adj + 1] / d, 0.0, 1.0)) if d > 1e-24 * len(r) else 0.0
+            f_r[row] = max((1 - rho_r) / (1 + rho_r), 1.0 / len(r))
+    f_r = np.where(has, f_r, 0.0)
+    stat = f[:, None] * N * np.log(rss[:, :1] / rss) + (f_r * m)[:, None] * np.log(rss_r[:, :1] / rss_r)  # Eq. (1), (2)
+    bic = (f[:, None] * N * np.log(rss / N) + (f_r * m)[:, None] * np.log(rss_r / np.maximum(m, 1)[:, None])
+           + k * np.log((f * N + f_r * m)[:, None]))
+    sigma2 = (rss + (lam * lam)[:, None] * np.where(has[:, None], rss_r, 0.0)) / np.maximum(N + m[:, None] - k, 1.0)
     return f, stat, bic, sigma2
 
 
 def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, env: Envelope, crit) -> LibraryFit:
     """One track's selection and entries (module docstring, selection) from its group's fits and its
     row of :func:`_criteria`."""
-    t_ref, centre, u, tau, zl = track
+    t_ref, centre, u, tau, zl, _ = track
     f, stat, bic, sigma2 = crit
     f = float(f)
     local = [(m, _grid(m)[fits[m][0][row]], fits[m][1][row], fits[m][3][row]) for m in LIBRARY]
@@ -417,7 +634,8 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
         best = lane                                                    # a turn needs strong evidence over a lane change
     wts = np.where(ok, np.exp(-0.5 * (bic - bic[ok].min())), 0.0)
     wts /= wts.sum()
-    order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and wts[j] >= MIN_WEIGHT]
+    order = [best] + [j for j in range(len(LIBRARY)) if j != best and ok[j] and (wts[j] >= MIN_WEIGHT or j == 0)]
+    # (CV always kept, for :func:`demote`; below MIN_WEIGHT it leaves the mixture: :func:`_spread_weight`)
     rot = np.array([[u[0], -u[1]], [u[1], u[0]]])
     ents = []
     for j in order:                                                    # to the world: the entries kept only
@@ -431,7 +649,7 @@ def _select(fits: dict, row: int, track, k: np.ndarray, thresholds: np.ndarray, 
                           described[j][3]))
     ents = tuple(ents)
     return LibraryFit(described[best][0], float(t_ref), ents, float(np.sqrt(sigma2[best])), float(stat[best]),
-                      np.asarray(described[best][1], dtype=np.float64))
+                      np.asarray(described[best][1], dtype=np.float64), float(bic[0] - bic[best]))
 
 
 def _describe(model: str, hyper, theta, tau_first: float, env: Envelope, sigma: float = 0.0):
@@ -497,13 +715,52 @@ def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     mu = means[0]
     for e, m in zip(fit.entries[1:], means[1:]):
         d = m - mu
-        cov = cov + e.weight * np.einsum("ki,kj->kij", d, d)
+        cov = cov + _spread_weight(e.weight) * np.einsum("ki,kj->kij", d, d)
     return mu, cov
 
 
-def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
+def _spread_weight(w: float) -> float:
+    """An entry's weight in the mixture spread: 0 below MIN_WEIGHT (module docstring, forecast)."""
+    return w if w >= MIN_WEIGHT else 0.0
+
+
+def demote(fit: LibraryFit) -> LibraryFit:
+    """``fit`` with its CV entry selected (label ``cv``, no rates; the other entries stay for the
+    mixture's spread): a manoeuvre whose evidence falls short of the caller's bar (the tracker's
+    ``min_evidence``)."""
+    cv = next(e for e in fit.entries if e.model == "cv")
+    rest = tuple(e for e in fit.entries if e is not cv)
+    return LibraryFit("cv", fit.t_ref, (cv,) + rest, fit.sigma, 0.0, np.zeros(2), 0.0)
+
+
+def forecast_velocity_basis(model: str, hyper, tau, stop, coast) -> np.ndarray:
+    """dB/dτ (…, K, 2, P) of the forecast path of :func:`forecast_basis` at tau (…, K) [s]: 0 past a
+    braking entry's stop, the velocity at ``coast`` beyond it."""
+    tau = np.asarray(tau, dtype=np.float64)
+    D = velocity_basis(model, hyper, np.minimum(np.minimum(tau, stop), coast))
+    return D * (tau < stop)[..., None, None]
+
+
+def predict_many(fits, tau, anchor=None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`predict` of many fits at once: means (T, K, 2) [m], covariances (T, K, 2, 2) [m²] at tau (T, K)
-    ≥ 0 [s] after each fit's ``t_ref`` — one basis evaluation per library entry over all tracks."""
+    ≥ 0 [s] after each fit's ``t_ref`` — one basis evaluation per library entry over all tracks.
+
+    ``anchor`` (p (T, 2) [m], v (T, 2) [m/s], τ₀ (T,) [s]): each track's filtered position and velocity
+    at τ₀ after ``t_ref`` (the forecast's origin, tau[:, k] = τ₀ + h_k). Each entry's path S(τ) then
+    keeps its shape about its own tangent at τ₀ and takes the filter's position and velocity there
+    (module docstring, anchored forecast):
+
+        μ(τ₀ + h) = p + v h + S(τ₀ + h) − S(τ₀) − S′(τ₀) h                                       (3)
+
+    — the CV entry forecasts exactly p + v h. An entry that brakes to a standstill (``line`` with a stop,
+    β along û; ``turn_accel`` whose a₀ has a part β < 0 along v₀) reaches it when the filter's speed runs
+    out, and stays there (Eq. 3 would carry on at the difference of the two velocities past the fit's
+    stop, and a braking turn's basis would reverse):
+
+        μ(τ₀ + h) = μ₃(τ₀ + h_e),  h_e = min(h, t*),  t* = max(−ûᵀv/β, 0) (line), |v|/|β| (turn)    (4)
+
+    with μ₃ Eq. (3) on the entry's basis without its own stop (for ``line``: p + v h_e + û β h_e²/2). A
+    track whose p is not finite keeps its fit's own path. The covariance stays the fit's."""
     tau = np.asarray(tau, dtype=np.float64)
     T, K = tau.shape
     mean, cov = np.zeros((T, K, 2)), np.zeros((T, K, 2, 2))
@@ -522,13 +779,40 @@ def predict_many(fits, tau) -> tuple[np.ndarray, np.ndarray]:
         B = forecast_basis(m, hyper, tau[idx], stop[:, None], coast[:, None])  # (E, K, 2, P)
         theta = np.array([e.theta for *_, e in sel])
         mu = np.einsum("ekcp,ep->ekc", B, theta)
+        if anchor is not None:                                         # Eq. (3)
+            p, v, t0 = (np.asarray(a, np.float64)[idx] for a in anchor)
+            h = tau[idx] - t0[:, None]                                 # (E, K)
+            B0 = forecast_basis(m, hyper, t0[:, None], stop[:, None], coast[:, None])[:, 0]  # (E, 2, P)
+            D0 = forecast_velocity_basis(m, hyper, t0[:, None], stop[:, None], coast[:, None])[:, 0]
+            s0, v0 = np.einsum("ecp,ep->ec", B0, theta), np.einsum("ecp,ep->ec", D0, theta)
+            shift = (p - s0)[:, None, :] + (v - v0)[:, None, :] * h[..., None]
+            mu = mu + np.where(np.isfinite(shift), shift, 0.0)
+            if m in ("line", "turn_accel"):                            # braking: Eq. (4), its stop from v
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    if m == "line":
+                        u, beta = hyper[:, 3:5], theta[:, 4]
+                        brakes = np.isfinite(stop)
+                        t_star = np.maximum(-np.sum(u * v, axis=1) / beta, 0.0)
+                    else:                                              # the tangential part of a₀ along v₀
+                        beta = np.sum(theta[:, 4:6] * theta[:, 2:4], axis=1) / np.linalg.norm(theta[:, 2:4], axis=1)
+                        brakes = beta < 0
+                        t_star = np.linalg.norm(v, axis=1) / -beta
+                brakes &= np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(v), axis=1)
+                if brakes.any():
+                    he = np.minimum(h, np.where(brakes, t_star, 0.0)[:, None])
+                    Bu = basis(m, hyper, t0[:, None] + he)             # (E, K, 2, P), without the fit's own stop
+                    B0u, D0u = basis(m, hyper, t0[:, None])[:, 0], velocity_basis(m, hyper, t0[:, None])[:, 0]
+                    bend = (np.einsum("ekcp,ep->ekc", Bu, theta) - np.einsum("ecp,ep->ec", B0u, theta)[:, None]
+                            - np.einsum("ecp,ep->ec", D0u, theta)[:, None] * he[..., None])
+                    own = p[:, None, :] + v[:, None, :] * he[..., None] + bend
+                    mu = np.where(brakes[:, None, None], own, mu)
         first = np.array([j == 0 for _, j, _ in sel])
         if first.any():
             covs = np.array([e.cov for (_, j, e) in sel if j == 0])
             Bf = B[first]
             cov[idx[first]] = np.einsum("ekip,epq,ekjq->ekij", Bf, covs, Bf)
             mean[idx[first]] = mu[first]
-        others += [(i, e.weight, mu[r]) for r, (i, j, e) in enumerate(sel) if j > 0]
+        others += [(i, _spread_weight(e.weight), mu[r]) for r, (i, j, e) in enumerate(sel) if j > 0]
     if others:                                                         # the selected entries' spread, Σ w d dᵀ
         i = np.array([o[0] for o in others])
         d = np.array([o[2] for o in others]) - mean[i]                 # (O, K, 2)

@@ -6,8 +6,16 @@ last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`
 identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
 speeding up, reversing, turn (with or without a speed change), lane change, a settled speed change or
 velocity step — selected by a likelihood-ratio test at ``selection_level`` against constant velocity
-and then by BIC, from the positions. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict`,
-plus ``accel_psd`` white acceleration noise from the fit's last sample), its disc radii scaled by
+and then by BIC, from the positions and (with ``use_doppler`` and ``identify_doppler``) the radial
+velocities of the track's updates (motion_library, Doppler; ``radial_share``, σ_r floored at
+``doppler_floor``). A manoeuvre whose evidence BIC(CV) − BIC(model) falls short of ``min_evidence``
+(``braking_evidence`` for braking) is demoted to CV (:func:`estimators.trackers.motion_library.demote`),
+as in step 3 below. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict_many`,
+plus ``accel_psd`` white acceleration noise from the fit's last sample) — started from the filter's
+position and velocity, the fit's path kept about its tangent (Eqs. 3–4 there: the CV entry forecasts as
+``kalman``), where ``library_origin`` says so ("doppler", the default: when the track has radial
+velocities in its window, whose filter measures the velocity directly; the window fit's own level and
+slope carry a reconstructed car's wandering centroid) — its disc radii scaled by
 ``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
 its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
 lane change, a reversal or a settled track); the reported ``model`` is the manoeuvre's name. Below
@@ -112,13 +120,20 @@ class SindyParams(KalmanParams):
                                                            "identified at once over the manoeuvre library (straight, "
                                                            "braking, speeding up, reversing, turn, lane change; "
                                                            "motion_library.py) by a likelihood-ratio test at "
-                                                           "selection_level, from the positions; 'ensemble': one "
-                                                           "track at a time by ensemble SINDy (sindy_model.py; it "
-                                                           "also fits the radial velocities)")
+                                                           "selection_level, from the positions and radial velocities; "
+                                                           "'ensemble': one "
+                                                           "track at a time by ensemble SINDy (sindy_model.py)")
     max_fit_age: float = Field(0.5, gt=0, le=60, description="a library fit forecasts the track for this long [s] "
                                                            "after its last sample; an older one (fits capped by "
                                                            "max_fits_per_frame, missed frames) forecasts through the "
                                                            "filter's state with the fit's turn rate or speed change")
+    library_origin: Literal["fit", "filter", "doppler"] = Field("doppler", description="where a library fit's "
+                                                              "forecast starts: 'fit' its own position and velocity "
+                                                              "at the forecast's origin, 'filter' the Kalman state's "
+                                                              "(the fit's path kept about its tangent, "
+                                                              "motion_library.predict_many Eq. 3: the CV entry then "
+                                                              "forecasts as kalman), 'doppler' the filter's when the "
+                                                              "track has radial velocities in its window, else the fit's")
     selection_level: float = Field(0.01, gt=0, lt=1, description="level α of the library's likelihood-ratio test "
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
@@ -134,7 +149,8 @@ class SindyParams(KalmanParams):
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
     identify_doppler: bool = Field(True, description="with use_doppler, the identification fits the track's "
-                                                     "radial velocities too (sindy_model, Doppler)")
+                                                     "radial velocities too (sindy_model and motion_library, "
+                                                     "Doppler)")
     radial_share: Literal["ar1", "full"] = Field("ar1", description="how many independent samples the radial "
                                                   "residuals count in the identification's evidence: 'ar1' from "
                                                   "their lag-1 autocorrelation, 'full' all (sindy_model, Doppler: "
@@ -146,7 +162,9 @@ class SindyParams(KalmanParams):
                                                    "than 5 robust SDs (at most 10 % of them: a wrong relay wall's "
                                                    "rows; sindy_model._screen_radial)")
     min_evidence: float = Field(10.0, ge=0, le=1e6, description="BIC(CV) − BIC(model) an identified model "
-                                                                "needs to replace constant velocity")
+                                                                "needs to replace constant velocity (either "
+                                                                "identification: a library fit short of it is "
+                                                                "demoted to CV)")
     braking_evidence: float | None = Field(None, ge=0, le=1e6, description="BIC(CV) − BIC(model) a model of braking "
                                                                          "alone (β < 0, no turn) needs; None: min_evidence "
                                                                          "(module docstring, 3)")
@@ -358,6 +376,11 @@ class SindyTracker(KalmanTracker):
         """Whether ``tr`` forecasts from its library fit: it has one, at most ``max_fit_age`` old."""
         return tr.library is not None and tr.t - tr.library.t_ref <= self.params.max_fit_age + 1e-9
 
+    def _anchored(self, tr: _SindyTrack) -> bool:
+        """Whether ``tr``'s library forecast starts from the filter's state (``library_origin``)."""
+        origin = self.params.library_origin
+        return origin == "filter" or (origin == "doppler" and any(np.isfinite(h[4]) for h in tr.history))
+
     def _interval_scale(self, tr: _SindyTrack) -> tuple[float, float]:
         if self._fresh(tr):
             f = self.params.interval_factors.get(tr.library.interval_key, 1.0)
@@ -369,9 +392,8 @@ class SindyTracker(KalmanTracker):
         with the white-acceleration noise of ``accel_psd`` over τ added; any other as ``kalman``."""
         if not self._fresh(tr):
             return super()._forecast(tr, h)
-        tau = (tr.t - tr.library.t_ref) + np.asarray(h, dtype=np.float64)
-        mean, cov = ml.predict(tr.library, tau)
-        return mean, cov + fc.cv_process_noise(tau, self.params.accel_psd)[:, :2, :2]
+        mean, cov = self._forecasts([tr], h)[0]
+        return mean, cov
 
     def _forecasts(self, trs: list, h: np.ndarray) -> list:
         """The library-identified tracks' forecasts in one batch (motion_library.predict_many), the others
@@ -379,8 +401,15 @@ class SindyTracker(KalmanTracker):
         lib = [i for i, tr in enumerate(trs) if self._fresh(tr)]
         out = [None if self._fresh(tr) else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
         if lib:
-            tau = np.array([trs[i].t - trs[i].library.t_ref for i in lib])[:, None] + np.asarray(h, np.float64)[None]
-            mean, cov = ml.predict_many([trs[i].library for i in lib], tau)
+            t0 = np.array([trs[i].t - trs[i].library.t_ref for i in lib])
+            tau = t0[:, None] + np.asarray(h, np.float64)[None]
+            anchored = [self._anchored(trs[i]) for i in lib]
+            anchor = None
+            if any(anchored):  # the filter's state where anchored, NaN (the fit's own) elsewhere
+                nan = np.full(4, np.nan)
+                x = np.array([trs[i].x[:4] if a else nan for i, a in zip(lib, anchored)])
+                anchor = (x[:, :2], x[:, 2:], t0)
+            mean, cov = ml.predict_many([trs[i].library for i in lib], tau, anchor)
             cov = cov + fc.cv_process_noise(tau, self.params.accel_psd)[..., :2, :2]
             for r, i in enumerate(lib):
                 out[i] = (mean[r], cov[r])
@@ -414,14 +443,20 @@ class SindyTracker(KalmanTracker):
         if not due:
             return
         p = self.params
+        doppler = p.use_doppler and p.identify_doppler
         fits = ml.identify_batch([(np.array([h[0] for h in tr.history]), np.array([h[1] for h in tr.history]))
-                                  for tr in due], p.selection_level, ml.Envelope(p.max_speedup, p.max_lateral))
+                                  + ((np.array([h[3] for h in tr.history]), np.array([h[4] for h in tr.history]))
+                                     if doppler else ()) for tr in due],
+                                 p.selection_level, ml.Envelope(p.max_speedup, p.max_lateral), p.radial_share,
+                                 p.doppler_floor)
         for tr, fit in zip(due, fits):
             tr.fitted_frame, tr.identified = self._frame, None
             speed = float(np.linalg.norm(tr.x[2:]))
             if speed < p.min_speed and fit.label in ("turn", "lane_change"):  # a heading's turn is unobservable
                 tr.library, tr.motion = None, CV
                 continue
+            if fit.label != "cv" and fit.evidence < evidence_bar(fit.rates, p) - 1e-9:
+                fit = ml.demote(fit)                                   # short of the evidence bar: CV
             tr.library = fit
             tr.motion = library_motion(fit, speed, p)
 

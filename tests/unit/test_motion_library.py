@@ -141,3 +141,110 @@ def test_the_first_half_of_a_lane_change_is_a_lane_change_not_a_turn():
     tracks = [(t, lane_change(t, start=0.9) + 0.3 * rng.standard_normal((len(t), 2))) for _ in range(40)]
     labels = [f.label for f in ml.identify_batch(tracks)]
     assert labels.count("turn") <= 2 and labels.count("lane_change") >= 28
+
+
+@pytest.mark.parametrize("model", ml.LIBRARY)
+def test_velocity_basis_is_the_derivative_of_the_basis(model):
+    # closed-form dB/dτ against central differences of B, at grid values of every kind
+    hyper = np.array([0.4, -1.1, 0.5, np.cos(0.3), np.sin(0.3)])
+    tau = np.array([-2.7, -1.6, -0.3, 0.0, 1.2])                # away from the kinks at τ_c = −1.1
+    d = 1e-5
+    num = (ml.basis(model, hyper, tau + d) - ml.basis(model, hyper, tau - d)) / (2 * d)
+    assert ml.velocity_basis(model, hyper, tau) == pytest.approx(num, abs=1e-6)
+
+
+def braking_with_doppler(rng, beta=-3.0, v0=12.0, wander=0.3):
+    """A braking car over the 3 s window with a wandering centroid (AR(1), ρ = 0.8, innovations
+    ``wander`` [m]) and radial velocities (0.05 m/s) along a fixed mirrored line of sight."""
+    heading = np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+    s = v0 * T + beta * T ** 2 / 2
+    e = np.zeros((len(T), 2))
+    for i in range(1, len(T)):
+        e[i] = 0.8 * e[i - 1] + wander * rng.standard_normal(2)
+    z = np.array([5.0, 20.0]) + s[:, None] * heading + e
+    g = np.tile([np.cos(b := a + rng.uniform(-1.0, 1.0)), np.sin(b)], (len(T), 1))
+    y = (v0 + beta * T) * (g @ heading) + 0.05 * rng.standard_normal(len(T))
+    y[::7] = np.nan                                                # some samples without Doppler
+    return z, g, y
+
+
+def test_radial_velocity_rows_recover_a_braking_deceleration_behind_a_wandering_centroid():
+    # −3 m/s²: with the radial rows y = ĝᵀ dp/dτ the batched fit finds the braking on every track (a few as a
+    # braking turn of ≤ 0.03 rad/s) and its deceleration within 0.25 m/s² on average, where the positions alone miss it
+    # (turns, a settled track) or misjudge it by up to 1.1 m/s²
+    rng = np.random.default_rng(5)
+    cars = [braking_with_doppler(rng) for _ in range(12)]
+    alone = ml.identify_batch([(T, z) for z, _, _ in cars], radial_share="full")
+    both = ml.identify_batch([(T, z, g, y) for z, g, y in cars], radial_share="full")
+    def error(f):  # of a braking model: braking, or a braking turn of under 0.05 rad/s; 3 m/s² otherwise
+        brakes = f.label == "brake" or (f.label == "turn" and abs(f.rates[1]) < 0.05)
+        return abs(f.rates[0] + 3.0) if brakes else 3.0
+
+    err_alone, err_both = np.array([error(f) for f in alone]), np.array([error(f) for f in both])
+    assert np.max(err_both) < 0.7 and np.mean(err_both) < 0.25 and np.mean(err_both) < 0.3 * np.mean(err_alone), (
+        err_both, err_alone)
+
+
+def test_radial_velocity_rows_keep_straight_tracks_constant_velocity():
+    # straight cars with white position noise and radial velocities (0.1 m/s): CV stays on almost all
+    rng = np.random.default_rng(6)
+    tracks = []
+    for _ in range(60):
+        u = np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+        v = rng.uniform(5, 15)
+        g = np.tile([np.cos(b := a + rng.uniform(-1.0, 1.0)), np.sin(b)], (len(T), 1))
+        tracks.append((T, T[:, None] * v * u + 0.4 * rng.standard_normal((len(T), 2)), g,
+                       v * (g @ u) + 0.1 * rng.standard_normal(len(T))))
+    labels = [f.label for f in ml.identify_batch(tracks, radial_share="ar1")]
+    assert labels.count("cv") >= 57, labels
+
+
+def test_an_anchored_forecast_takes_the_filter_state_and_keeps_the_shape():
+    # Eq. (3): a CV selection forecasts exactly p + v·h from the given state; a turn keeps its path's bend
+    # about its tangent (the difference to its own forecast is p − S(τ₀) + (v − S′(τ₀))·h); Eq. (4): a
+    # braking one takes v into its model and stops where that speed runs out at its deceleration
+    t = T
+    z_cv = np.c_[10.0 * t, 2.0 * t] + 0.01 * np.sin(7 * t)[:, None]
+    f_cv = ml.identify_batch([(t, z_cv)])[0]
+    assert f_cv.label == "cv"
+    p, v, h = np.array([30.0, 5.0]), np.array([9.0, 3.0]), np.array([0.5, 1.0, 2.0])
+    mean, _ = ml.predict_many([f_cv], 0.1 + h[None], (p[None], v[None], np.array([0.1])))
+    assert mean[0] == pytest.approx(p + h[:, None] * v, abs=1e-9)
+    w = 0.3
+    z_turn = 10.0 / w * np.c_[np.sin(w * t), 1 - np.cos(w * t)] + 0.01 * np.cos(5 * t)[:, None]
+    f_turn = ml.identify_batch([(t, z_turn)])[0]
+    assert f_turn.label == "turn"
+    own, _ = ml.predict_many([f_turn], h[None])
+    at0, _ = ml.predict_many([f_turn], np.array([[0.0, 1e-5]]))
+    s0, v0 = at0[0, 0], (at0[0, 1] - at0[0, 0]) / 1e-5
+    mean, _ = ml.predict_many([f_turn], h[None], (p[None], v[None], np.array([0.0])))
+    assert mean[0] == pytest.approx(own[0] + (p - s0) + h[:, None] * (v - v0), abs=1e-3)
+    nan = np.full((1, 2), np.nan)                                  # not anchored: the fit's own forecast
+    assert ml.predict_many([f_turn], h[None], (nan, nan, np.array([0.0])))[0] == pytest.approx(own)
+    z_br = np.c_[12.0 * t - 1.5 * t ** 2, 0.0 * t] + 0.01 * np.cos(5 * t)[:, None]
+    f_br = ml.identify_batch([(t, z_br)])[0]
+    assert f_br.label == "brake" and f_br.rates[0] == pytest.approx(-3.0, abs=0.05)
+    vb = np.array([4.5, 0.0])                                      # the filter's: 1.5 s to a standstill at −3 m/s²
+    mean, _ = ml.predict_many([f_br], h[None], (p[None], vb[None], np.array([0.0])))
+    u, beta = f_br.entries[0].hyper[3:5], f_br.entries[0].theta[4]
+    he = np.minimum(h, max(-(u @ vb) / beta, 0.0))
+    assert mean[0] == pytest.approx(p + he[:, None] * vb + u * (beta * he ** 2 / 2)[:, None], abs=1e-9)
+    assert mean[0, -1] == pytest.approx(p + [4.5 ** 2 / 6, 0.0], abs=0.05)  # at rest after 4.5²/(2·3) m
+
+
+def test_an_anchored_braking_turn_comes_to_rest_instead_of_reversing():
+    # Eq. (4) for a turn with a speed change: 10 m/s at 0.3 rad/s braking at 3 m/s²; from a filter state at
+    # 3 m/s the forecast comes to rest after 1 s (its basis alone would run the turn backwards)
+    dt = 0.001
+    tt = np.arange(0, 2.9 + dt / 2, dt)
+    speed, psi = 10.0 - 3.0 * tt, 0.3 * tt
+    path = np.cumsum(np.c_[speed * np.cos(psi), speed * np.sin(psi)] * dt, axis=0)
+    z = path[::100] + 0.01 * np.cos(5 * T)[:, None]
+    fit = ml.identify_batch([(T, z)])[0]
+    assert fit.entries[0].model == "turn_accel" and fit.rates[0] == pytest.approx(-3.0, abs=0.3)
+    p, v = z[-1], 3.0 * np.array([np.cos(0.87), np.sin(0.87)])
+    h = np.array([0.5, 1.0, 1.5, 2.0])
+    mean, _ = ml.predict_many([fit], h[None], (p[None], v[None], np.array([0.0])))
+    assert mean[0, 2] == pytest.approx(mean[0, 1], abs=1e-9) and mean[0, 3] == pytest.approx(mean[0, 1], abs=1e-9)
+    d = mean[0, 1] - p                                               # about 3²/(2·3) = 1.5 m ahead, at rest
+    assert 1.2 < np.linalg.norm(d) < 1.6 and d @ v / (np.linalg.norm(d) * 3.0) > 0.9

@@ -265,3 +265,47 @@ def test_a_revived_track_keeps_its_history_and_is_not_identified_while_lost():
     assert len(set(fitted[14:17])) == 1                   # lost frames 14–16: no new identification
     assert [h[0] for h in track.history][:3] == pytest.approx([0.0, 0.1, 0.2])
     assert len(track.history) == 25
+
+
+def test_the_library_fits_radial_velocities_and_follows_braking_behind_a_wandering_centroid():
+    # As above with the manoeuvre library: its Doppler rows (ĝᵀ dp/dτ) find the braking on more tracks,
+    # and with them (its forecast from the filter's state, library_origin "doppler") the 2 s error falls
+    # against the positions alone
+    from xnlos_core.motion import ConstantAcceleration
+
+    rng = np.random.default_rng(4)
+    n, dt = 35, 0.1
+    t = np.arange(n) * dt
+    err = {True: [], False: []}
+    models = {True: 0, False: 0}
+    for car in range(6):
+        heading = rng.uniform(0, 2 * np.pi)
+        st = ConstantAcceleration(speed=9.0, acceleration=-2.0).state(np.r_[t, t[-1] + 2.0], (25.0, 10.0), heading)
+        z = st.position[:n] + rng.standard_normal((n, 2))
+        g = st.position[:n] - [60.0, 40.0]
+        g /= np.linalg.norm(g, axis=1, keepdims=True)
+        y = np.sum(g * st.velocity[:n], axis=1) + 0.1 * rng.standard_normal(n)
+        for fit_radial in (False, True):
+            tr = SindyTracker({"identify_doppler": fit_radial, "seed": car})
+            for k in range(n):
+                out = tr.update(HiddenPoints(z[k][None], np.eye(2)[None], [0], [0], velocity=(y[k] * g[k])[None],
+                                             velocity_cov=(0.01 * np.outer(g[k], g[k]))[None]), t[k])
+            assert len(out) == 1
+            j = int(np.argmin(np.abs(out.horizons - 2.0)))
+            err[fit_radial].append(np.linalg.norm(out.forecast[0, j] - st.position[-1]))
+            models[fit_radial] += out.model[0] == "brake"
+    assert models[True] >= 4 and models[True] > models[False], models
+    assert np.mean(err[True]) < 0.8 * np.mean(err[False]), err
+
+
+def test_a_library_cv_track_anchored_to_the_filter_forecasts_as_kalman():
+    # library_origin "filter": a straight track identified as CV forecasts the filter's p + v·h, the
+    # Kalman tracker's mean exactly (the covariance stays the fit's)
+    rng = np.random.default_rng(7)
+    t = np.arange(30) * 0.1
+    z = np.c_[3.0 + 8.0 * t, 1.0 + 4.0 * t] + 0.05 * rng.standard_normal((30, 2))
+    sindy, kalman = SindyTracker({"library_origin": "filter"}), KalmanTracker({})
+    for k in range(30):
+        a, b = sindy.update(hidden(z[k]), t[k]), kalman.update(hidden(z[k]), t[k])
+    assert a.model[0] == "cv" and sindy._tracks[0].library is not None
+    assert a.forecast == pytest.approx(b.forecast, abs=1e-9)
