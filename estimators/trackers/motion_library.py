@@ -466,8 +466,8 @@ def identify_batch(tracks, level: float = 0.01, envelope: Envelope = Envelope(),
 def _radial_rows(i: int, track, n: int, rot: np.ndarray, floor: float):
     """(idx (m,), ĝ (m, 2) in the track's own frame, y (m,) [m/s], σ_r [m/s]) of track ``i``'s Doppler
     samples, or None with fewer than MIN_RADIAL; σ_r the robust SD of successive differences of y
-    (:func:`estimators.trackers.sindy_model._radial_sigma`), at least ``floor``."""
-    from .sindy_model import _radial_sigma
+    (:func:`estimators.trackers.sindy_model.radial_sigma`), at least ``floor``."""
+    from .sindy_model import radial_sigma
 
     g, y = np.asarray(track[2], np.float64), np.asarray(track[3], np.float64)
     if g.shape != (n, 2) or y.shape != (n,):
@@ -479,7 +479,7 @@ def _radial_rows(i: int, track, n: int, rot: np.ndarray, floor: float):
                          "nonzero direction ĝ (2,)")
     if len(ok) < MIN_RADIAL:
         return None
-    sigma_r = max(_radial_sigma(y), floor)
+    sigma_r = max(radial_sigma(y), floor)
     return ok.astype(np.int64), (g[ok] / norm[:, None]) @ rot, y[ok], sigma_r, floor
 
 

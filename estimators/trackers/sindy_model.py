@@ -490,7 +490,7 @@ def _doppler_samples(t: np.ndarray, direction, radial) -> tuple[np.ndarray, np.n
     return g, y
 
 
-def _radial_sigma(y: np.ndarray) -> float:
+def radial_sigma(y: np.ndarray) -> float:
     """Robust σ_r [m/s] of the radial velocities: the MAD of differences of successive samples (a
     frame's change of gᵀv is far below the noise), or 0.1 m/s when too few samples follow each other."""
     ok = np.flatnonzero(np.isfinite(y))
@@ -538,7 +538,7 @@ def _screen_radial(coef: np.ndarray, t: np.ndarray, z: np.ndarray, rad: _Radial)
 def _smoothed(t: np.ndarray, z: np.ndarray, sigma_smooth: float, jerk_psd: float, doppler: tuple | None):
     """(σ_r [m/s] or None, v (n, 2), a (n, 2), the full STLSQ fit (2,)) of the RTS smoother over the positions
     and, with ``doppler`` (g, y), the radial velocities (identification steps 1–2)."""
-    sigma_r = None if doppler is None else max(_radial_sigma(doppler[1]), 1e-3)
+    sigma_r = None if doppler is None else max(radial_sigma(doppler[1]), 1e-3)
     smooth = _rts_white_jerk(t, z, sigma_smooth, jerk_psd, None if doppler is None else (*doppler, sigma_r))
     v, a = smooth[:, 2:4], smooth[:, 4:6]
     if np.linalg.norm(v) < 1e-9:  # a track at rest: the library columns cannot be normalised
