@@ -211,14 +211,19 @@ def _kernels(omega, tau):
     return a, b, c, d
 
 
-def basis(model: str, hyper, tau) -> np.ndarray:
-    """B (…, L, 2, P) of entry ``model`` at times tau (…, L) [s] for hyper (…, 5) (module docstring)."""
+def _design(model: str, hyper, tau):
+    """(ω, τ_c, s, û_x, û_y (…, 1), τ broadcast (…, L), zeros (…, L, 2, P)) of :func:`basis` and
+    :func:`velocity_basis` for hyper (…, 5) and tau (…, L) [s]."""
     hyper = np.asarray(hyper, dtype=np.float64)
     tau = np.asarray(tau, dtype=np.float64)
     om, tc, s, ux, uy = (hyper[..., i, None] for i in range(5))
     shape = np.broadcast_shapes(om.shape, tau.shape)
-    t = np.broadcast_to(tau, shape)
-    out = np.zeros(shape + (2, N_LINEAR[model]))
+    return om, tc, s, ux, uy, np.broadcast_to(tau, shape), np.zeros(shape + (2, N_LINEAR[model]))
+
+
+def basis(model: str, hyper, tau) -> np.ndarray:
+    """B (…, L, 2, P) of entry ``model`` at times tau (…, L) [s] for hyper (…, 5) (module docstring)."""
+    om, tc, s, ux, uy, t, out = _design(model, hyper, tau)
     out[..., 0, 0] = out[..., 1, 1] = 1.0
     if model in ("cv", "line"):
         out[..., 0, 2] = out[..., 1, 3] = t
@@ -244,18 +249,12 @@ def basis(model: str, hyper, tau) -> np.ndarray:
     return out
 
 
-
 def velocity_basis(model: str, hyper, tau) -> np.ndarray:
     """dB/dτ (…, L, 2, P) [1/s on the p₀ columns: 0] of entry ``model`` at tau (…, L) [s]: the velocity
     dp/dτ = (dB/dτ) θ, the rows of a radial velocity y = ĝᵀ dp/dτ (module docstring, Doppler). Closed
     forms of the derivatives of :func:`basis` (a′ = cos ωτ, b′ = sin ωτ, c′ = a, d′ = b; the logistic's
     σ(1 − σ)/s; min(τ − τ_k, 0)′ = [τ < τ_k])."""
-    hyper = np.asarray(hyper, dtype=np.float64)
-    tau = np.asarray(tau, dtype=np.float64)
-    om, tc, s, ux, uy = (hyper[..., i, None] for i in range(5))
-    shape = np.broadcast_shapes(om.shape, tau.shape)
-    t = np.broadcast_to(tau, shape)
-    out = np.zeros(shape + (2, N_LINEAR[model]))
+    om, tc, s, ux, uy, t, out = _design(model, hyper, tau)
     if model in ("cv", "line", "ramp", "kink"):
         out[..., 0, 2] = out[..., 1, 3] = 1.0
     if model == "line":
