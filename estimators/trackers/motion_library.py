@@ -703,19 +703,9 @@ def forecast_basis(model: str, hyper, tau, stop, coast) -> np.ndarray:
 def predict(fit: LibraryFit, tau) -> tuple[np.ndarray, np.ndarray]:
     """Mean (K, 2) [m] and covariance (K, 2, 2) [m²] of the position at tau (K,) ≥ 0 [s] after
     ``fit.t_ref``: the selected entry's, plus the entries' BIC-weighted spread about it (module
-    docstring, forecast). No process noise here: the caller adds its own."""
-    tau = np.asarray(tau, dtype=np.float64)
-    means = []
-    for e in fit.entries:
-        B = forecast_basis(e.model, e.hyper, tau, e.stop, e.coast)      # (K, 2, P)
-        means.append(B @ e.theta)
-        if len(means) == 1:
-            cov = np.einsum("kip,pq,kjq->kij", B, e.cov, B)
-    mu = means[0]
-    for e, m in zip(fit.entries[1:], means[1:]):
-        d = m - mu
-        cov = cov + _spread_weight(e.weight) * np.einsum("ki,kj->kij", d, d)
-    return mu, cov
+    docstring, forecast). No process noise here: the caller adds its own. :func:`predict_many` of one fit."""
+    mean, cov = predict_many([fit], np.asarray(tau, dtype=np.float64).reshape(1, -1))
+    return mean[0], cov[0]
 
 
 def _spread_weight(w: float) -> float:

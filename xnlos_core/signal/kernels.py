@@ -269,7 +269,7 @@ def _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, out):  # pragma: no c
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _coherence(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, noise, beam):  # pragma: no cover - compiled
+def _coherence(yr, yi, m, wt_r, wt_i, a, peak, noise):  # pragma: no cover - compiled
     """ρ of Doppler bin m under fold hypothesis κ: the share of the channels' signal energy that one plane
     wave explains, noise removed. With b̂ the highest beam (at azimuth θ̂, weights w = w(θ̂)), E = Σ_c|y_c|²,
     σ² = noise/‖w‖² the noise per channel and τ = (Σ_c|w_c|)²/(K·‖w‖²) the taper's efficiency,
@@ -278,10 +278,9 @@ def _coherence(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, noise, beam):  # pragm
 
     ≈ 1 for one echo seen with the right κ (Cauchy–Schwarz, with equality for a plane wave), ≈ 0.85 with a
     neighbouring κ on the default 4-TX array (the slot phases a staircase), and lower where echoes from
-    several azimuths share the range–Doppler bin (a wall's static returns). beam (A,) is scratch."""
-    n_az, k = wt_r.shape
-    _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, beam)
-    a = int(np.argmax(beam))
+    several azimuths share the range–Doppler bin (a wall's static returns). a: θ̂'s index, peak: |b̂|² [W],
+    from the beams of the fold test under κ."""
+    k = wt_r.shape[1]
     wn = 0.0
     wabs = 0.0
     for c in range(k):
@@ -295,7 +294,7 @@ def _coherence(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, noise, beam):  # pragm
     den = (wabs * wabs / (k * wn)) * (energy - k * sigma2)
     if den <= 0.0:
         return 0.0
-    return (beam[a] / wn - sigma2) / den
+    return (peak / wn - sigma2) / den
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
@@ -336,16 +335,21 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
         best_val = beam.max() * priors[m, 0]
         if best_val < thr * priors[m, 0]:
             continue
+        best_az = 0
+        best_peak = 0.0
         for h in range(1, hyps.shape[1]):
             f = hyps[m, h]
             if f < 0:
                 break
             _fold_beams(yr, yi, m, wt_r, wt_i, slot, kappas[f], n_tdm, beam)
-            val = beam.max() * priors[m, h]
+            a = int(np.argmax(beam))
+            val = beam[a] * priors[m, h]
             if val > best_val * (1.0 + 1e-5):  # beyond single-precision rounding of the beams
                 best_val = val
                 best = kappas[f]
-        if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, slot, best, n_tdm, noise, beam) < consts[13]:
+                best_az = a
+                best_peak = beam[a]
+        if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, best_az, best_peak, noise) < consts[13]:
             best = 0  # no single plane wave under κ: several echoes share the bin, the fold is not readable
         for o in range(-d_h, d_h + 1):
             mm = m + o
