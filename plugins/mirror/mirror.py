@@ -78,6 +78,8 @@ class MirrorParams(BaseModel):
                              "[m] of an estimated wall and at rest is that wall's own echo, not a hidden road user")
     static_speed: float = Field(0.3, ge=0, le=100, description="with gate and Doppler: radial speed [m/s] below which "
                                 "(or within 3 σ of 0) a detection is at rest")
+    one_relay: bool = Field(True, description="with gate: refuse a hidden point whose ray crosses two seen walls "
+                            "(within wedge_margin): which relayed it is ambiguous (plugins.mirror.visibility, rule 5)")
 
 
 class MirrorReconstructor(Reconstructor):
@@ -146,7 +148,7 @@ class MirrorReconstructor(Reconstructor):
                 src: np.ndarray, detections: Detections) -> np.ndarray:
         """(M,) bool: the hidden points (M, 2) [m] that pass the visibility gate
         (:func:`plugins.mirror.visibility.visibility` with ``wedge_margin`` (else ``extent_margin``), ``behind_radar``,
-        ``wall_echo``, ``static_speed`` and the radial velocities of the detections ``src`` when they carry
+        ``wall_echo``, ``static_speed``, ``one_relay`` and the radial velocities of the detections ``src`` when they carry
         Doppler); all True without ``gate``. The gated ones are logged by rule with their detection indices."""
         if not self.params.gate or len(hidden) == 0:
             return np.ones(len(hidden), dtype=bool)
@@ -155,7 +157,7 @@ class MirrorReconstructor(Reconstructor):
         var = None if detections.velocity_var is None else detections.velocity_var[src]
         margin = p.extent_margin if p.wedge_margin is None else p.wedge_margin
         reason = visibility(hidden, virtual, walls, choice, margin, None if p.behind_radar else 0.0,
-                            vel, var, p.wall_echo, p.static_speed)
+                            vel, var, p.wall_echo, p.static_speed, p.one_relay)
         line = describe_gated(reason, src)
         if line:
             log.info("%s: %s", type(self).__name__, line)

@@ -26,6 +26,15 @@ specular reflection off a finite wall can put o only in some places:
    road users, static, and pulls their tracks and velocities towards zero. A hidden road user seen
    through a wall is behind it, not on it, or it moves. Without Doppler the rule is not applied
    (a parked car beside a wall looks the same).
+5. **One relay.** The ray radar → o' crosses no estimated wall but its own inside the seen extents
+   (± ``margin``), when ``one_relay`` is asked for. In the plane the nearer of two crossed walls
+   blocks the farther, so the anchoring takes the first crossing; but a short "wall" fitted to a
+   stopped or broadside car (its LOS echoes at rest, 4–6 m long) does not block a facade it stands
+   in front of, and one bounce cannot tell which of the two relayed the echo. On the sequence test
+   split (oracle detections, benchmarks/doppler_detector.md) 438 of 460 such points mirrored
+   through the nearer wall landed more than 2 m from every object; a farther wall would have put
+   them right, yet no rule from the walls alone (length, support, σ_φ) picks it reliably. The point
+   is ambiguous, and an ambiguous hidden point is not reported.
 
 A point that fails any of them is a **ghost**: not reported as hidden, but counted (the frame's
 ``n_gated``, :attr:`xnlos_core.types.HiddenPoints.gated` lists the detections) and named in the
@@ -41,24 +50,25 @@ from xnlos_core.types import WallPosterior
 
 from .association import crossing_parameters, signed_distances, wall_support
 
-VISIBLE, OUTSIDE_WEDGE, BEHIND_WALL, BEHIND_RADAR, WALL_ECHO = 0, 1, 2, 3, 4
+VISIBLE, OUTSIDE_WEDGE, BEHIND_WALL, BEHIND_RADAR, WALL_ECHO, TWO_RELAYS = 0, 1, 2, 3, 4, 5
 REASONS = {OUTSIDE_WEDGE: "outside its wall's visibility wedge", BEHIND_WALL: "not in front of its wall",
-           BEHIND_RADAR: "behind the radar", WALL_ECHO: "a static echo on a wall"}
+           BEHIND_RADAR: "behind the radar", WALL_ECHO: "a static echo on a wall",
+           TWO_RELAYS: "behind two seen walls (ambiguous relay)"}
 STATIC_SIGMAS = 3.0  # a radial velocity within this many σ of 0 is consistent with rest
 
 
 def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: float = 2.0,
                ahead: float | None = 0.0, velocity=None, velocity_var=None, wall_echo: float = 1.0,
-               static_speed: float = 0.3) -> np.ndarray:
+               static_speed: float = 0.3, one_relay: bool = False) -> np.ndarray:
     """(M,) int reason code per hidden point (module doc): ``VISIBLE`` (0) or the first rule it breaks,
-    ``OUTSIDE_WEDGE`` (1), ``BEHIND_WALL`` (2), ``BEHIND_RADAR`` (3), ``WALL_ECHO`` (4).
+    ``OUTSIDE_WEDGE`` (1), ``BEHIND_WALL`` (2), ``BEHIND_RADAR`` (3), ``WALL_ECHO`` (4), ``TWO_RELAYS`` (5).
 
     hidden: (M, 2) hidden points o [m]; virtual: (M, 2) the virtual points o' [m] they were mirrored
     from; wall_index: (M,) the wall of each (index into ``walls``); margin [m] ≥ 0; ahead [m]: the
     least x of a hidden point (None: no such rule); velocity, velocity_var: (M,) the detections'
     radial velocity [m/s] and its variance [m²/s²], or None (no Doppler: rule 4 not applied);
     wall_echo [m]: how near a wall o' is on it; static_speed [m/s]: the least |v_r| that is motion
-    whatever σ_v says."""
+    whatever σ_v says; one_relay: apply rule 5 (another wall crossed inside its extent ± margin)."""
     o = np.asarray(hidden, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(virtual, dtype=np.float64).reshape(-1, 2)
     j = np.asarray(wall_index, dtype=np.int64).reshape(-1)
@@ -89,6 +99,9 @@ def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: 
         for idx in wall_support(v, list(walls), wall_echo, margin):
             on_wall[idx] = True
         reason = np.where((reason == VISIBLE) & static & on_wall, WALL_ECHO, reason)
+    if one_relay and len(o) and len(walls) > 1:
+        crossings = np.count_nonzero(np.isfinite(crossing_parameters(v, list(walls), margin)), axis=1)
+        reason = np.where((reason == VISIBLE) & (crossings > 1), TWO_RELAYS, reason)
     return reason
 
 

@@ -53,8 +53,11 @@ def test_right_wall_picked_in_two_wall_scene():
 def test_first_crossing_wins_and_fallbacks():
     near = wall([-1, 0], 20.0, extent=[[20, 0], [20, 20]])
     far = wall([-1, 0], 25.0, extent=[[25, 0], [25, 20]])
-    hp = MirrorReconstructor().reconstruct(detections([[30.0, 10.0]]), [far, near])
+    hp = MirrorReconstructor({"one_relay": False}).reconstruct(detections([[30.0, 10.0]]), [far, near])
     assert hp.wall_index.tolist() == [1]
+    # behind two seen walls the relay is ambiguous: the gate does not report it (visibility rule 5)
+    hp = MirrorReconstructor().reconstruct(detections([[30.0, 10.0]]), [far, near])
+    assert len(hp) == 0 and hp.gated.tolist() == [0]
     # (30, −30): its ray passes below both extents (even with the 2 m margin).
     det = detections([[30.0, 10.0], [30.0, -30.0]])
     rec = MirrorReconstructor({"fallback": "drop"})

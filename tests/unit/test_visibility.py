@@ -140,3 +140,32 @@ def test_a_static_echo_on_a_wall_is_that_walls_own_echo():
     assert visibility(o, v, walls, [0], velocity=[0.4], velocity_var=[0.04]).tolist() == [WALL_ECHO]  # 2σ
     v2 = np.array([[22.0, 9.0]])  # 2 m behind the far wall: a hidden object, not the wall
     assert visibility(mirrored(v2, FACADE), v2, walls, [0], velocity=[0.0], velocity_var=[0.01]).tolist() == [VISIBLE]
+
+
+# A stopped car's side fitted as a short wall in front of the facade: y = 3.5 m from x = 3.5 to 5.5 m.
+CAR_SIDE = WallPosterior("line", np.array([-np.pi / 2, 3.5]), COV, extent=np.array([[3.5, 3.5], [5.5, 3.5]]))
+
+
+def test_a_ray_through_two_seen_walls_is_an_ambiguous_relay():
+    from plugins.mirror.visibility import TWO_RELAYS
+    # o' = (10, 8): its ray crosses y = 3.5 at x = 4.375 (on the car's side) before y = 5 at x = 6.25 (on
+    # the facade). o' = (14, 8) crosses y = 3.5 at x = 6.125, past the car: only the facade relays it.
+    v = np.array([[10.0, 8.0], [14.0, 8.0]])
+    o = mirrored(v, FACADE)
+    walls = [FACADE, CAR_SIDE]
+    assert visibility(o, v, walls, [0, 0], margin=0.0).tolist() == [VISIBLE, VISIBLE]
+    assert visibility(o, v, walls, [0, 0], margin=0.0, one_relay=True).tolist() == [TWO_RELAYS, VISIBLE]
+    # within a 1 m margin the second ray reaches the car's side too (6.125 − 5.5 = 0.625 m past its end)
+    assert visibility(o, v, walls, [0, 0], margin=1.0, one_relay=True).tolist() == [TWO_RELAYS, TWO_RELAYS]
+    assert "ambiguous relay" in describe_gated(np.array([TWO_RELAYS]), [7])
+
+
+@pytest.mark.parametrize("one_relay, kept, gated", [(True, [1], [0]), (False, [0, 1], [])])
+def test_the_mirror_reports_no_point_behind_two_walls(one_relay, kept, gated):
+    # Anchoring takes the first crossing (the car's side): mirrored there the point lands at (10, −1), a
+    # ghost; the gate refuses it unless one_relay is off. The second point crosses the facade only.
+    det = _detections([[10.0, 8.0], [14.0, 8.0]], [MNLOS, MNLOS])
+    hidden = MirrorReconstructor({"one_relay": one_relay}).reconstruct(det, [FACADE, CAR_SIDE])
+    assert hidden.source_index.tolist() == kept and hidden.gated.tolist() == gated
+    if not one_relay:
+        np.testing.assert_allclose(hidden.mean[0], [10.0, -1.0], atol=1e-9)

@@ -52,6 +52,9 @@ class ResidualMirrorParams(MirrorParams):
                                        "observed extent its bounce point may lie; None (here the default): "
                                        "extent_margin, since the residual corrects walls whose fitted line and "
                                        "extent are off (a bent facade fitted as one line), as its training data had")
+    one_relay: bool = Field(False, description="with gate: refuse a hidden point whose ray crosses two walls within "
+                            "the wedge margin; off here, where that margin is extent_margin and two crossings "
+                            "within it are common (a corner's two facades)")
 
 
 @lru_cache(maxsize=8)
