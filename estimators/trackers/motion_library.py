@@ -83,7 +83,12 @@ Anchored (``predict_many``'s ``anchor``: a filter's position p and velocity v at
 τ₀): each entry's path keeps its shape about its own tangent at τ₀ and starts from (p, v), Eq. (3) of
 :func:`predict_many` — the CV entry then forecasts exactly p + v h. A tracker whose filter measures the
 velocity directly (Doppler) starts the forecast from its state, where the window fit's level and slope
-carry the wander of a reconstructed car's points.
+carry the wander of a reconstructed car's points; and so does a fit whose window's own present velocity
+is biased (:attr:`LibraryFit.local_origin`): a lane change — anchored, its forecast is the filter's
+line bent by the rest of the fitted offset, A n_φ (σ(τ₀ + h) − σ(τ₀) − σ′(τ₀) h): the filter's lateral
+velocity dies out as the lane change's does, where a CV forecast would carry it on for the whole horizon
+— and a CV selection with a manoeuvre clearly better by BIC (CV weight < ``CV_BENT``), whose window
+velocity averages a bend.
 """
 from __future__ import annotations
 
@@ -112,6 +117,7 @@ MIN_SAMPLES = 8
 MIN_BEFORE = 4     # samples a ramp or kink needs before its τ_k
 TURN_OVER_LANE = 6.0  # BIC margin a turn needs over a passing lane change ("strong", Kass & Raftery 1995)
 CV_SURE = 0.5  # BIC weight below which a CV selection forecasts with the "cv_uncertain" disc factor
+CV_BENT = 0.1  # BIC weight below which a CV selection's window is not a straight line (LibraryFit.local_origin)
 MIN_WEIGHT = 0.01  # entries of a smaller BIC weight leave the forecast mixture (< 1 % of their squared offset)
 
 
@@ -164,6 +170,20 @@ class LibraryFit:
         if self.label == "cv" and self.entries[0].weight < CV_SURE:
             return "cv_uncertain"
         return self.label
+
+    @property
+    def local_origin(self) -> bool:
+        """Whether this fit's forecast should start from a filter's position and velocity at its origin
+        (``predict_many``'s ``anchor``, Eq. 3) rather than from the window fit's own (module docstring,
+        forecast): a **lane change**, whose window fit gives the lateral offset's shape — how the lateral
+        drift ends — but whose lane direction the window pins poorly (the second half of a lane change and
+        the first half of an opposite one, about a slightly turned lane, fit a window alike), and a **CV**
+        selection whose CV entry holds less than ``CV_BENT`` of the BIC weight: a manoeuvre fits the window
+        clearly better without passing the test, so the window is no straight line and its least-squares
+        velocity is the average over a bend, not the present one."""
+        if self.label == "lane_change":
+            return True
+        return self.label == "cv" and self.entries[0].weight < CV_BENT
 
     def to_dict(self) -> dict:
         return {"label": self.label, "t_ref": float(self.t_ref), "sigma": float(self.sigma),

@@ -58,8 +58,34 @@ def test_straight_noisy_tracks_stay_constant_velocity():
     for _ in range(200):
         v = rng.uniform(5, 15) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
         tracks.append((T, T[:, None] * v + rng.uniform(0.3, 0.5) * rng.standard_normal((len(T), 2))))
-    labels = [f.label for f in ml.identify_batch(tracks)]
+    fits = ml.identify_batch(tracks)
+    labels = [f.label for f in fits]
     assert labels.count("cv") >= 194                       # ≤ 3 %: binomial(200, 0.01) exceeds 6 with p < 0.5 %
+    # and their windows read as straight: the forecast starts from the window fit, not a filter's state
+    assert sum(f.local_origin for f in fits) <= 10
+
+
+def test_a_lane_change_forecast_from_a_filter_state_ends_the_lateral_motion():
+    # the closed-form lane change (3.5 m in 4 s at 12 m/s, sin² heading), the window ending 0.8 of the
+    # way through (3.4 m across), 0.05 m noise: a lane change, forecast from a filter's (here: the true)
+    # position and lateral velocity (0.48 m/s, which a CV forecast carries 0.96 m on over 2 s): the
+    # forecast's lateral velocity dies out with the lane change (0 after its end, 0.7 s on) and it lands
+    # in the new lane
+    rng = np.random.default_rng(0)
+    t = T + 0.2
+    z = lane_change(t, start=-0.2) + 0.05 * rng.standard_normal((len(t), 2))
+    fit = ml.identify_batch([(t, z)])[0]
+    assert fit.label == "lane_change" and fit.local_origin
+    dt = 1e-4
+    p = lane_change(np.array([t[-1]]), start=-0.2)[0]
+    v = (lane_change(np.array([t[-1] + dt]), start=-0.2)[0] - lane_change(np.array([t[-1] - dt]), start=-0.2)[0]) / (2 * dt)
+    assert v[1] > 0.45                                              # the lateral velocity at the origin
+    h = np.array([[1.5, 2.0, 2.0 + dt]])
+    mean, _ = ml.predict_many([fit], h, (p[None], v[None], np.zeros(1)))
+    lateral_speed = (mean[0, 2, 1] - mean[0, 1, 1]) / dt
+    assert abs(lateral_speed) < 0.1 * v[1]                          # the drift has ended
+    assert mean[0, 1, 1] == pytest.approx(3.5, abs=0.25)            # in the new lane
+    assert abs(p[1] + 2.0 * v[1] - 3.5) > 0.8                       # the CV forecast: 0.84 m beyond it
 
 
 def test_batched_fit_equals_the_per_track_least_squares_fit():
