@@ -1,3 +1,3 @@
 """Trackers: hidden points of successive frames → tracks (α–β ``nearest``, Kalman ``kalman``) and
-motion identification (``sindy``): over a manoeuvre library, batched over tracks (``motion_library``),
-or with ensemble SINDy (``sindy_model``)."""
+motion identification (``sindy``): over a manoeuvre library, batched over tracks (the ``library``
+package; ``motion_library`` re-exports its names), or with ensemble SINDy (``sindy_model``)."""

@@ -3,20 +3,20 @@ update), with each confirmed track's motion model identified over a manoeuvre li
 
 Identification ``library`` (the default): every track due in a frame (≥ ``min_samples`` in the window,
 last fitted ``refit_every`` frames ago; all of them unless ``max_fits_per_frame`` caps them) is
-identified at once by :func:`estimators.trackers.motion_library.identify_batch` — straight, braking,
+identified at once by :func:`estimators.trackers.library.identify_batch` — straight, braking,
 speeding up, reversing, turn (with or without a speed change), lane change, a settled speed change or
 velocity step — selected by a likelihood-ratio test at ``selection_level`` against constant velocity
 and then by BIC, from the positions and (with ``use_doppler`` and ``identify_doppler``) the radial
-velocities of the track's updates (motion_library, Doppler; ``radial_share``, σ_r floored at
-``doppler_floor``). A manoeuvre whose evidence BIC(CV) − BIC(model) falls short of ``min_evidence``
-(``braking_evidence`` for braking) is demoted to CV (:func:`estimators.trackers.motion_library.demote`),
-as in step 3 below. The track then forecasts from that fit (:func:`estimators.trackers.motion_library.predict_many`,
+velocities of the track's updates (:mod:`estimators.trackers.library.doppler`; ``radial_share``, σ_r
+floored at ``doppler_floor``). A manoeuvre whose evidence BIC(CV) − BIC(model) falls short of ``min_evidence``
+(``braking_evidence`` for braking) is demoted to CV (:func:`estimators.trackers.library.demote`),
+as in step 3 below. The track then forecasts from that fit (:func:`estimators.trackers.library.predict_many`,
 plus ``accel_psd`` white acceleration noise from the fit's last sample) — started from the filter's
 position and velocity, the fit's path kept about its tangent (Eqs. 3–4 there: the CV entry forecasts as
 ``kalman``), where ``library_origin`` says so ("doppler", the default: when the track has radial
 velocities in its window, whose filter measures the velocity directly; the window fit's own level and
 slope carry a reconstructed car's wandering centroid; and for a lane change or a CV fit whose window is
-no straight line, :attr:`estimators.trackers.motion_library.LibraryFit.local_origin`: the filter's line
+no straight line, :attr:`estimators.trackers.library.LibraryFit.local_origin`: the filter's line
 then bends as the fitted lane change ends) — its disc radii scaled by
 ``interval_factors`` of its model (split-conformal, ``benchmarks/bicycle_forecasts.py --calibrate``);
 its filter predicts with the fit's turn rate or matched speed change (:func:`library_motion`; CV for a
@@ -92,7 +92,7 @@ from . import forecast as fc
 from .kalman import CV, KalmanParams, KalmanTracker, Scale, KalmanTrack
 from .measurements import Measurements
 from estimators.state import StateReader
-from . import motion_library as ml
+from .library import Envelope, LibraryFit, demote, identify_batch, predict_many
 from .sindy_model import GENERATORS, MIN_SAMPLES, XI_MAX, MotionModel, identify_motion
 
 MODEL_ACCEL_PSD = 4.0  # [m²/s³] calibrated defaults (benchmarks/forecast_calibration.py)
@@ -123,7 +123,7 @@ class SindyParams(KalmanParams):
     identification: Literal["library", "ensemble"] = Field("library", description="'library': every due track "
                                                            "identified at once over the manoeuvre library (straight, "
                                                            "braking, speeding up, reversing, turn, lane change; "
-                                                           "motion_library.py) by a likelihood-ratio test at "
+                                                           "trackers/library/) by a likelihood-ratio test at "
                                                            "selection_level, from the positions and radial velocities; "
                                                            "'ensemble': one "
                                                            "track at a time by ensemble SINDy (sindy_model.py)")
@@ -135,11 +135,11 @@ class SindyParams(KalmanParams):
                                                               "forecast starts: 'fit' its own position and velocity "
                                                               "at the forecast's origin, 'filter' the Kalman state's "
                                                               "(the fit's path kept about its tangent, "
-                                                              "motion_library.predict_many Eq. 3: the CV entry then "
+                                                              "library.predict_many Eq. 3: the CV entry then "
                                                               "forecasts as kalman), 'doppler' the filter's when the "
                                                               "track has radial velocities in its window or the fit "
                                                               "asks for it (a lane change, a CV fit of a bent window: "
-                                                              "motion_library.LibraryFit.local_origin), else the fit's")
+                                                              "library.LibraryFit.local_origin), else the fit's")
     selection_level: float = Field(0.01, gt=0, lt=1, description="level α of the library's likelihood-ratio test "
                                                                  "against constant velocity (Bonferroni over the "
                                                                  "alternatives): a straight track is given a manoeuvre "
@@ -149,13 +149,13 @@ class SindyParams(KalmanParams):
                            Scale] = Field(
         default_factory=lambda: dict(INTERVAL_FACTORS), description="factor on the 50 % and 90 % disc radii of a "
         "library-identified track by its model ('cv_uncertain': CV selected with less than half the BIC weight, "
-        "motion_library.LibraryFit.interval_key): split-conformal factors learned on a calibration split of "
+        "library.LibraryFit.interval_key): split-conformal factors learned on a calibration split of "
         "kinematic-bicycle tracks (benchmarks/bicycle_forecasts.py --calibrate); a model missing here: 1")
     n_models: int = Field(5, ge=2, le=200, description="bagging ensemble size (members of the forecast mixture); "
                                                         "5: as well calibrated as 10 by benchmarks/forecast_calibration.py, "
                                                         "and cheaper to identify")
     identify_doppler: bool = Field(True, description="with use_doppler, the identification fits the track's "
-                                                     "radial velocities too (sindy_model and motion_library, "
+                                                     "radial velocities too (sindy_model and library.doppler, "
                                                      "Doppler)")
     radial_share: Literal["ar1", "full"] = Field("ar1", description="how many independent samples the radial "
                                                   "residuals count in the identification's evidence: 'ar1' from "
@@ -202,7 +202,7 @@ class _SindyTrack(KalmanTrack):
     motion: fc.LinearMotion = field(default_factory=lambda: CV)
     fitted_frame: int = -1                         # tracker frame of the last identification (−1: none)
     identified: MotionModel | None = None
-    library: ml.LibraryFit | None = None           # the library identification (identification "library")
+    library: LibraryFit | None = None              # the library identification (identification "library")
 
 
 def bounded(coef, max_growth: float) -> np.ndarray:
@@ -281,7 +281,7 @@ def motion_from(model: MotionModel, v, seed, p: "SindyParams") -> fc.LinearMotio
     return fc.LinearMotion(bounded(point, p.max_growth), bounded(members, p.max_growth), " ".join(terms))
 
 
-def library_motion(fit: ml.LibraryFit, speed: float, p: "SindyParams") -> fc.LinearMotion:
+def library_motion(fit: LibraryFit, speed: float, p: "SindyParams") -> fc.LinearMotion:
     """The linear filter's motion of a library fit at ``speed`` [m/s]: a turn ωJ (+ matched α of a speed
     change), braking or speeding up as the matched α (module docstring, 4); CV for the rest (a lane
     change or a reversal, whose forecast comes from the fit itself)."""
@@ -359,7 +359,7 @@ class SindyTracker(KalmanTracker):
                                      d.array("rates", (len(GENERATORS),)))
         library = None
         if r.data.get("library") is not None:
-            library = ml.LibraryFit.from_reader(r.sub("library"))
+            library = LibraryFit.from_reader(r.sub("library"))
         return _SindyTrack(base.id, base.x, base.P, base.t, base.frames, base.hits, base.misses, base.confirmed,
                            history=history, motion=motion, fitted_frame=r.integer("fitted_frame", -1),
                            identified=identified, library=library)
@@ -395,7 +395,7 @@ class SindyTracker(KalmanTracker):
         return self.params.interval_scale if tr.motion.is_cv else self.params.model_interval_scale
 
     def _forecast(self, tr: _SindyTrack, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """A library-identified track forecasts from its fit (motion_library.predict) at τ = t − t_ref + h,
+        """A library-identified track forecasts from its fit (library.predict) at τ = t − t_ref + h,
         with the white-acceleration noise of ``accel_psd`` over τ added; any other as ``kalman``."""
         if not self._fresh(tr):
             return super()._forecast(tr, h)
@@ -403,7 +403,7 @@ class SindyTracker(KalmanTracker):
         return mean, cov
 
     def _forecasts(self, trs: list, h: np.ndarray) -> list:
-        """The library-identified tracks' forecasts in one batch (motion_library.predict_many), the others
+        """The library-identified tracks' forecasts in one batch (library.predict_many), the others
         as ``kalman``'s (:meth:`_forecast`)."""
         lib = [i for i, tr in enumerate(trs) if self._fresh(tr)]
         out = [None if self._fresh(tr) else super(SindyTracker, self)._forecast(tr, h) for tr in trs]
@@ -416,7 +416,7 @@ class SindyTracker(KalmanTracker):
                 nan = np.full(4, np.nan)
                 x = np.array([trs[i].x[:4] if a else nan for i, a in zip(lib, anchored)])
                 anchor = (x[:, :2], x[:, 2:], t0)
-            mean, cov = ml.predict_many([trs[i].library for i in lib], tau, anchor)
+            mean, cov = predict_many([trs[i].library for i in lib], tau, anchor)
             cov = cov + fc.cv_process_noise(tau, self.params.accel_psd)[..., :2, :2]
             for r, i in enumerate(lib):
                 out[i] = (mean[r], cov[r])
@@ -446,16 +446,16 @@ class SindyTracker(KalmanTracker):
             self._identify(tr)
 
     def _identify_library(self, due: list) -> None:
-        """Every due track identified at once over the manoeuvre library (motion_library.identify_batch)."""
+        """Every due track identified at once over the manoeuvre library (library.identify_batch)."""
         if not due:
             return
         p = self.params
         doppler = p.use_doppler and p.identify_doppler
-        fits = ml.identify_batch([(np.array([h[0] for h in tr.history]), np.array([h[1] for h in tr.history]))
-                                  + ((np.array([h[3] for h in tr.history]), np.array([h[4] for h in tr.history]))
-                                     if doppler else ()) for tr in due],
-                                 p.selection_level, ml.Envelope(p.max_speedup, p.max_lateral), p.radial_share,
-                                 p.doppler_floor)
+        fits = identify_batch([(np.array([h[0] for h in tr.history]), np.array([h[1] for h in tr.history]))
+                               + ((np.array([h[3] for h in tr.history]), np.array([h[4] for h in tr.history]))
+                                  if doppler else ()) for tr in due],
+                              p.selection_level, Envelope(p.max_speedup, p.max_lateral), p.radial_share,
+                              p.doppler_floor)
         for tr, fit in zip(due, fits):
             tr.fitted_frame, tr.identified = self._frame, None
             speed = float(np.linalg.norm(tr.x[2:]))
@@ -463,7 +463,7 @@ class SindyTracker(KalmanTracker):
                 tr.library, tr.motion = None, CV
                 continue
             if fit.label != "cv" and fit.evidence < evidence_bar(fit.rates, p) - 1e-9:
-                fit = ml.demote(fit)                                   # short of the evidence bar: CV
+                fit = demote(fit)                                      # short of the evidence bar: CV
             tr.library = fit
             tr.motion = library_motion(fit, speed, p)
 

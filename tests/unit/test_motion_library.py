@@ -1,4 +1,4 @@
-"""The batched manoeuvre library (estimators/trackers/motion_library.py): lane changes and reversals are
+"""The batched manoeuvre library (estimators/trackers/library/, through motion_library): lane changes and reversals are
 identified as such, straight noisy tracks stay constant velocity, and the batched fit equals a
 per-track least-squares fit."""
 import numpy as np
