@@ -80,10 +80,11 @@ def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: 
     if not margin >= 0:
         raise InputError(f"visibility: margin must be ≥ 0 m, got {margin}")
     reason = np.zeros(len(o), dtype=np.int64)
+    crossings = np.isfinite(crossing_parameters(v, list(walls), margin))  # (M, J): rules 1 and 5
     for w in np.unique(j):
         m = np.flatnonzero(j == w)
         wall = [walls[w]]
-        crossed = np.isfinite(crossing_parameters(v[m], wall, margin)[:, 0])
+        crossed = crossings[m, w]
         radar_side = np.sign(signed_distances(np.zeros((1, 2)), wall)[0, 0]) or 1.0
         in_front = signed_distances(o[m], wall)[:, 0] * radar_side > 0
         beyond = signed_distances(v[m], wall)[:, 0] * radar_side < 0
@@ -99,9 +100,8 @@ def visibility(hidden, virtual, walls: list[WallPosterior], wall_index, margin: 
         for idx in wall_support(v, list(walls), wall_echo, margin):
             on_wall[idx] = True
         reason = np.where((reason == VISIBLE) & static & on_wall, WALL_ECHO, reason)
-    if one_relay and len(o) and len(walls) > 1:
-        crossings = np.count_nonzero(np.isfinite(crossing_parameters(v, list(walls), margin)), axis=1)
-        reason = np.where((reason == VISIBLE) & (crossings > 1), TWO_RELAYS, reason)
+    if one_relay:
+        reason = np.where((reason == VISIBLE) & (np.count_nonzero(crossings, axis=1) > 1), TWO_RELAYS, reason)
     return reason
 
 
