@@ -96,12 +96,12 @@ def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, ve
     comp_r, comp_i (d, k) float64: TDM compensation (real, imaginary); wa = [w_r | w_i], wb = [w_i | w_r]
     (k, 2H) float32: the weights of the H computed azimuths; ipos (H,), ineg (H,) int64: the map
     column of each computed azimuth and of its mirror (−1: none); wt_r, wt_i (A, k) float64: all
-    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (14,)
+    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (15,)
     float64 (:func:`xnlos_core.signal.doppler._doppler_plan`): 1/ENBW, tan(π/N)/(π/N), Δv [m/s],
     v_max [m/s], σ_cell [W], λ₀/(4π·T_s)·√(6/(N(N²−1))) [m/s], the fold test's and the refinement's
     SNR thresholds (peak-bin power over its noise floor), the window's relative sidelobe cut, its main
     lobe's half width [bins], the refinement's half span L [bins], n_tdm, Newton steps, the fold test's
-    least coherence; slot (k,) int64:
+    least coherence and its least significance [σ]; slot (k,) int64:
     each channel's TX slot i; kappas (F,) int64: fold hypotheses κ; hyps (d, F) int64: the indices into
     kappas tested per Doppler bin (−1: none), the first κ = 0.
     Written, each (r, A) float64: power Σ_d|b|²/ENBW [W], peak_power max_d|b|² [W], velocity [m/s],
@@ -298,13 +298,62 @@ def _coherence(yr, yi, m, wt_r, wt_i, a, peak, noise):  # pragma: no cover - com
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
+def _fold_beam_at(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, a, vr, vi):  # pragma: no cover - compiled
+    """(Re b, Im b) of Doppler bin m's beam at azimuth index a under fold hypothesis κ (as :func:`_fold_beams`,
+    one azimuth); vr, vi (k,) are written with the effective weights v_c = exp(−j2π·κ·i_c/N_tx)·w_c(θ_a),
+    so that b = Σ_c y_c·v_c."""
+    k = wt_r.shape[1]
+    br = 0.0
+    bi = 0.0
+    for c in range(k):
+        ph = -2.0 * np.pi * kappa * slot[c] / n_tdm
+        cr = np.cos(ph)
+        ci = np.sin(ph)
+        vr[c] = cr * wt_r[a, c] - ci * wt_i[a, c]
+        vi[c] = cr * wt_i[a, c] + ci * wt_r[a, c]
+        zr = np.float64(yr[m, c])
+        zi = np.float64(yi[m, c])
+        br += zr * vr[c] - zi * vi[c]
+        bi += zr * vi[c] + zi * vr[c]
+    return br, bi
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _fold_gain_sigma(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, a0, a1, noise):  # pragma: no cover - compiled
+    """σ_Δ [W] of the fold test's gain Δ = |b_κ(θ₁)|² − |b_0(θ₀)|² of Doppler bin m, from the channels'
+    noise: with b = Σ_c y_c·v_c (:func:`_fold_beam_at`) and y_c = s_c + n_c, n_c ~ CN(0, σ²),
+    σ² = noise/‖w(θ₀)‖² (as :func:`_coherence`), to first order in n
+
+        Δ − E[Δ] = 2·Re Σ_c n_c·u_c,   u_c = b₁*·v₁_c − b₀*·v₀_c,   σ_Δ² = 2σ²·Σ_c |u_c|²              (F2)
+
+    The two beams see the same noise, so σ_Δ is much smaller than either beam's own spread."""
+    k = wt_r.shape[1]
+    v0r = np.empty(k)
+    v0i = np.empty(k)
+    v1r = np.empty(k)
+    v1i = np.empty(k)
+    b0r, b0i = _fold_beam_at(yr, yi, m, wt_r, wt_i, slot, 0, n_tdm, a0, v0r, v0i)
+    b1r, b1i = _fold_beam_at(yr, yi, m, wt_r, wt_i, slot, kappa, n_tdm, a1, v1r, v1i)
+    wn = 0.0
+    uu = 0.0
+    for c in range(k):
+        wn += wt_r[a0, c] * wt_r[a0, c] + wt_i[a0, c] * wt_i[a0, c]
+        ur = (b1r * v1r[c] + b1i * v1i[c]) - (b0r * v0r[c] + b0i * v0i[c])  # conj(b)·v, real part
+        ui = (b1r * v1i[c] - b1i * v1r[c]) - (b0r * v0i[c] - b0i * v0r[c])  # imaginary part
+        uu += ur * ur + ui * ui
+    return np.sqrt(2.0 * noise / wn * uu)
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
 def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsum, fold, known):  # pragma: no cover
     """The fold test of one range bin (:func:`xnlos_core.signal.doppler.doppler_ra_maps`): at each Doppler
     bin m that is a local maximum of rowsum (d,) = Σ_θ|b|² above the window's sidelobes of the range
     bin's strongest bin, and whose best beam max_θ|b|² is above the fold threshold, each hypothesis κ
     of hyps[m] is beamformed over the whole azimuth grid; the highest beam times the hypothesis' prior
     wins (κ = 0 unless another is higher by more than 1e-5, relatively), a κ ≠ 0 only when one plane
-    wave explains the bin under it (:func:`_coherence` ≥ consts[13]); it holds for the bins of that
+    wave explains the bin under it (:func:`_coherence` ≥ consts[13]) and its beam's gain over κ = 0's is
+    consts[14] standard deviations of the noise's part of that gain (:func:`_fold_gain_sigma`, Eq. F2)
+    or more; it holds for the bins of that
     peak's main lobe (κ ± 1 across the spectrum's wrap). fold (d,) and known (d,) are written; returns
     whether any fold is not 0."""
     d = rowsum.shape[0]
@@ -332,7 +381,9 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
         m = cand[t]
         _fold_beams(yr, yi, m, wt_r, wt_i, slot, 0, n_tdm, beam)
         best = 0
-        best_val = beam.max() * priors[m, 0]
+        a0 = int(np.argmax(beam))
+        peak0 = beam[a0]
+        best_val = peak0 * priors[m, 0]
         if best_val < thr * priors[m, 0]:
             continue
         best_az = 0
@@ -351,6 +402,9 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
                 best_peak = beam[a]
         if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, best_az, best_peak, noise) < consts[13]:
             best = 0  # no single plane wave under κ: several echoes share the bin, the fold is not readable
+        if best != 0 and best_peak - peak0 < consts[14] * _fold_gain_sigma(yr, yi, m, wt_r, wt_i, slot, best, n_tdm,
+                                                                           a0, best_az, noise):
+            best = 0  # the gain over κ = 0 is within the noise's reach (Eq. F2): a weak echo's fold is not readable
         for o in range(-d_h, d_h + 1):
             mm = m + o
             adj = 0
