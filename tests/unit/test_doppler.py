@@ -240,7 +240,6 @@ def test_fold_test_removes_the_folded_azimuth_error_and_compensates_the_span_edg
         doppler_ra_maps(cube, radar, folds=-1)
 
 
-
 def test_fold_gain_sigma_is_the_spread_of_the_gain_under_noise():
     # Eq. F2 against Monte Carlo: one plane wave at θ₀ (20 dB over a beam's noise) under 4000 noise draws;
     # the spread of the gain |b_κ(θ₁)|² − |b_0(θ₀)|² at fixed azimuths is the first-order σ_Δ

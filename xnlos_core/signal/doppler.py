@@ -189,7 +189,7 @@ FOLD_SNR = 20.0  # 13 dB: the Doppler bin's best beam over its noise floor above
 FOLD_MARGIN = 1.1  # a velocity outside the unambiguous span must beam this much higher than the one inside
 FOLD_COHERENCE = 0.9  # ... and one plane wave must explain this share of the bin's signal under it (kernels._coherence)
 FOLD_Z = 2.0  # ... and its beam's gain over κ = 0's must be this many σ of the noise's part of that gain
-#                (kernels._fold_gain_sigma, Eq. F2): at 13–15 dB a neighbouring κ beamed 10–20 % higher by chance
+#                (kernels._fold_gain_sigma, Eq. F2): at 12–18 dB a neighbouring κ beamed 10–20 % higher by chance
 REFINE_SNR = 10.0  # 10 dB: a cell's peak-bin power over its noise floor above which its velocity is refined
 REFINE_HALF = 4  # the refinement's likelihood takes 2·4 + 1 unwindowed Doppler bins around the peak
 NEWTON_STEPS = 4
