@@ -305,3 +305,33 @@ def test_fold_test_leaves_weak_echoes_in_the_span_at_any_seed(monkeypatch):
     # 900 road users inside the span at 12–18 dB peak SNR: 9 wrong folds without the significance rule, none with it
     cases = [_weak_echo(1000 * k + seed, snr) for k, snr in enumerate((-3.0, 0.0, 3.0)) for seed in range(300)]
     assert _folds_wrongly(cases, doppler.FOLD_Z, monkeypatch) == 0
+
+
+def test_fold_test_is_stricter_where_the_echo_may_lie_beyond_the_grid(monkeypatch):
+    # an echo inside the span 63–67° off boresight, beyond the ±60° grid: κ = 0's peak is not seen, a neighbouring
+    # κ steers the beam inside and wins with a coherence of ≈ 0.92; three seeded cases (among 36: five with the
+    # 90 % bar, two with 97 %) that the edge's stricter bar keeps in the span
+    radar = RadarConfig(n_samples=64, max_range=15.0)
+    vmax = radar.max_unambiguous_velocity
+
+    def folded(seed):
+        rng = np.random.default_rng(seed)
+        i, v = int(rng.integers(10, 50)), rng.uniform(1, 12) * rng.choice([-1, 1])
+        th = np.deg2rad(rng.uniform(63, 67)) * rng.choice([-1, 1])
+        amp = np.sqrt(10 * chirp_noise_power(radar) / processing_gain(radar)) * np.exp(2j * np.pi * rng.random())
+        cube = add_chirp_noise(chirp_sequence_cube(radar, [i * radar.range_resolution], [th], [amp], [v]), radar, rng)
+        m = doppler_ra_maps(cube, radar)
+        e = m.velocity[i - 1:i + 2] - v
+        return bool(np.any((np.abs(e) > vmax) & (np.abs(e - 2 * vmax * np.round(e / (2 * vmax))) < 1.0)
+                           & (m.peak_power[i - 1:i + 2] > 30 * m.peak_noise_floor)))
+
+    strict = doppler.FOLD_EDGE_COHERENCE
+    try:
+        monkeypatch.setattr(doppler, "FOLD_EDGE_COHERENCE", doppler.FOLD_COHERENCE)
+        doppler._doppler_plan.cache_clear()
+        assert all(folded(s) for s in (25, 27, 35))
+        monkeypatch.setattr(doppler, "FOLD_EDGE_COHERENCE", strict)
+        doppler._doppler_plan.cache_clear()
+        assert not any(folded(s) for s in (25, 27, 35))
+    finally:
+        doppler._doppler_plan.cache_clear()

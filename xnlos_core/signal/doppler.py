@@ -190,6 +190,8 @@ FOLD_MARGIN = 1.1  # a velocity outside the unambiguous span must beam this much
 FOLD_COHERENCE = 0.9  # ... and one plane wave must explain this share of the bin's signal under it (kernels._coherence)
 FOLD_Z = 2.0  # ... and its beam's gain over κ = 0's must be this many σ of the noise's part of that gain
 #                (kernels._fold_gain_sigma, Eq. F2): at 12–18 dB a neighbouring κ beamed 10–20 % higher by chance
+FOLD_EDGE_COHERENCE = 0.97  # the least coherence where κ = 0's best beam is on the azimuth grid's edge: an echo
+#                             beyond the grid under a neighbouring κ reached 0.92 there
 REFINE_SNR = 10.0  # 10 dB: a cell's peak-bin power over its noise floor above which its velocity is refined
 REFINE_HALF = 4  # the refinement's likelihood takes 2·4 + 1 unwindowed Doppler bins around the peak
 NEWTON_STEPS = 4
@@ -247,7 +249,7 @@ class _DopplerPlan:
     azimuths the kernel computes and their mirrors (:func:`~xnlos_core.signal.kernels.azimuth_pairs`);
     wa = [Re w | Im w], wb = [Im w | Re w] (n_channels, 2H) float32 of the ipos columns; enbw:
     N·Σw²/(Σw)² [bins]; sigma_cell: chirp noise / G_p [W]; velocity_axis (n_chirps,) [m/s] and
-    consts (15,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
+    consts (16,) float64: the kernel's constants (:func:`~xnlos_core.signal.kernels.beam_maps`, σ_cell
     for a cube that needs no rescaling); slot (n_channels,) int64: each channel's TX slot; kappas,
     hyps: :func:`_fold_hypotheses`. Arrays read-only (shared by calls).
     """
@@ -317,7 +319,7 @@ def _doppler_plan(radar: RadarConfig, window: str, folds: int = 1) -> _DopplerPl
                   consts=np.array([1.0 / enbw, np.tan(np.pi / d) / (np.pi / d), radar.velocity_resolution,
                                    radar.max_unambiguous_velocity, sigma_cell, crb, FOLD_SNR, REFINE_SNR,
                                    2.0 * psl, lobe, min(REFINE_HALF, (d - 1) // 2), radar.n_tdm, NEWTON_STEPS,
-                                   FOLD_COHERENCE, FOLD_Z]),
+                                   FOLD_COHERENCE, FOLD_Z, FOLD_EDGE_COHERENCE]),
                   slot=np.repeat(np.arange(radar.n_tdm, dtype=np.int64), radar.n_channels // radar.n_tdm),
                   kappas=kappas, hyps=hyps, priors=priors)
     for a in arrays.values():
@@ -446,7 +448,11 @@ def doppler_ra_maps(cube, radar: RadarConfig, *, window: str = "hann", remove_st
     neighbouring one on the default 4-TX array, which noise matches at 12–18 dB, where weak mirrored cars
     were reported at ±36 m/s. One echo in the span at 12–18 dB peak SNR: wrong folds 9 of 900 without the
     rule, 0 with it; one beyond v_max: unfolded in 93 % of 300 at 22 dB (94 % without), 65 % at 19 dB
-    (83 %), 3 % at 12 dB (9 %)); the bins of that peak's main lobe take its κ, their beams are
+    (83 %), 3 % at 12 dB (9 %)). Where κ = 0's best beam lies on the azimuth grid's first or last column the
+    echo may lie beyond the grid: κ = 0's peak is not seen there while a neighbouring κ steers the beam inside
+    and wins; such a fold needs :data:`FOLD_EDGE_COHERENCE` (97 %) (one echo in the span 4–6° beyond the ±60°
+    grid at 19–23 dB: wrong folds 8 of 80 with 90 %, 1 with 97 %; one beyond v_max at 55–58°: kept folded
+    in 4 of 80, none before); the bins of that peak's main lobe take its κ, their beams are
     recomputed, and their velocities are reported unfolded (elsewhere folded into [−v_max, v_max)). κ ≡ κ'
     mod N_tx cannot be told apart (one TX: no test).
 

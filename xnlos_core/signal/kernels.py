@@ -96,12 +96,12 @@ def beam_maps(spec_w, spec_u, comp_r, comp_i, wa, wb, ipos, ineg, wt_r, wt_i, ve
     comp_r, comp_i (d, k) float64: TDM compensation (real, imaginary); wa = [w_r | w_i], wb = [w_i | w_r]
     (k, 2H) float32: the weights of the H computed azimuths; ipos (H,), ineg (H,) int64: the map
     column of each computed azimuth and of its mirror (−1: none); wt_r, wt_i (A, k) float64: all
-    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (15,)
+    weights by azimuth, for the fold test and the velocity; velocity_axis (d,) [m/s]; consts (16,)
     float64 (:func:`xnlos_core.signal.doppler._doppler_plan`): 1/ENBW, tan(π/N)/(π/N), Δv [m/s],
     v_max [m/s], σ_cell [W], λ₀/(4π·T_s)·√(6/(N(N²−1))) [m/s], the fold test's and the refinement's
     SNR thresholds (peak-bin power over its noise floor), the window's relative sidelobe cut, its main
     lobe's half width [bins], the refinement's half span L [bins], n_tdm, Newton steps, the fold test's
-    least coherence and its least significance [σ]; slot (k,) int64:
+    least coherence, its least significance [σ] and its least coherence at the grid's edge; slot (k,) int64:
     each channel's TX slot i; kappas (F,) int64: fold hypotheses κ; hyps (d, F) int64: the indices into
     kappas tested per Doppler bin (−1: none), the first κ = 0.
     Written, each (r, A) float64: power Σ_d|b|²/ENBW [W], peak_power max_d|b|² [W], velocity [m/s],
@@ -351,7 +351,8 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
     bin's strongest bin, and whose best beam max_θ|b|² is above the fold threshold, each hypothesis κ
     of hyps[m] is beamformed over the whole azimuth grid; the highest beam times the hypothesis' prior
     wins (κ = 0 unless another is higher by more than 1e-5, relatively), a κ ≠ 0 only when one plane
-    wave explains the bin under it (:func:`_coherence` ≥ consts[13]) and its beam's gain over κ = 0's is
+    wave explains the bin under it (:func:`_coherence` ≥ consts[13], or ≥ consts[15] when κ = 0's best beam lies
+    on the azimuth grid's first or last column) and its beam's gain over κ = 0's is
     consts[14] standard deviations of the noise's part of that gain (:func:`_fold_gain_sigma`, Eq. F2)
     or more; it holds for the bins of that
     peak's main lobe (κ ± 1 across the spectrum's wrap). fold (d,) and known (d,) are written; returns
@@ -386,6 +387,7 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
         best_val = peak0 * priors[m, 0]
         if best_val < thr * priors[m, 0]:
             continue
+        edge = a0 == 0 or a0 == n_az - 1
         best_az = 0
         best_peak = 0.0
         for h in range(1, hyps.shape[1]):
@@ -400,7 +402,9 @@ def _resolve_folds(yr, yi, wt_r, wt_i, slot, kappas, hyps, priors, consts, rowsu
                 best = kappas[f]
                 best_az = a
                 best_peak = beam[a]
-        if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, best_az, best_peak, noise) < consts[13]:
+        # κ = 0's peak on the grid's edge: the echo may lie beyond it, where κ = 0's beam is not seen while a
+        # neighbouring κ steers it inside; there the fold needs the stricter coherence consts[15]
+        if best != 0 and _coherence(yr, yi, m, wt_r, wt_i, best_az, best_peak, noise) < consts[15 if edge else 13]:
             best = 0  # no single plane wave under κ: several echoes share the bin, the fold is not readable
         if best != 0 and best_peak - peak0 < consts[14] * _fold_gain_sigma(yr, yi, m, wt_r, wt_i, slot, best, n_tdm,
                                                                            a0, best_az, noise):
