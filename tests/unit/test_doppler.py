@@ -1,4 +1,6 @@
 """Doppler path: slow-time timing, chirp-sequence cube, range–Doppler maps, against closed forms."""
+import contextlib
+
 import numpy as np
 import pytest
 
@@ -275,20 +277,33 @@ def _weak_echo(seed, snr_db, radar=RADAR):
     return i, v, add_chirp_noise(chirp_sequence_cube(radar, [i * radar.range_resolution], [th], [amp], [v]), radar, rng)
 
 
-def _folds_wrongly(cases, z, monkeypatch, radar=RADAR):
-    """How many of ``cases`` [(range bin, v, cube)] read their peak a multiple of 2·v_max off, with FOLD_Z = z."""
-    vmax = radar.max_unambiguous_velocity
-    monkeypatch.setattr(doppler, "FOLD_Z", z)
+def _is_fold(e, vmax):
+    """Whether velocity errors ``e`` [m/s] are a wrong fold: a nonzero multiple of 2·v_max, within 1 m/s (a noise
+    peak is off by anything)."""
+    e = np.asarray(e)
+    return (np.abs(e) > vmax) & (np.abs(e - 2 * vmax * np.round(e / (2 * vmax))) < 1.0)
+
+
+@contextlib.contextmanager
+def _fold_constants(monkeypatch, **values):
+    """The Doppler plan built with the module constants ``values`` (FOLD_Z=…), rebuilt as it was afterwards."""
+    for name, value in values.items():
+        monkeypatch.setattr(doppler, name, value)
     doppler._doppler_plan.cache_clear()
     try:
-        n = 0
-        for i, v, cube in cases:
-            m = doppler_ra_maps(cube, radar)
-            e = m.velocity[i, int(np.argmax(m.peak_power[i]))] - v  # a noise peak is off by anything, a fold by 2·v_max
-            n += abs(e) > vmax and abs(e - 2 * vmax * np.round(e / (2 * vmax))) < 1.0
-        return n
+        yield
     finally:
         doppler._doppler_plan.cache_clear()
+
+
+def _folds_wrongly(cases, z, monkeypatch, radar=RADAR):
+    """How many of ``cases`` [(range bin, v, cube)] read their peak a multiple of 2·v_max off, with FOLD_Z = z."""
+    n = 0
+    with _fold_constants(monkeypatch, FOLD_Z=z):
+        for i, v, cube in cases:
+            m = doppler_ra_maps(cube, radar)
+            n += bool(_is_fold(m.velocity[i, int(np.argmax(m.peak_power[i]))] - v, radar.max_unambiguous_velocity))
+    return n
 
 
 def test_fold_test_leaves_weak_echoes_in_the_span(monkeypatch):
@@ -321,17 +336,11 @@ def test_fold_test_is_stricter_where_the_echo_may_lie_beyond_the_grid(monkeypatc
         amp = np.sqrt(10 * chirp_noise_power(radar) / processing_gain(radar)) * np.exp(2j * np.pi * rng.random())
         cube = add_chirp_noise(chirp_sequence_cube(radar, [i * radar.range_resolution], [th], [amp], [v]), radar, rng)
         m = doppler_ra_maps(cube, radar)
-        e = m.velocity[i - 1:i + 2] - v
-        return bool(np.any((np.abs(e) > vmax) & (np.abs(e - 2 * vmax * np.round(e / (2 * vmax))) < 1.0)
-                           & (m.peak_power[i - 1:i + 2] > 30 * m.peak_noise_floor)))
+        rows = slice(i - 1, i + 2)
+        return bool(np.any(_is_fold(m.velocity[rows] - v, vmax) & (m.peak_power[rows] > 30 * m.peak_noise_floor)))
 
     strict = doppler.FOLD_EDGE_COHERENCE
-    try:
-        monkeypatch.setattr(doppler, "FOLD_EDGE_COHERENCE", doppler.FOLD_COHERENCE)
-        doppler._doppler_plan.cache_clear()
+    with _fold_constants(monkeypatch, FOLD_EDGE_COHERENCE=doppler.FOLD_COHERENCE):
         assert all(folded(s) for s in (25, 27, 35))
-        monkeypatch.setattr(doppler, "FOLD_EDGE_COHERENCE", strict)
-        doppler._doppler_plan.cache_clear()
+    with _fold_constants(monkeypatch, FOLD_EDGE_COHERENCE=strict):
         assert not any(folded(s) for s in (25, 27, 35))
-    finally:
-        doppler._doppler_plan.cache_clear()
